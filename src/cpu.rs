@@ -1,0 +1,116 @@
+//! `CpuCollision`: the single-threaded reference backend, written to follow DESIGN §2 plainly.
+//! Every other backend is checked against it.
+
+use glam::Vec3;
+
+use crate::collision::Collision;
+use crate::detect::{CollisionDetector, VoxelDetector};
+use crate::eliminate::{CollisionEliminator, eliminator};
+use crate::error::{Body, Error};
+use crate::fixed_point::ForceAccumulator;
+use crate::grid::VoxelGrid;
+use crate::initializer::finite_bounds;
+use crate::params::{Anchor, ContactParams, Direction};
+use crate::report::ContactReport;
+
+/// The most vertices a body may have: indices are `u32`, with `u32::MAX` kept as the end of a
+/// voxel list.
+pub const MAX_VERTICES: usize = u32::MAX as usize - 1;
+
+/// The reference collision backend on the CPU.
+///
+/// ```
+/// use voxcollide::{glam::Vec3, *};
+/// let a = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)];
+/// let grid = Initializer::new(1.0).margin(1).build(&a)?;
+/// let params = ContactParams {
+///     magnitude: 1.0,
+///     search: Search::Neighbours { radius: 0.5 },
+///     direction: Direction::Pairwise,
+///     anchor: Anchor::Fixed,
+/// };
+/// let mut cpu = CpuCollision::new(grid, params)?;
+/// let report = cpu.step(&a, &[Vec3::new(2.0, 0.25, 0.0)])?;
+/// assert_eq!(report.colliding_b, vec![0]);
+/// assert_eq!(report.force_b[0], Vec3::Y); // pushed along the line of centres
+/// assert_eq!(report.force_a[1], -Vec3::Y);
+/// # Ok::<(), voxcollide::Error>(())
+/// ```
+pub struct CpuCollision {
+    grid: VoxelGrid,
+    params: ContactParams,
+    detector: VoxelDetector,
+    eliminator: Box<dyn CollisionEliminator + Send + Sync>,
+}
+
+impl CpuCollision {
+    /// A reference backend for the pair of bodies that `grid` was built for.
+    ///
+    /// # Errors
+    /// [`Error::Magnitude`] or [`Error::Radius`] when `params` are invalid for `grid`.
+    pub fn new(grid: VoxelGrid, params: ContactParams) -> Result<CpuCollision, Error> {
+        params.validate(&grid)?;
+        Ok(CpuCollision {
+            grid,
+            params,
+            detector: VoxelDetector::new(params.search, params.direction == Direction::PlaneNormal),
+            eliminator: eliminator(params.direction, params.magnitude),
+        })
+    }
+
+    /// The grid as built (under [`Anchor::FollowA`] each step recentres a copy of it).
+    #[must_use]
+    pub fn grid(&self) -> &VoxelGrid {
+        &self.grid
+    }
+
+    /// The contact parameters.
+    #[must_use]
+    pub fn params(&self) -> &ContactParams {
+        &self.params
+    }
+}
+
+/// Checks that a body is non-empty and indexable by `u32`.
+pub(crate) fn check_body(body: Body, points: &[Vec3]) -> Result<(), Error> {
+    if points.is_empty() {
+        return Err(Error::EmptyBody { body });
+    }
+    if points.len() > MAX_VERTICES {
+        return Err(Error::TooManyVertices { body, len: points.len(), max: MAX_VERTICES });
+    }
+    Ok(())
+}
+
+/// The grid of one step: `grid` itself under [`Anchor::Fixed`]; under [`Anchor::FollowA`],
+/// `grid` recentred on `0.5 * (lo + hi)` of A's finite vertices (unmoved when A has none, as
+/// then every A vertex is discarded anyway).
+///
+/// # Errors
+/// [`Error::NonFiniteCenter`] when `lo + hi` overflows `f32`.
+pub fn step_grid(grid: &VoxelGrid, anchor: Anchor, a: &[Vec3]) -> Result<VoxelGrid, Error> {
+    match (anchor, finite_bounds(a)) {
+        (Anchor::FollowA, Some((lo, hi))) => grid.with_center(0.5 * (lo + hi)),
+        _ => Ok(*grid),
+    }
+}
+
+impl Collision for CpuCollision {
+    fn step(&mut self, a: &[Vec3], b: &[Vec3]) -> Result<ContactReport, Error> {
+        check_body(Body::A, a)?;
+        check_body(Body::B, b)?;
+        let grid = step_grid(&self.grid, self.params.anchor, a)?;
+        let detection = self.detector.detect(&grid, a, b);
+        let mut forces = ForceAccumulator::new(a.len(), b.len(), self.params.magnitude);
+        self.eliminator.eliminate(grid.center(), a, b, &detection.contacts, &mut forces);
+        let (force_a, force_b) = forces.finish()?;
+        Ok(ContactReport {
+            force_a,
+            force_b,
+            colliding_b: detection.contacts.iter().map(|c| c.b).collect(),
+            binned_a: detection.binned_a,
+            discarded_a: detection.discarded_a,
+            grid_center: grid.center(),
+        })
+    }
+}

@@ -1,0 +1,147 @@
+//! The crate's one error type: a variant per cause, each message naming the value and the rule.
+
+use glam::{UVec3, Vec3};
+
+use crate::grid::{MAX_DIM, MAX_VOXEL_EXP, MIN_VOXEL_EXP};
+use crate::params::{MAX_MAGNITUDE, MIN_MAGNITUDE};
+
+/// Which of the pair of bodies an error is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Body {
+    /// The indexed body: its vertices go into the voxel lists.
+    A,
+    /// The probing body: its vertices are looked up in the voxel lists.
+    B,
+}
+
+impl std::fmt::Display for Body {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Body::A => "A",
+            Body::B => "B",
+        })
+    }
+}
+
+/// Everything that can go wrong in `voxcollide`. Bad input is always reported as one of these,
+/// never as a panic.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// The voxel size is not a finite, positive, exact power of two `2^k` with `-24 <= k <= 24`.
+    #[error(
+        "voxel size {value:e} is invalid: it must be a finite, positive, exact power of two 2^k \
+         with {MIN_VOXEL_EXP} <= k <= {MAX_VOXEL_EXP}"
+    )]
+    VoxelSize {
+        /// The rejected voxel size.
+        value: f32,
+    },
+
+    /// A grid dimension is zero or larger than [`MAX_DIM`](crate::grid::MAX_DIM).
+    #[error("grid dims {dims} are invalid: each must be between 1 and {MAX_DIM} (2^24)")]
+    Dims {
+        /// The rejected dims.
+        dims: UVec3,
+    },
+
+    /// The bounds handed to the [`Initializer`](crate::Initializer) need more voxels per axis
+    /// than a grid may have.
+    #[error(
+        "a bounding cube of side {side:e} with voxel size {voxel_size:e} and margin {margin} \
+         needs {needed} voxels per axis; at most {MAX_DIM} (2^24) are allowed"
+    )]
+    BoundsTooLarge {
+        /// The largest extent of body A over the three axes.
+        side: f32,
+        /// The voxel size asked for.
+        voxel_size: f32,
+        /// The margin asked for, in voxels on each side.
+        margin: u32,
+        /// The voxels per axis that this would need.
+        needed: u64,
+    },
+
+    /// The grid center is not finite (given so, or the mean of A's bounds overflowed `f32`).
+    #[error("grid center {center} is invalid: every component must be finite")]
+    NonFiniteCenter {
+        /// The rejected center.
+        center: Vec3,
+    },
+
+    /// A body has no vertex at all.
+    #[error("body {body} is empty: a body needs at least one vertex")]
+    EmptyBody {
+        /// The empty body.
+        body: Body,
+    },
+
+    /// A body has more vertices than can be indexed with `u32`.
+    #[error("body {body} has {len} vertices; at most {max} are allowed")]
+    TooManyVertices {
+        /// The body that is too large.
+        body: Body,
+        /// Its vertex count.
+        len: usize,
+        /// The largest count allowed.
+        max: usize,
+    },
+
+    /// The [`Initializer`](crate::Initializer) was given a body A none of whose vertices is
+    /// finite, so it has no bounds.
+    #[error(
+        "body A has {len} vertices and none is finite: the initializer needs at least one \
+         finite vertex to bound"
+    )]
+    NoFiniteVertex {
+        /// The number of (non-finite) vertices in A.
+        len: usize,
+    },
+
+    /// `Initializer::contact_half` was given a direction that is not finite or is zero.
+    #[error("contact-half direction {toward} is invalid: it must be finite and non-zero")]
+    Toward {
+        /// The rejected direction.
+        toward: Vec3,
+    },
+
+    /// The force magnitude is not finite or not within the supported range.
+    #[error(
+        "force magnitude {value:e} is invalid: it must be finite and within \
+         [{MIN_MAGNITUDE:e}, {MAX_MAGNITUDE:e}] (the fixed-point scale 65536 / magnitude must \
+         stay finite)"
+    )]
+    Magnitude {
+        /// The rejected magnitude.
+        value: f32,
+    },
+
+    /// The neighbour-search radius is not in `(0, voxel_size]`.
+    #[error(
+        "search radius {radius:e} is invalid: it must be finite with 0 < radius <= voxel size \
+         ({voxel_size:e})"
+    )]
+    Radius {
+        /// The rejected radius.
+        radius: f32,
+        /// The grid's voxel size, the largest radius allowed.
+        voxel_size: f32,
+    },
+
+    /// The fixed-point force total of an A vertex left the `i32` range (or its `f32` value is
+    /// not finite); a wrapped value is never returned.
+    #[error(
+        "force on A vertex {vertex} (axis {axis}) overflows: its fixed-point total {count} is \
+         outside the i32 range [{min}, {max}]",
+        min = i32::MIN,
+        max = i32::MAX
+    )]
+    ForceOverflow {
+        /// The A vertex whose force overflowed.
+        vertex: u32,
+        /// The axis, 0 = x, 1 = y, 2 = z.
+        axis: u32,
+        /// The exact total, in units of `magnitude / 65536`.
+        count: i64,
+    },
+}

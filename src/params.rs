@@ -1,0 +1,79 @@
+//! What a contact is and what force it makes: [`ContactParams`] and its three choices.
+
+use crate::error::Error;
+use crate::grid::VoxelGrid;
+
+/// Smallest accepted force magnitude: below it the fixed-point scale `65536 / magnitude` would
+/// leave `f32`.
+pub const MIN_MAGNITUDE: f32 = 1e-30;
+/// Largest accepted force magnitude: above it a fixed-point total converted back,
+/// `count * (magnitude / 65536)`, could leave `f32`.
+pub const MAX_MAGNITUDE: f32 = 1e30;
+
+/// When a B vertex collides, and which A vertices are its candidates (DESIGN §2, *Search*).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Search {
+    /// The paper's rule: `b` collides iff its voxel holds an A vertex; the candidates are the A
+    /// vertices of that voxel.
+    Voxel,
+    /// The candidates are the A vertices of the 3×3×3 block around `b`'s voxel (clipped to the
+    /// grid) with `d2 < radius * radius`; `b` collides iff there is one.
+    /// `0 < radius <= voxel_size`.
+    Neighbours {
+        /// The contact distance, at most one voxel.
+        radius: f32,
+    },
+}
+
+/// Which way the penalty force of a contact points (DESIGN §2, *Direction*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// Along the line of centres of `b` and its partner.
+    Pairwise,
+    /// Along the normal of the plane through the three nearest A vertices, oriented outward
+    /// from A; the force on A is split in three among them (the paper's inflating implant).
+    PlaneNormal,
+}
+
+/// Where the grid sits from step to step (DESIGN §2, *Anchor*).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Anchor {
+    /// The grid stays where it was built.
+    Fixed,
+    /// Each step the grid is recentred on the middle of A's bounds (dims unchanged).
+    FollowA,
+}
+
+/// Everything that decides what a contact is and what force it makes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactParams {
+    /// The force per contact, finite, in `[MIN_MAGNITUDE, MAX_MAGNITUDE]`.
+    pub magnitude: f32,
+    /// When a B vertex collides, and with which A vertices.
+    pub search: Search,
+    /// Which way the force points.
+    pub direction: Direction,
+    /// Whether the grid follows body A.
+    pub anchor: Anchor,
+}
+
+impl ContactParams {
+    /// Checks the params against `grid`.
+    ///
+    /// # Errors
+    /// [`Error::Magnitude`] unless the magnitude is finite and in
+    /// `[MIN_MAGNITUDE, MAX_MAGNITUDE]`; [`Error::Radius`] unless a neighbour radius is in
+    /// `(0, grid.voxel_size()]`.
+    pub fn validate(&self, grid: &VoxelGrid) -> Result<(), Error> {
+        let m = self.magnitude;
+        if !(m.is_finite() && (MIN_MAGNITUDE..=MAX_MAGNITUDE).contains(&m)) {
+            return Err(Error::Magnitude { value: m });
+        }
+        if let Search::Neighbours { radius } = self.search
+            && !(radius > 0.0 && radius <= grid.voxel_size())
+        {
+            return Err(Error::Radius { radius, voxel_size: grid.voxel_size() });
+        }
+        Ok(())
+    }
+}

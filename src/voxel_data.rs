@@ -1,0 +1,144 @@
+//! The paper's `VoxelData`: a sparse voxel hash whose slots hold the heads of per-voxel lists of
+//! body-A vertex indices, linked through a `next` array indexed by vertex.
+//!
+//! Memory is `O(|A|)` whatever the grid's dims: only voxels that hold a vertex exist, as list
+//! entries. Several voxels may share a slot (aliasing); a walk resolves it exactly by keeping only
+//! the vertices whose own voxel is the one asked for.
+
+use glam::{UVec3, Vec3};
+
+use crate::grid::VoxelGrid;
+
+/// Marks the end of a list, and a discarded vertex.
+pub const EMPTY: u32 = u32::MAX;
+
+/// The slot-independent hash of a voxel. Which slot a voxel lands in only affects speed, never a
+/// result: walks check every vertex's own voxel.
+#[must_use]
+pub fn voxel_hash(v: UVec3) -> u32 {
+    // Large odd multipliers (golden ratio and two from murmur3's finaliser) spread the three
+    // axes across the word; the final xor-shift folds the high bits into the masked low ones.
+    let h = v.x.wrapping_mul(0x9e37_79b1) ^ v.y.wrapping_mul(0x85eb_ca77) ^ v.z.wrapping_mul(0xc2b2_ae3d);
+    h ^ (h >> 16)
+}
+
+/// Per-voxel lists of body-A vertices in a sparse hash, rebuilt by [`bin`](Self::bin) every step.
+#[derive(Clone, Debug, Default)]
+pub struct VoxelData {
+    /// Per slot: the most recently binned vertex of a voxel hashed there, or [`EMPTY`].
+    head: Vec<u32>,
+    /// Per A vertex: the next vertex of the same slot, or [`EMPTY`].
+    next: Vec<u32>,
+    /// Per A vertex: its own voxel, valid where `inside[i]`.
+    voxel: Vec<UVec3>,
+    inside: Vec<bool>,
+    binned: u32,
+}
+
+impl VoxelData {
+    /// Empty voxel data; buffers grow on the first [`bin`](Self::bin) and are reused after.
+    #[must_use]
+    pub fn new() -> VoxelData {
+        VoxelData::default()
+    }
+
+    /// Rebuilds the lists for the vertices of `a` in `grid`: each vertex whose voxel is inside
+    /// the grid is pushed onto its voxel's list (`next[i] = head[slot]; head[slot] = i`, the
+    /// sequential form of the GPU's `atomicExchange`); the others are discarded.
+    /// Returns the number binned.
+    pub fn bin(&mut self, grid: &VoxelGrid, a: &[Vec3]) -> u32 {
+        let slots = a.len().max(1).next_power_of_two();
+        self.head.clear();
+        self.head.resize(slots, EMPTY);
+        self.next.clear();
+        self.next.resize(a.len(), EMPTY);
+        self.voxel.clear();
+        self.voxel.resize(a.len(), UVec3::ZERO);
+        self.inside.clear();
+        self.inside.resize(a.len(), false);
+        self.binned = 0;
+        for (i, &p) in a.iter().enumerate() {
+            let Some(v) = grid.voxel_of(p) else { continue };
+            let slot = self.slot(v);
+            self.voxel[i] = v;
+            self.inside[i] = true;
+            self.next[i] = self.head[slot];
+            self.head[slot] = i as u32;
+            self.binned += 1;
+        }
+        self.binned
+    }
+
+    /// How many A vertices the last [`bin`](Self::bin) put into lists.
+    #[must_use]
+    pub fn binned(&self) -> u32 {
+        self.binned
+    }
+
+    /// The number of hash slots: the smallest power of two `>= |A|`, so memory follows the
+    /// vertex count and never the grid's dims.
+    #[must_use]
+    pub fn slot_count(&self) -> usize {
+        self.head.len()
+    }
+
+    /// The voxel of A vertex `i` if it was binned.
+    #[must_use]
+    pub fn voxel_of_vertex(&self, i: u32) -> Option<UVec3> {
+        let i = i as usize;
+        self.inside.get(i).copied().unwrap_or(false).then(|| self.voxel[i])
+    }
+
+    /// The A vertices binned in voxel `v`, in list order (most recently binned first).
+    pub fn vertices_in(&self, v: UVec3) -> impl Iterator<Item = u32> + '_ {
+        let start = if self.head.is_empty() { EMPTY } else { self.head[self.slot(v)] };
+        std::iter::successors((start != EMPTY).then_some(start), |&i| {
+            let n = self.next[i as usize];
+            (n != EMPTY).then_some(n)
+        })
+        .filter(move |&i| self.voxel[i as usize] == v)
+    }
+
+    fn slot(&self, v: UVec3) -> usize {
+        (voxel_hash(v) as usize) & (self.head.len() - 1)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn aliased_voxels_are_told_apart() {
+        // One slot for two vertices in two different voxels: both lists share the slot, and a
+        // walk must return only the vertex of the voxel asked for.
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(8)).unwrap();
+        let a = [Vec3::new(-3.5, -3.5, -3.5)];
+        let mut data = VoxelData::new();
+        data.bin(&grid, &a);
+        assert_eq!(data.slot_count(), 1);
+        assert_eq!(data.vertices_in(UVec3::ZERO).collect::<Vec<_>>(), vec![0]);
+        assert_eq!(data.vertices_in(UVec3::new(1, 0, 0)).count(), 0);
+
+        let a = [Vec3::new(-3.5, -3.5, -3.5), Vec3::new(3.5, 3.5, 3.5), Vec3::new(-3.4, -3.4, -3.4)];
+        data.bin(&grid, &a);
+        assert_eq!(data.slot_count(), 4);
+        let mut in0: Vec<u32> = data.vertices_in(UVec3::ZERO).collect();
+        in0.sort_unstable();
+        assert_eq!(in0, vec![0, 2]);
+        assert_eq!(data.vertices_in(UVec3::splat(7)).collect::<Vec<_>>(), vec![1]);
+    }
+
+    #[test]
+    fn memory_follows_vertices_not_dims() {
+        let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(1 << 24)).unwrap();
+        let a: Vec<Vec3> = (0..100).map(|i| Vec3::splat(i as f32 * 1000.0)).collect();
+        let mut data = VoxelData::new();
+        assert_eq!(data.bin(&grid, &a), 100);
+        assert_eq!(data.slot_count(), 128);
+        for (i, &p) in a.iter().enumerate() {
+            let v = grid.voxel_of(p).unwrap();
+            assert!(data.vertices_in(v).any(|j| j == i as u32));
+        }
+    }
+}
