@@ -30,7 +30,7 @@ impl std::fmt::Display for Body {
 pub enum Error {
     /// The voxel size is not a finite, positive, exact power of two `2^k` with `-24 <= k <= 24`.
     #[error(
-        "voxel size {value:e} is invalid: it must be a finite, positive, exact power of two 2^k \
+        "voxel size {value:?} is invalid: it must be a finite, positive, exact power of two 2^k \
          with {MIN_VOXEL_EXP} <= k <= {MAX_VOXEL_EXP}"
     )]
     VoxelSize {
@@ -48,7 +48,7 @@ pub enum Error {
     /// The bounds handed to the [`Initializer`](crate::Initializer) need more voxels per axis
     /// than a grid may have.
     #[error(
-        "a bounding cube of side {side:e} with voxel size {voxel_size:e} and margin {margin} \
+        "a bounding cube of side {side:?} with voxel size {voxel_size:?} and margin {margin} \
          needs {needed} voxels per axis; at most {MAX_DIM} (2^24) are allowed"
     )]
     BoundsTooLarge {
@@ -107,8 +107,8 @@ pub enum Error {
 
     /// The force magnitude is not finite or not within the supported range.
     #[error(
-        "force magnitude {value:e} is invalid: it must be finite and within \
-         [{MIN_MAGNITUDE:e}, {MAX_MAGNITUDE:e}] (the fixed-point scale 65536 / magnitude must \
+        "force magnitude {value:?} is invalid: it must be finite and within \
+         [{MIN_MAGNITUDE:?}, {MAX_MAGNITUDE:?}] (the fixed-point scale 65536 / magnitude must \
          stay finite)"
     )]
     Magnitude {
@@ -118,8 +118,8 @@ pub enum Error {
 
     /// The neighbour-search radius is not in `(0, voxel_size]`.
     #[error(
-        "search radius {radius:e} is invalid: it must be finite with 0 < radius <= voxel size \
-         ({voxel_size:e})"
+        "search radius {radius:?} is invalid: it must be finite with 0 < radius <= voxel size \
+         ({voxel_size:?})"
     )]
     Radius {
         /// The rejected radius.
