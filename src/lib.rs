@@ -18,6 +18,7 @@ pub mod fixed_point;
 pub mod math;
 pub mod params;
 pub mod report;
+pub mod workload; //     the benchmark workloads of DESIGN §7
 
 pub use collision::Collision;
 pub use cpu::CpuCollision;
