@@ -31,7 +31,9 @@ fn voxel_of_floors_negative_coordinates() {
 #[test]
 fn voxel_of_rejects_non_finite_points() {
     let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(4)).unwrap();
-    for p in [Vec3::new(f32::NAN, 0.0, 0.0), Vec3::new(0.0, f32::INFINITY, 0.0), Vec3::splat(f32::NEG_INFINITY)] {
+    for p in
+        [Vec3::new(f32::NAN, 0.0, 0.0), Vec3::new(0.0, f32::INFINITY, 0.0), Vec3::splat(f32::NEG_INFINITY)]
+    {
         assert_eq!(grid.voxel_of(p), None, "{p}");
     }
 }
@@ -49,7 +51,10 @@ fn grid_allows_two_to_the_twenty_four_voxels_per_axis() {
 fn bad_voxel_sizes_are_typed_errors() {
     for value in [0.0, -0.0, -1.0, 0.3, 3.0, f32::NAN, f32::INFINITY, 2f32.powi(25), 2f32.powi(-25), 1e-40] {
         let err = VoxelGrid::new(Vec3::ZERO, value, UVec3::ONE).unwrap_err();
-        assert!(matches!(err, Error::VoxelSize { value: v } if v.to_bits() == value.to_bits()), "{value}: {err:?}");
+        assert!(
+            matches!(err, Error::VoxelSize { value: v } if v.to_bits() == value.to_bits()),
+            "{value}: {err:?}"
+        );
         let msg = err.to_string();
         assert!(msg.contains("power of two") && msg.contains("-24 <= k <= 24"), "{msg}");
         let err = Initializer::new(value).build(&[Vec3::ZERO]).unwrap_err();
@@ -57,12 +62,19 @@ fn bad_voxel_sizes_are_typed_errors() {
     }
     assert!(VoxelGrid::new(Vec3::ZERO, 2f32.powi(-24), UVec3::ONE).is_ok());
     assert!(VoxelGrid::new(Vec3::ZERO, 2f32.powi(24), UVec3::ONE).is_ok());
-    assert!(VoxelGrid::new(Vec3::ZERO, 0.75, UVec3::ONE).unwrap_err().to_string().contains("voxel size 0.75 is invalid"));
+    assert!(
+        VoxelGrid::new(Vec3::ZERO, 0.75, UVec3::ONE)
+            .unwrap_err()
+            .to_string()
+            .contains("voxel size 0.75 is invalid")
+    );
 }
 
 #[test]
 fn bad_dims_are_typed_errors() {
-    for dims in [UVec3::new(0, 1, 1), UVec3::new(1, 0, 1), UVec3::new(1, 1, 0), UVec3::new(1, (1 << 24) + 1, 1)] {
+    for dims in
+        [UVec3::new(0, 1, 1), UVec3::new(1, 0, 1), UVec3::new(1, 1, 0), UVec3::new(1, (1 << 24) + 1, 1)]
+    {
         let err = VoxelGrid::new(Vec3::ZERO, 1.0, dims).unwrap_err();
         assert_eq!(err, Error::Dims { dims });
         assert!(err.to_string().contains("16777216"), "{err}");

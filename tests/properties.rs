@@ -52,7 +52,10 @@ fn forces_obey_newtons_third_law() {
             let shares = 3.0 * r.colliding_b.len() as f32;
             let tolerance = shares * 0.5 * magnitude / 65536.0 * 1.01 + 1e-6 * magnitude;
             let net = r.net_force();
-            assert!(net.abs().max_element() <= tolerance, "seed {seed} {params:?}: net force {net} > {tolerance}");
+            assert!(
+                net.abs().max_element() <= tolerance,
+                "seed {seed} {params:?}: net force {net} > {tolerance}"
+            );
             // And the law is not satisfied vacuously: B is pushed.
             let pushed_b: f32 = r.force_b.iter().map(|f| f.length()).sum();
             assert!(r.colliding_b.is_empty() || pushed_b > 0.5 * magnitude, "seed {seed} {params:?}");

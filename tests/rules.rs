@@ -19,8 +19,12 @@ fn step(grid: VoxelGrid, params: ContactParams, a: &[Vec3], b: &[Vec3]) -> Conta
     CpuCollision::new(grid, params).unwrap().step(a, b).unwrap()
 }
 
-const VOXEL_PAIRWISE: ContactParams =
-    ContactParams { magnitude: 1.0, search: Search::Voxel, direction: Direction::Pairwise, anchor: Anchor::Fixed };
+const VOXEL_PAIRWISE: ContactParams = ContactParams {
+    magnitude: 1.0,
+    search: Search::Voxel,
+    direction: Direction::Pairwise,
+    anchor: Anchor::Fixed,
+};
 
 #[test]
 fn discarding_counts_outside_and_non_finite_a_vertices() {
@@ -47,7 +51,8 @@ fn b_outside_the_grid_never_collides_even_within_the_radius() {
     let grid = VoxelGrid::new(Vec3::ONE, 1.0, UVec3::splat(2)).unwrap();
     let a = [Vec3::new(1.75, 0.5, 0.5)];
     let b = [Vec3::new(2.0, 0.5, 0.5), Vec3::new(f32::NAN, 0.5, 0.5), Vec3::new(1.5, 0.5, 0.5)];
-    let r = step(grid, params(Search::Neighbours { radius: 0.9 }, Direction::Pairwise, Anchor::Fixed), &a, &b);
+    let r =
+        step(grid, params(Search::Neighbours { radius: 0.9 }, Direction::Pairwise, Anchor::Fixed), &a, &b);
     assert_eq!(r.colliding_b, vec![2]);
     assert_eq!(r.force_b[0], Vec3::ZERO);
     assert_eq!(r.force_b[1], Vec3::ZERO);
@@ -82,7 +87,12 @@ fn neighbour_search_uses_the_block_and_a_strict_radius() {
     // b1 = (2.125, 0.5, 0.5): a1 at d2 = 0.25 exactly: no candidate, no contact.
     let a = [Vec3::new(0.875, 0.5, 0.5), Vec3::new(1.625, 0.5, 0.5)];
     let b = [Vec3::new(1.125, 0.5, 0.5), Vec3::new(2.125, 0.5, 0.5)];
-    let r = step(unit_grid(), params(Search::Neighbours { radius: 0.5 }, Direction::Pairwise, Anchor::Fixed), &a, &b);
+    let r = step(
+        unit_grid(),
+        params(Search::Neighbours { radius: 0.5 }, Direction::Pairwise, Anchor::Fixed),
+        &a,
+        &b,
+    );
     assert_eq!(r.colliding_b, vec![0]);
     assert_eq!(r.force_b, vec![Vec3::X, Vec3::ZERO]);
     assert_eq!(r.force_a, vec![Vec3::NEG_X, Vec3::ZERO]);
@@ -212,7 +222,12 @@ fn forces_on_a_are_summed_in_fixed_point() {
     // -1.20001220703125 (an f32 sum would give -1.2000000476837158); z: -52429 + 52429 = 0.
     let a = [Vec3::ONE];
     let b = [Vec3::new(1.375, 1.0, 1.5), Vec3::new(1.375, 1.0, 0.5)];
-    let r = step(unit_grid(), params(Search::Neighbours { radius: 1.0 }, Direction::Pairwise, Anchor::Fixed), &a, &b);
+    let r = step(
+        unit_grid(),
+        params(Search::Neighbours { radius: 1.0 }, Direction::Pairwise, Anchor::Fixed),
+        &a,
+        &b,
+    );
     assert_eq!(r.force_b, vec![Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.6, 0.0, -0.8)]);
     assert_eq!(r.force_a[0], Vec3::new(-1.200_012_207_031_25, 0.0, 0.0));
 }
@@ -254,7 +269,8 @@ fn follow_a_recentres_the_grid_each_step() {
     // A moved by +10 in x (plus two non-finite vertices, ignored by the bounds and discarded):
     // the FollowA center is 0.5 * (10 + 12) = 11; origin = 11 - 0.5 * 4 = 9 in x, -2 in y, z.
     // b = (12.25, 0, 0): voxel (3, 2, 2), the same as a1 = (12, 0, 0): f_b = +x.
-    let a = [Vec3::new(10.0, 0.0, 0.0), Vec3::new(12.0, 0.0, 0.0), Vec3::NAN, Vec3::new(0.0, f32::INFINITY, 0.0)];
+    let a =
+        [Vec3::new(10.0, 0.0, 0.0), Vec3::new(12.0, 0.0, 0.0), Vec3::NAN, Vec3::new(0.0, f32::INFINITY, 0.0)];
     let b = [Vec3::new(12.25, 0.0, 0.0)];
     let follow = step(grid, params(Search::Voxel, Direction::Pairwise, Anchor::FollowA), &a, &b);
     assert_eq!(follow.grid_center, Vec3::new(11.0, 0.0, 0.0));
@@ -294,7 +310,10 @@ fn bad_magnitudes_are_typed_errors() {
     for magnitude in [0.0, -0.0, -1.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY, 1e-31, 1e31, 1e-40] {
         let p = ContactParams { magnitude, ..VOXEL_PAIRWISE };
         let err = CpuCollision::new(unit_grid(), p).err().unwrap();
-        assert!(matches!(err, Error::Magnitude { value } if value.to_bits() == magnitude.to_bits()), "{err:?}");
+        assert!(
+            matches!(err, Error::Magnitude { value } if value.to_bits() == magnitude.to_bits()),
+            "{err:?}"
+        );
         assert!(err.to_string().contains(&format!("magnitude {magnitude:?} is invalid")), "{err}");
     }
     for magnitude in [1e-30, 1e30, 1.0, 3.7] {
@@ -342,7 +361,9 @@ fn lonely_voxel_in_a_huge_sparse_grid() {
 fn steps_are_deterministic_and_reuse_state_safely() {
     let a = right_angle(1.0);
     let b = [Vec3::new(1.5, 1.5, 1.25), Vec3::new(2.4, 1.6, 1.1)];
-    let mut cpu = CpuCollision::new(unit_grid(), params(Search::Voxel, Direction::PlaneNormal, Anchor::FollowA)).unwrap();
+    let mut cpu =
+        CpuCollision::new(unit_grid(), params(Search::Voxel, Direction::PlaneNormal, Anchor::FollowA))
+            .unwrap();
     let first = cpu.step(&a, &b).unwrap();
     let _other = cpu.step(&[Vec3::ONE; 5], &[Vec3::ONE]).unwrap();
     assert_eq!(cpu.step(&a, &b).unwrap(), first);
