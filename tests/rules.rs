@@ -75,7 +75,7 @@ fn voxel_search_collides_within_the_voxel_only() {
     assert_eq!(r.force_b[1], Vec3::ZERO);
     // Fixed point, m = 1: x: round(-0.6f32 * 65536) = round(-39321.6) = -39322 -> -39322/65536;
     // z: round(-0.8f32 * 65536) = round(-52428.8) = -52429 -> -52429/65536.
-    assert_eq!(r.force_a[0], Vec3::new(-0.600_006_103_515_625, 0.0, -0.800_003_051_757_812_5));
+    assert_eq!(r.force_a[0], Vec3::new(-39322.0 / 65536.0, 0.0, -52429.0 / 65536.0));
 }
 
 #[test]
@@ -171,13 +171,13 @@ fn plane_normal_points_outward_from_the_grid_center() {
     let a = right_angle(1.0);
     let r = step(unit_grid(), plane, &a, &[Vec3::new(1.5, 1.5, 1.25)]);
     assert_eq!(r.force_b[0], Vec3::NEG_Z);
-    assert_eq!(r.force_a, vec![Vec3::new(0.0, 0.0, 0.333_328_247_070_312_5); 3]);
+    assert_eq!(r.force_a, vec![Vec3::new(0.0, 0.0, 21845.0 / 65536.0); 3]);
 
     // Plane z = 2.5, above the center: centroid - center has z = +0.5, n stays +z.
     let a = right_angle(2.5);
     let r = step(unit_grid(), plane, &a, &[Vec3::new(1.5, 1.5, 2.75)]);
     assert_eq!(r.force_b[0], Vec3::Z);
-    assert_eq!(r.force_a, vec![Vec3::new(0.0, 0.0, -0.333_328_247_070_312_5); 3]);
+    assert_eq!(r.force_a, vec![Vec3::new(0.0, 0.0, -21845.0 / 65536.0); 3]);
 }
 
 #[test]
@@ -207,7 +207,7 @@ fn plane_candidates_under_neighbours_are_the_search_candidates() {
     let b = [Vec3::new(1.5, 1.5, 1.25)];
     let r = step(unit_grid(), params(Search::Voxel, Direction::PlaneNormal, Anchor::Fixed), &a, &b);
     assert_eq!(r.force_b[0], Vec3::NEG_Z);
-    assert_eq!(r.force_a[1], Vec3::new(0.0, 0.0, 0.333_328_247_070_312_5));
+    assert_eq!(r.force_a[1], Vec3::new(0.0, 0.0, 21845.0 / 65536.0));
     let near = Search::Neighbours { radius: 0.5 };
     let r = step(unit_grid(), params(near, Direction::PlaneNormal, Anchor::Fixed), &a, &b);
     assert_eq!(r.force_b[0], Vec3::Z);
@@ -229,7 +229,7 @@ fn forces_on_a_are_summed_in_fixed_point() {
         &b,
     );
     assert_eq!(r.force_b, vec![Vec3::new(0.6, 0.0, 0.8), Vec3::new(0.6, 0.0, -0.8)]);
-    assert_eq!(r.force_a[0], Vec3::new(-1.200_012_207_031_25, 0.0, 0.0));
+    assert_eq!(r.force_a[0], Vec3::new(-78644.0 / 65536.0, 0.0, 0.0));
 }
 
 #[test]
