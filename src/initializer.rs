@@ -39,6 +39,9 @@ impl Initializer {
     /// Keeps only the half of the cube that faces the direction `toward`, along that
     /// direction's dominant axis (ties: x before y before z). The half starts at the cube's
     /// center. `toward` is a direction (for instance B's centroid minus A's), not a point.
+    ///
+    /// The half-box is placed for this A; [`Anchor::FollowA`](crate::Anchor::FollowA) recentres
+    /// the grid on A's middle and so undoes the offset.
     pub fn contact_half(self, toward: Vec3) -> Initializer {
         Initializer { toward: Some(toward), ..self }
     }

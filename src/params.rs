@@ -40,7 +40,14 @@ pub enum Direction {
 pub enum Anchor {
     /// The grid stays where it was built.
     Fixed,
-    /// Each step the grid is recentred on the middle of A's bounds (dims unchanged).
+    /// Each step the grid is recentred on the middle of A's bounds, `0.5 * (lo + hi)` over A's
+    /// finite vertices (dims and voxel size unchanged; with no finite vertex it stays where it
+    /// was built).
+    ///
+    /// The new center is A's own, so a grid built with
+    /// [`Initializer::contact_half`](crate::Initializer::contact_half) loses its offset toward
+    /// B: it becomes a half-size box around A's middle. Use `Fixed` with a contact half, or
+    /// rebuild the grid when A moves.
     FollowA,
 }
 
