@@ -38,7 +38,7 @@ pub enum Error {
         value: f32,
     },
 
-    /// A grid dimension is zero or larger than [`MAX_DIM`](crate::grid::MAX_DIM).
+    /// A grid dimension is zero or larger than [`MAX_DIM`].
     #[error("grid dims {dims} are invalid: each must be between 1 and {MAX_DIM} (2^24)")]
     Dims {
         /// The rejected dims.
