@@ -144,4 +144,63 @@ pub enum Error {
         /// The exact total, in units of `magnitude / 65536`.
         count: i64,
     },
+
+    /// No usable GPU adapter was found, or its device could not be opened.
+    #[error("no GPU adapter: {message}")]
+    NoAdapter {
+        /// What was searched and what was found.
+        message: String,
+    },
+
+    /// The device reported an error (validation, out of memory, internal) or failed a readback.
+    #[error("GPU error: {message}")]
+    Gpu {
+        /// The device's message.
+        message: String,
+    },
+
+    /// The device was lost (a driver reset, a removed GPU, or `Device::destroy`).
+    #[error("GPU device lost: {message}")]
+    DeviceLost {
+        /// What was being done when the loss showed.
+        message: String,
+    },
+
+    /// A body has more vertices than one storage binding of the device can hold.
+    #[error(
+        "body {body} has {len} vertices; this device allows at most {max} \
+         ({limit} = {bytes} bytes of vec4<f32> positions)"
+    )]
+    DeviceLimit {
+        /// The body that is too large.
+        body: Body,
+        /// Its vertex count.
+        len: usize,
+        /// The most vertices the device allows.
+        max: usize,
+        /// The device limit that sets `max`.
+        limit: &'static str,
+        /// `max` in bytes.
+        bytes: u64,
+    },
+
+    /// An app's position buffer is smaller than the vertex count it was given with.
+    #[error("position buffer of body {body} has {size} bytes; {len} vertices need {needed} (16 per vec4<f32>)")]
+    BufferTooSmall {
+        /// Whose buffer.
+        body: Body,
+        /// The vertex count given.
+        len: u32,
+        /// The buffer's size in bytes.
+        size: u64,
+        /// The bytes the count needs.
+        needed: u64,
+    },
+
+    /// An app's position buffer lacks `BufferUsages::STORAGE`, so it cannot be bound.
+    #[error("position buffer of body {body} lacks BufferUsages::STORAGE and cannot be bound to the passes")]
+    BufferUsage {
+        /// Whose buffer.
+        body: Body,
+    },
 }

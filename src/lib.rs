@@ -8,6 +8,7 @@ pub mod collision; //    `Collision`: the facade trait every backend implements
 pub mod cpu; //          `CpuCollision`: the reference backend
 pub mod detect; //       `CollisionDetector`: binning and search
 pub mod eliminate; //    `CollisionEliminator`: contacts into penalty forces
+pub mod gpu; //          `GpuCollision`, `GpuContext`: the wgpu backend
 pub mod grid; //         the voxel grid and voxel indexing
 pub mod initializer; //  `Initializer`: the grid around body A
 pub mod voxel_data; //   `VoxelData`: the sparse voxel hash of per-voxel vertex lists
@@ -23,6 +24,7 @@ pub mod workload; //     the benchmark workloads of DESIGN §7
 pub use collision::Collision;
 pub use cpu::CpuCollision;
 pub use error::{Body, Error};
+pub use gpu::{GpuCollision, GpuContext};
 pub use grid::VoxelGrid;
 pub use initializer::Initializer;
 pub use params::{Anchor, ContactParams, Direction, Search};

@@ -1,0 +1,193 @@
+// Pass 3: each B vertex finds its voxel (or the 3×3×3 block), walks the lists, picks its
+// partner(s) by (d2, index), writes its own force (w = 1 when it collides) and adds the
+// fixed-point shares of the opposite force to A's 64-bit accumulators. CPU twins:
+// VoxelDetector::detect and the eliminators.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> state: State;
+@group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> pos_b: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> head: array<u32>;
+@group(0) @binding(5) var<storage, read> next: array<u32>;
+@group(0) @binding(6) var<storage, read_write> fixed_lo: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> fixed_hi: array<atomic<i32>>;
+@group(0) @binding(8) var<storage, read_write> force_b: array<vec4<f32>>;
+
+var<workgroup> wg_colliding: atomic<u32>;
+
+// The nearest candidates so far, in (d2, index) order; only the first `n` are valid.
+struct Nearest {
+    d: vec3<f32>,
+    i: vec3<u32>,
+    n: u32,
+}
+
+fn before(da: f32, ia: u32, db: f32, ib: u32) -> bool {
+    return da < db || (da == db && ia < ib);
+}
+
+fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
+    var k = 0u;
+    for (var j = 0u; j < (*t).n; j++) {
+        if before((*t).d[j], (*t).i[j], d, i) {
+            k++;
+        }
+    }
+    if k >= 3u {
+        return;
+    }
+    var j = min((*t).n, 2u);
+    while j > k {
+        (*t).d[j] = (*t).d[j - 1u];
+        (*t).i[j] = (*t).i[j - 1u];
+        j--;
+    }
+    (*t).d[k] = d;
+    (*t).i[k] = i;
+    (*t).n = min((*t).n + 1u, 3u);
+}
+
+// Adds count `c` to the 64-bit accumulator `k` (lo: u32 atomic, hi: i32 atomic). The sum is exact
+// and independent of order: the carries out of `lo` add up to the same total whatever the order.
+fn add_fixed(k: u32, c: i32) {
+    if c == 0 {
+        return;
+    }
+    let u = bitcast<u32>(c);
+    let old = atomicAdd(&fixed_lo[k], u);
+    let carry = select(0, 1, old + u < old);
+    let delta = carry + select(0, -1, c < 0);
+    if delta != 0 {
+        atomicAdd(&fixed_hi[k], delta);
+    }
+}
+
+fn add_force_a(i: u32, f: vec3<f32>) {
+    add_fixed(3u * i, i32(round(f.x * params.scale)));
+    add_fixed(3u * i + 1u, i32(round(f.y * params.scale)));
+    add_fixed(3u * i + 2u, i32(round(f.z * params.scale)));
+}
+
+// (b - a) / sqrt(d2), or for coincident vertices the unit vector from the center, or +z.
+fn pairwise_direction(center: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
+    let d2 = dist2(b, a);
+    if d2 >= DEGENERATE {
+        return (b - a) / sqrt(d2);
+    }
+    let e2 = dist2(b, center);
+    if e2 >= DEGENERATE {
+        return (b - center) / sqrt(e2);
+    }
+    return vec3<f32>(0.0, 0.0, 1.0);
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let j = item_index(gid, nwg);
+    var hit = false;
+    if j < params.n_b {
+        hit = probe(j);
+    }
+    if hit {
+        atomicAdd(&wg_colliding, 1u);
+    }
+    workgroupBarrier();
+    if lid == 0u {
+        let n = atomicLoad(&wg_colliding);
+        if n != 0u {
+            atomicAdd(&state.colliding, n);
+        }
+    }
+}
+
+fn probe(j: u32) -> bool {
+    let p = pos_b[j].xyz;
+    let origin = state.origin.xyz;
+    let center = state.center.xyz;
+    let vb = voxel_of(p, origin);
+    if vb.w == 0u {
+        force_b[j] = vec4<f32>(0.0);
+        return false;
+    }
+    let voxel_only = params.search == SEARCH_VOXEL;
+    let plane = params.direction == DIRECTION_PLANE_NORMAL;
+    // Voxel search: partner candidates in b's voxel (`own`), plane candidates in the block.
+    // Neighbours: one candidate set, the block within the radius, for both.
+    var own = Nearest();
+    var block = Nearest();
+    var lo = vb.xyz;
+    var hi = vb.xyz;
+    if !voxel_only || plane {
+        lo = max(vb.xyz, vec3<u32>(1u)) - vec3<u32>(1u);
+        hi = min(vb.xyz + vec3<u32>(1u), params.dims.xyz - vec3<u32>(1u));
+    }
+    for (var z = lo.z; z <= hi.z; z++) {
+        for (var y = lo.y; y <= hi.y; y++) {
+            for (var x = lo.x; x <= hi.x; x++) {
+                let v = vec3<u32>(x, y, z);
+                let is_own = all(v == vb.xyz);
+                var e = head[voxel_hash(v) & params.slot_mask];
+                while e != LIST_END {
+                    let i = e - 1u;
+                    e = next[i];
+                    let a = pos_a[i].xyz;
+                    // Aliasing: only vertices whose own voxel is v belong to v.
+                    let va = voxel_of(a, origin);
+                    if va.w == 0u || any(va.xyz != v) {
+                        continue;
+                    }
+                    let d2 = dist2(p, a);
+                    if voxel_only {
+                        if is_own {
+                            insert(&own, d2, i);
+                        }
+                        insert(&block, d2, i);
+                    } else if d2 < params.r2 {
+                        insert(&block, d2, i);
+                    }
+                }
+            }
+        }
+    }
+    var partner: Nearest;
+    if voxel_only {
+        partner = own;
+    } else {
+        partner = block;
+    }
+    if partner.n == 0u {
+        force_b[j] = vec4<f32>(0.0);
+        return false;
+    }
+    let m = params.magnitude;
+    if plane && block.n == 3u {
+        let a0 = pos_a[block.i[0]].xyz;
+        let a1 = pos_a[block.i[1]].xyz;
+        let a2 = pos_a[block.i[2]].xyz;
+        let c = cross3(a1 - a0, a2 - a0);
+        let len = sqrt(dot3(c, c));
+        if len >= DEGENERATE {
+            var n = c / len;
+            let centroid = (a0 + a1 + a2) / 3.0;
+            if dot3(n, centroid - center) < 0.0 {
+                n = -n;
+            }
+            let f_b = m * n;
+            force_b[j] = vec4<f32>(f_b, 1.0);
+            let share = -f_b / 3.0;
+            add_force_a(block.i[0], share);
+            add_force_a(block.i[1], share);
+            add_force_a(block.i[2], share);
+            return true;
+        }
+    }
+    let ia = partner.i[0];
+    let f_b = m * pairwise_direction(center, pos_a[ia].xyz, p);
+    force_b[j] = vec4<f32>(f_b, 1.0);
+    add_force_a(ia, -f_b);
+    return true;
+}

@@ -1,0 +1,29 @@
+// Pass 4: A's fixed-point totals back to f32 forces, f32(count) * unit. A total outside i32
+// leaves 0 and records the first such (vertex, axis) for Error::ForceOverflow.
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> state: State;
+@group(0) @binding(2) var<storage, read> fixed_lo: array<u32>;
+@group(0) @binding(3) var<storage, read> fixed_hi: array<i32>;
+@group(0) @binding(4) var<storage, read_write> force_a: array<vec4<f32>>;
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = item_index(gid, nwg);
+    if i >= params.n_a {
+        return;
+    }
+    var f = vec3<f32>(0.0);
+    for (var k = 0u; k < 3u; k++) {
+        let lo = fixed_lo[3u * i + k];
+        let hi = fixed_hi[3u * i + k];
+        // The 64-bit total hi:lo fits i32 iff hi is the sign extension of lo.
+        let fits = (hi == 0 && lo < 0x80000000u) || (hi == -1 && lo >= 0x80000000u);
+        if fits {
+            f[k] = f32(bitcast<i32>(lo)) * params.unit;
+        } else {
+            atomicMax(&state.overflow, ~(3u * i + k));
+        }
+    }
+    force_a[i] = vec4<f32>(f, 0.0);
+}

@@ -1,0 +1,527 @@
+//! The GPU backend: WGSL compute passes on wgpu (DESIGN §3), checked against the CPU reference.
+//!
+//! A step is five passes recorded into one command encoder — bounds (FollowA only), frame, bin,
+//! probe, resolve — with every intermediate in device buffers that are created once and reused
+//! while the sizes fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
+//! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
+
+mod context;
+mod kernel;
+mod layout;
+pub mod shaders;
+
+use glam::{Vec3, Vec4};
+use wgpu::{Buffer, BufferUsages, CommandEncoder, Device};
+
+pub use context::GpuContext;
+use kernel::{Kernel, Slot};
+use layout::{GpuParams, GpuState};
+
+use crate::collision::Collision;
+use crate::cpu::check_body;
+use crate::error::{Body, Error};
+use crate::grid::VoxelGrid;
+use crate::params::{Anchor, ContactParams};
+use crate::report::ContactReport;
+
+/// Invocations per workgroup in every pass but `frame`. Keep in sync with `WORKGROUP_SIZE` in
+/// `shaders/common.wgsl`.
+pub const WORKGROUP_SIZE: u32 = 64;
+/// Bytes per vertex position and per force: `vec4<f32>`.
+const VEC4: u64 = 16;
+
+/// The five kernels of a step.
+#[derive(Debug)]
+struct Kernels {
+    bounds: Kernel,
+    frame: Kernel,
+    bin: Kernel,
+    probe: Kernel,
+    resolve: Kernel,
+}
+
+impl Kernels {
+    fn new(device: &Device) -> Kernels {
+        use Slot::{Read, ReadWrite, Uniform};
+        Kernels {
+            bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
+            frame: Kernel::new(device, "voxcollide frame", shaders::FRAME, &[Uniform, ReadWrite]),
+            bin: Kernel::new(device, "voxcollide bin", shaders::BIN, &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite]),
+            probe: Kernel::new(
+                device,
+                "voxcollide probe",
+                shaders::PROBE,
+                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+            ),
+            resolve: Kernel::new(device, "voxcollide resolve", shaders::RESOLVE, &[Uniform, ReadWrite, Read, Read, ReadWrite]),
+        }
+    }
+}
+
+/// The device buffers of a step, sized for `cap_a` A and `cap_b` B vertices.
+#[derive(Debug)]
+struct Buffers {
+    cap_a: u32,
+    cap_b: u32,
+    slots: u32,
+    params: Buffer,
+    state: Buffer,
+    head: Buffer,
+    next: Buffer,
+    fixed_lo: Buffer,
+    fixed_hi: Buffer,
+    force_a: Buffer,
+    force_b: Buffer,
+}
+
+impl Buffers {
+    fn new(device: &Device, cap_a: u32, cap_b: u32) -> Buffers {
+        let slots = cap_a.next_power_of_two();
+        let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
+        let make = |label: &str, size: u64, usage: BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let (a, b) = (u64::from(cap_a), u64::from(cap_b));
+        Buffers {
+            cap_a,
+            cap_b,
+            slots,
+            params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
+            state: make("voxcollide state", 80, storage),
+            head: make("voxcollide head", 4 * u64::from(slots), storage),
+            next: make("voxcollide next", 4 * a, storage),
+            fixed_lo: make("voxcollide fixed_lo", 12 * a, storage),
+            fixed_hi: make("voxcollide fixed_hi", 12 * a, storage),
+            force_a: make("voxcollide force_a", VEC4 * a, storage),
+            force_b: make("voxcollide force_b", VEC4 * b, storage),
+        }
+    }
+}
+
+/// Bind groups for one pair of position buffers over the current [`Buffers`].
+#[derive(Debug)]
+struct Bound {
+    a: Buffer,
+    b: Buffer,
+    bounds: wgpu::BindGroup,
+    frame: wgpu::BindGroup,
+    bin: wgpu::BindGroup,
+    probe: wgpu::BindGroup,
+    resolve: wgpu::BindGroup,
+}
+
+/// The GPU collision backend.
+///
+/// ```no_run
+/// use voxcollide::{glam::Vec3, *};
+/// let a = vec![Vec3::ZERO, Vec3::X];
+/// let grid = Initializer::new(1.0).margin(1).build(&a)?;
+/// let params = ContactParams {
+///     magnitude: 1.0,
+///     search: Search::Neighbours { radius: 0.5 },
+///     direction: Direction::Pairwise,
+///     anchor: Anchor::FollowA,
+/// };
+/// let ctx = GpuContext::new()?;
+/// let mut gpu = GpuCollision::new(&ctx, grid, params)?;
+/// let report = gpu.step(&a, &[Vec3::new(1.0, 0.25, 0.0)])?;
+/// assert_eq!(report.colliding_b, vec![0]);
+/// # Ok::<(), voxcollide::Error>(())
+/// ```
+#[derive(Debug)]
+pub struct GpuCollision {
+    ctx: GpuContext,
+    grid: VoxelGrid,
+    params: ContactParams,
+    base: GpuParams,
+    kernels: Kernels,
+    max_per_dim: u32,
+    max_vertices: u32,
+    buffers: Option<Buffers>,
+    bound: Option<Bound>,
+    uploaded: GpuParams,
+    recorded: Option<(u32, u32)>,
+    // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
+    upload: Option<(Buffer, Buffer)>,
+    staging: Option<Buffer>,
+    scratch: Vec<Vec4>,
+}
+
+impl GpuCollision {
+    /// A GPU backend on `ctx` for the pair of bodies that `grid` was built for. Builds the
+    /// pipelines; buffers are made on the first step.
+    ///
+    /// # Errors
+    /// [`Error::Magnitude`] or [`Error::Radius`] for invalid `params`, [`Error::Gpu`] when the
+    /// device rejects a pipeline.
+    pub fn new(ctx: &GpuContext, grid: VoxelGrid, params: ContactParams) -> Result<GpuCollision, Error> {
+        params.validate(&grid)?;
+        let device = ctx.device();
+        let limits = device.limits();
+        let kernels = scoped(device, || Kernels::new(device))?;
+        let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        Ok(GpuCollision {
+            ctx: ctx.clone(),
+            grid,
+            params,
+            base: GpuParams::new(&grid, &params),
+            kernels,
+            max_per_dim: limits.max_compute_workgroups_per_dimension,
+            max_vertices: (binding / VEC4).min(u64::from(crate::cpu::MAX_VERTICES as u32)) as u32,
+            buffers: None,
+            bound: None,
+            uploaded: GpuParams::default(),
+            recorded: None,
+            upload: None,
+            staging: None,
+            scratch: Vec::new(),
+        })
+    }
+
+    /// The most vertices a body may have on this device: its storage-binding size over 16 bytes
+    /// (8M on lavapipe's 128 MiB).
+    #[must_use]
+    pub fn max_vertices(&self) -> u32 {
+        self.max_vertices
+    }
+
+    /// The grid as built.
+    #[must_use]
+    pub fn grid(&self) -> &VoxelGrid {
+        &self.grid
+    }
+
+    /// The contact parameters.
+    #[must_use]
+    pub fn params(&self) -> &ContactParams {
+        &self.params
+    }
+
+    /// The context this backend runs on.
+    #[must_use]
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// **Embedding API.** Records one step into the app's `encoder`, reading positions from the
+    /// app's buffers: `a` holds `n_a` and `b` holds `n_b` `vec4<f32>` positions (w ignored) and
+    /// both need [`BufferUsages::STORAGE`]. Nothing is read back and nothing is submitted: after
+    /// the app submits the encoder, [`force_a_buffer`](Self::force_a_buffer) and
+    /// [`force_b_buffer`](Self::force_b_buffer) hold the forces (B's `w` is 1 where it collides)
+    /// for the app's own passes, and [`read_report`](Self::read_report) can fetch them.
+    ///
+    /// Parameters that change with the sizes are written with `queue.write_buffer`, which takes
+    /// effect at the app's next submit. Buffers grow when sizes grow; while the sizes and the two
+    /// position buffers stay the same, a step allocates nothing and reuses its bind groups.
+    ///
+    /// # Errors
+    /// [`Error::EmptyBody`] for a zero count, [`Error::DeviceLimit`] beyond
+    /// [`max_vertices`](Self::max_vertices), [`Error::BufferTooSmall`] or
+    /// [`Error::BufferUsage`] for a position buffer that cannot hold or bind the count.
+    pub fn record(
+        &mut self,
+        encoder: &mut CommandEncoder,
+        a: &Buffer,
+        n_a: u32,
+        b: &Buffer,
+        n_b: u32,
+    ) -> Result<(), Error> {
+        self.check_input(Body::A, a, n_a)?;
+        self.check_input(Body::B, b, n_b)?;
+        let device = self.ctx.device().clone();
+        let grow = self.buffers.as_ref().is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b);
+        if grow {
+            let (cap_a, cap_b) = self.buffers.as_ref().map_or((n_a, n_b), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b)));
+            self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b))?);
+            self.bound = None;
+        }
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
+
+        // Sizes live in the uniform; the hash uses every slot of the buffer, so it never fills:
+        // lists chain, and aliasing only lengthens a walk.
+        let params = GpuParams { n_a, n_b, slot_mask: bufs.slots - 1, ..self.base };
+        if params != self.uploaded {
+            self.ctx.queue().write_buffer(&bufs.params, 0, bytemuck::bytes_of(&params));
+            self.uploaded = params;
+        }
+        let stale = self.bound.as_ref().is_none_or(|bound| bound.a != *a || bound.b != *b);
+        if stale {
+            let k = &self.kernels;
+            let bound = scoped(&device, || Bound {
+                a: a.clone(),
+                b: b.clone(),
+                bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
+                frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.head, &bufs.next]),
+                probe: k.probe.bind(
+                    &device,
+                    &[&bufs.params, &bufs.state, a, b, &bufs.head, &bufs.next, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_b],
+                ),
+                resolve: k.resolve.bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_a]),
+            })?;
+            self.bound = Some(bound);
+        }
+        let Some(bound) = self.bound.as_ref() else { unreachable!("bind groups were just made") };
+
+        let cleared = GpuState::CLEARED;
+        encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
+        encoder.clear_buffer(&bufs.head, 0, Some(4 * u64::from(bufs.slots)));
+        encoder.clear_buffer(&bufs.fixed_lo, 0, Some(12 * u64::from(n_a)));
+        encoder.clear_buffer(&bufs.fixed_hi, 0, Some(12 * u64::from(n_a)));
+        {
+            let mut pass = encoder
+                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("voxcollide step"), timestamp_writes: None });
+            let k = &self.kernels;
+            if self.params.anchor == Anchor::FollowA {
+                k.bounds.dispatch(&mut pass, &bound.bounds, n_a, self.max_per_dim);
+            }
+            k.frame.dispatch_one(&mut pass, &bound.frame);
+            k.bin.dispatch(&mut pass, &bound.bin, n_a, self.max_per_dim);
+            k.probe.dispatch(&mut pass, &bound.probe, n_b, self.max_per_dim);
+            k.resolve.dispatch(&mut pass, &bound.resolve, n_a, self.max_per_dim);
+        }
+        self.recorded = Some((n_a, n_b));
+        Ok(())
+    }
+
+    /// The forces on A after a recorded step: `n_a` `vec4<f32>` (w = 0).
+    ///
+    /// # Panics
+    /// Never; returns `None` before the first [`record`](Self::record).
+    #[must_use]
+    pub fn force_a_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.force_a)
+    }
+
+    /// The forces on B after a recorded step: `n_b` `vec4<f32>`, `w = 1` where B collides.
+    #[must_use]
+    pub fn force_b_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.force_b)
+    }
+
+    /// The step's state (80 bytes; see `State` in `shaders/common.wgsl`): grid center and
+    /// origin, then at byte 64 the binned-A and colliding-B counts as `u32`.
+    #[must_use]
+    pub fn state_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.state)
+    }
+
+    /// Reads back the report of the last recorded step, after the app has submitted it. Blocks
+    /// until the device is done.
+    ///
+    /// # Errors
+    /// [`Error::ForceOverflow`] or [`Error::NonFiniteCenter`] as the CPU reference gives them,
+    /// [`Error::Gpu`] / [`Error::DeviceLost`] when the device fails, and [`Error::Gpu`] when no
+    /// step was recorded.
+    pub fn read_report(&mut self) -> Result<ContactReport, Error> {
+        let Some((n_a, n_b)) = self.recorded else {
+            return Err(Error::Gpu { message: "read_report() before any step was recorded".into() });
+        };
+        let device = self.ctx.device().clone();
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide readback") });
+        let size = readback_size(n_a, n_b);
+        let staging = self.staging(size)?;
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
+        copy_report(&mut encoder, bufs, &staging, n_a, n_b);
+        self.ctx.queue().submit([encoder.finish()]);
+        self.finish_report(&staging, n_a, n_b)
+    }
+
+    fn check_input(&self, body: Body, buffer: &Buffer, n: u32) -> Result<(), Error> {
+        if n == 0 {
+            return Err(Error::EmptyBody { body });
+        }
+        if n > self.max_vertices {
+            return Err(self.limit_error(body, n as usize));
+        }
+        if !buffer.usage().contains(BufferUsages::STORAGE) {
+            return Err(Error::BufferUsage { body });
+        }
+        let needed = VEC4 * u64::from(n);
+        if buffer.size() < needed {
+            return Err(Error::BufferTooSmall { body, len: n, size: buffer.size(), needed });
+        }
+        Ok(())
+    }
+
+    fn limit_error(&self, body: Body, len: usize) -> Error {
+        Error::DeviceLimit {
+            body,
+            len,
+            max: self.max_vertices as usize,
+            limit: "max_storage_buffer_binding_size",
+            bytes: u64::from(self.max_vertices) * VEC4,
+        }
+    }
+
+    /// A mappable buffer of at least `size` bytes, reused while it is large enough.
+    fn staging(&mut self, size: u64) -> Result<Buffer, Error> {
+        if self.staging.as_ref().is_none_or(|s| s.size() < size) {
+            let device = self.ctx.device();
+            self.staging = Some(scoped(device, || {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("voxcollide staging"),
+                    size,
+                    usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            })?);
+        }
+        Ok(self.staging.clone().unwrap_or_else(|| unreachable!("staging was just made")))
+    }
+
+    /// Maps `staging` (already filled by a submitted copy) and turns it into a report.
+    fn finish_report(&mut self, staging: &Buffer, n_a: u32, n_b: u32) -> Result<ContactReport, Error> {
+        let bytes = map_read(&self.ctx, staging, readback_size(n_a, n_b))?;
+        let (a_end, b_end) = (VEC4 as usize * n_a as usize, VEC4 as usize * (n_a + n_b) as usize);
+        let state: GpuState = bytemuck::pod_read_unaligned(&bytes[b_end..b_end + 80]);
+        let center = Vec3::from_slice(&state.center[..3]);
+        if state.status & GpuState::NON_FINITE_CENTER != 0 {
+            return Err(Error::NonFiniteCenter { center });
+        }
+        if state.overflow != 0 {
+            return Err(self.overflow_error(!state.overflow));
+        }
+        let vec4s = |range: std::ops::Range<usize>| -> Vec<Vec4> { bytemuck::pod_collect_to_vec(&bytes[range]) };
+        let force_a: Vec<Vec3> = vec4s(0..a_end).into_iter().map(|f| f.truncate()).collect();
+        let b4 = vec4s(a_end..b_end);
+        let colliding_b: Vec<u32> = (0..n_b).filter(|&j| b4[j as usize].w == 1.0).collect();
+        Ok(ContactReport {
+            force_a,
+            force_b: b4.into_iter().map(|f| f.truncate()).collect(),
+            colliding_b,
+            binned_a: state.binned,
+            discarded_a: n_a - state.binned,
+            grid_center: center,
+        })
+    }
+
+    /// The `ForceOverflow` error for accumulator `code = 3 * vertex + axis`, with its exact total.
+    fn overflow_error(&mut self, code: u32) -> Error {
+        let (vertex, axis) = (code / 3, code % 3);
+        let count = self.read_fixed(code).unwrap_or(i64::MIN);
+        Error::ForceOverflow { vertex, axis, count }
+    }
+
+    fn read_fixed(&mut self, code: u32) -> Result<i64, Error> {
+        let device = self.ctx.device().clone();
+        let staging = self.staging(8)?;
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&bufs.fixed_lo, 4 * u64::from(code), &staging, 0, 4);
+        encoder.copy_buffer_to_buffer(&bufs.fixed_hi, 4 * u64::from(code), &staging, 4, 4);
+        self.ctx.queue().submit([encoder.finish()]);
+        let bytes = map_read(&self.ctx, &staging, 8)?;
+        let lo: u32 = bytemuck::pod_read_unaligned(&bytes[0..4]);
+        let hi: i32 = bytemuck::pod_read_unaligned(&bytes[4..8]);
+        Ok((i64::from(hi) << 32) | i64::from(lo))
+    }
+
+    /// Uploads `points` as `vec4<f32>` into the step's own position buffer for `body`.
+    fn upload(&mut self, a: &[Vec3], b: &[Vec3]) -> Result<(), Error> {
+        let device = self.ctx.device().clone();
+        let fits = |buf: &Buffer, n: usize| buf.size() >= VEC4 * n as u64;
+        if self.upload.as_ref().is_none_or(|(ba, bb)| !fits(ba, a.len()) || !fits(bb, b.len())) {
+            let make = |label, n: usize| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size: VEC4 * n as u64,
+                    usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            let keep = |i: usize, n: usize| self.upload.as_ref().map_or(n, |(ba, bb)| n.max(([ba, bb][i].size() / VEC4) as usize));
+            let (na, nb) = (keep(0, a.len()), keep(1, b.len()));
+            self.upload = Some(scoped(&device, || (make("voxcollide a", na), make("voxcollide b", nb)))?);
+        }
+        let Some((ba, bb)) = self.upload.as_ref() else { unreachable!("upload buffers were just made") };
+        for (points, buf) in [(a, ba), (b, bb)] {
+            self.scratch.clear();
+            self.scratch.extend(points.iter().map(|p| p.extend(0.0)));
+            self.ctx.queue().write_buffer(buf, 0, bytemuck::cast_slice(&self.scratch));
+        }
+        Ok(())
+    }
+}
+
+impl Collision for GpuCollision {
+    fn step(&mut self, a: &[Vec3], b: &[Vec3]) -> Result<ContactReport, Error> {
+        check_body(Body::A, a)?;
+        check_body(Body::B, b)?;
+        for (body, len) in [(Body::A, a.len()), (Body::B, b.len())] {
+            if len > self.max_vertices as usize {
+                return Err(self.limit_error(body, len));
+            }
+        }
+        if self.ctx.is_lost() {
+            return Err(Error::DeviceLost { message: "the device was lost before this step".into() });
+        }
+        let (n_a, n_b) = (a.len() as u32, b.len() as u32);
+        self.upload(a, b)?;
+        let device = self.ctx.device().clone();
+        let staging = self.staging(readback_size(n_a, n_b))?;
+        let (ba, bb) = self.upload.clone().unwrap_or_else(|| unreachable!("uploaded above"));
+        let guard = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide step") });
+        self.record(&mut encoder, &ba, n_a, &bb, n_b)?;
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
+        copy_report(&mut encoder, bufs, &staging, n_a, n_b);
+        self.ctx.queue().submit([encoder.finish()]);
+        if let Some(e) = pollster::block_on(guard.pop()) {
+            return Err(Error::Gpu { message: e.to_string() });
+        }
+        self.finish_report(&staging, n_a, n_b)
+    }
+}
+
+fn readback_size(n_a: u32, n_b: u32) -> u64 {
+    VEC4 * (u64::from(n_a) + u64::from(n_b)) + 80
+}
+
+/// Copies force_a, force_b and the state, back to back, into `staging`.
+fn copy_report(encoder: &mut CommandEncoder, bufs: &Buffers, staging: &Buffer, n_a: u32, n_b: u32) {
+    let (a, b) = (VEC4 * u64::from(n_a), VEC4 * u64::from(n_b));
+    encoder.copy_buffer_to_buffer(&bufs.force_a, 0, staging, 0, a);
+    encoder.copy_buffer_to_buffer(&bufs.force_b, 0, staging, a, b);
+    encoder.copy_buffer_to_buffer(&bufs.state, 0, staging, a + b, 80);
+}
+
+/// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
+fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Error> {
+    let slice = buffer.slice(..size);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    let lost = |what: String| if ctx.is_lost() { Error::DeviceLost { message: what } } else { Error::Gpu { message: what } };
+    ctx.device().poll(wgpu::PollType::wait_indefinitely()).map_err(|e| lost(format!("waiting for the device: {e}")))?;
+    match rx.recv() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => return Err(lost(format!("reading the results back: {e}"))),
+        Err(_) => return Err(lost("reading the results back: the map callback never ran".into())),
+    }
+    let bytes = {
+        let view = slice.get_mapped_range().map_err(|e| lost(format!("reading the results back: {e}")))?;
+        view.to_vec()
+    };
+    buffer.unmap();
+    Ok(bytes)
+}
+
+/// Runs `f` inside validation and out-of-memory error scopes, turning a captured error into
+/// [`Error::Gpu`].
+fn scoped<T>(device: &Device, f: impl FnOnce() -> T) -> Result<T, Error> {
+    let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let value = f();
+    let errors = [pollster::block_on(validation.pop()), pollster::block_on(oom.pop())];
+    match errors.into_iter().flatten().next() {
+        Some(e) => Err(Error::Gpu { message: e.to_string() }),
+        None => Ok(value),
+    }
+}

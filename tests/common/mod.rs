@@ -1,0 +1,77 @@
+//! Helpers shared by the GPU tests: an adapter or a skip, seeded bodies, and report comparison.
+#![allow(dead_code)]
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use voxcollide::glam::Vec3;
+use voxcollide::*;
+
+/// A GPU context, or `None` with "skipped: no adapter" — unless `VOXCOLLIDE_REQUIRE_GPU=1`, when
+/// a missing adapter fails the test.
+pub fn gpu() -> Option<GpuContext> {
+    match GpuContext::new() {
+        Ok(ctx) => Some(ctx),
+        Err(e) if std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() == Ok("1") => {
+            panic!("VOXCOLLIDE_REQUIRE_GPU=1 but there is no adapter: {e}")
+        }
+        Err(e) => {
+            eprintln!("skipped: no adapter ({e})");
+            None
+        }
+    }
+}
+
+/// All eight search × direction × anchor combinations.
+pub fn all_params(magnitude: f32, radius: f32) -> Vec<ContactParams> {
+    let mut out = Vec::new();
+    for search in [Search::Voxel, Search::Neighbours { radius }] {
+        for direction in [Direction::Pairwise, Direction::PlaneNormal] {
+            for anchor in [Anchor::Fixed, Anchor::FollowA] {
+                out.push(ContactParams { magnitude, search, direction, anchor });
+            }
+        }
+    }
+    out
+}
+
+/// Seeded overlapping bodies of about `n` vertices each, about two vertices per voxel, with a
+/// few non-finite and coincident vertices, and a grid built over (most of) A.
+pub fn bodies(seed: u64, n: usize) -> (Vec<Vec3>, Vec<Vec3>, f32, VoxelGrid) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let voxel = [0.5f32, 1.0, 2.0][(seed % 3) as usize];
+    let side = voxel * ((n as f32 / 2.0).cbrt()).max(1.0);
+    let mut point = |lo: f32, hi: f32| {
+        Vec3::new(rng.random_range(lo..hi), rng.random_range(lo..hi), rng.random_range(lo..hi)) - Vec3::splat(7.0)
+    };
+    let mut a: Vec<Vec3> = (0..n).map(|_| point(0.0, side)).collect();
+    let mut b: Vec<Vec3> = (0..n).map(|_| point(-0.1 * side, 1.1 * side)).collect();
+    let grid = Initializer::new(voxel).build(&a[..(n * 9 / 10).max(1)]).unwrap();
+    if n >= 8 {
+        a[1] = Vec3::NAN;
+        b[2] = Vec3::new(0.0, f32::INFINITY, 0.0);
+        b[3] = a[4];
+        b[5] = a[6];
+    }
+    (a, b, voxel, grid)
+}
+
+/// Compares two reports: `colliding_b`, counts and center exactly, forces within `tolerance`;
+/// returns the number of force components that differ in their bits.
+pub fn compare(what: &str, expected: &ContactReport, actual: &ContactReport, tolerance: f32) -> usize {
+    assert_eq!(expected.colliding_b.len(), actual.colliding_b.len(), "{what}: colliding count");
+    if let Some(k) = (0..expected.colliding_b.len()).find(|&k| expected.colliding_b[k] != actual.colliding_b[k]) {
+        panic!("{what}: colliding_b[{k}] {} != {}", expected.colliding_b[k], actual.colliding_b[k]);
+    }
+    assert_eq!((expected.binned_a, expected.discarded_a), (actual.binned_a, actual.discarded_a), "{what}: binned");
+    assert_eq!(expected.grid_center, actual.grid_center, "{what}: grid center");
+    let mut inexact = 0;
+    for (name, e, g) in [("force_a", &expected.force_a, &actual.force_a), ("force_b", &expected.force_b, &actual.force_b)] {
+        assert_eq!(e.len(), g.len(), "{what}: {name} length");
+        for i in 0..e.len() {
+            let d = (e[i] - g[i]).abs().max_element();
+            assert!(d <= tolerance, "{what}: {name}[{i}] cpu {} gpu {} differ by {d} > {tolerance}", e[i], g[i]);
+            inexact += (0..3).filter(|&k| e[i][k].to_bits() != g[i][k].to_bits()).count();
+        }
+    }
+    inexact
+}
