@@ -7,7 +7,11 @@ use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_m
 use voxcollide::workload::{DEFAULT_SEED, Workload, lattice, paper};
 use voxcollide::{Collision, CpuCollision};
 
-fn bench_workload(c: &mut Criterion, name: &str, make: fn(usize, u64) -> Result<Workload, voxcollide::Error>) {
+fn bench_workload(
+    c: &mut Criterion,
+    name: &str,
+    make: fn(usize, u64) -> Result<Workload, voxcollide::Error>,
+) {
     let mut group = c.benchmark_group(format!("cpu_reference/{name}"));
     group.sample_size(10);
     for n in [10_000usize, 100_000] {

@@ -50,7 +50,11 @@ fn main() -> Result<(), voxcollide::Error> {
         direction: Direction::Pairwise,
         anchor: Anchor::Fixed,
     };
-    println!("voxcollide two_bodies: tissue layer (A, {} vertices) and cylinder (B, {} vertices)", a.len(), b.len());
+    println!(
+        "voxcollide two_bodies: tissue layer (A, {} vertices) and cylinder (B, {} vertices)",
+        a.len(),
+        b.len()
+    );
     println!(
         "grid: center {}, voxel {}, dims {} (CPU reference backend, 1 thread)\n",
         grid.center(),

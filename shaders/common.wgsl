@@ -43,6 +43,10 @@ struct State {
     colliding: atomic<u32>,
     overflow: atomic<u32>,            // ~(3 * vertex + axis) of the first overflow; 0 = none
     status: atomic<u32>,
+    truncated: atomic<u32>,           // ~j of the first B vertex whose walk the driver cut short
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // The item of an invocation in a 2D dispatch of rows of `num_workgroups.x` workgroups, so that

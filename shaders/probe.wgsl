@@ -26,25 +26,27 @@ fn before(da: f32, ia: u32, db: f32, ib: u32) -> bool {
     return da < db || (da == db && ia < ib);
 }
 
+// Straight-line on purpose: Mesa's llvmpipe caps the iterations of all loops nested in one
+// outermost loop at 65535, so the walk below keeps to one loop iteration per list entry.
 fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
-    var k = 0u;
-    for (var j = 0u; j < (*t).n; j++) {
-        if before((*t).d[j], (*t).i[j], d, i) {
-            k++;
-        }
-    }
-    if k >= 3u {
+    let n = (*t).n;
+    // k = how many kept entries come before (d, i); they are sorted.
+    let k = select(0u, 1u, n > 0u && before((*t).d.x, (*t).i.x, d, i))
+        + select(0u, 1u, n > 1u && before((*t).d.y, (*t).i.y, d, i))
+        + select(0u, 1u, n > 2u && before((*t).d.z, (*t).i.z, d, i));
+    if k == 0u {
+        (*t).d = vec3<f32>(d, (*t).d.x, (*t).d.y);
+        (*t).i = vec3<u32>(i, (*t).i.x, (*t).i.y);
+    } else if k == 1u {
+        (*t).d = vec3<f32>((*t).d.x, d, (*t).d.y);
+        (*t).i = vec3<u32>((*t).i.x, i, (*t).i.y);
+    } else if k == 2u {
+        (*t).d.z = d;
+        (*t).i.z = i;
+    } else {
         return;
     }
-    var j = min((*t).n, 2u);
-    while j > k {
-        (*t).d[j] = (*t).d[j - 1u];
-        (*t).i[j] = (*t).i[j - 1u];
-        j--;
-    }
-    (*t).d[k] = d;
-    (*t).i[k] = i;
-    (*t).n = min((*t).n + 1u, 3u);
+    (*t).n = min(n + 1u, 3u);
 }
 
 // Adds count `c` to the 64-bit accumulator `k` (lo: u32 atomic, hi: i32 atomic). The sum is exact
@@ -125,33 +127,44 @@ fn probe(j: u32) -> bool {
         lo = max(vb.xyz, vec3<u32>(1u)) - vec3<u32>(1u);
         hi = min(vb.xyz + vec3<u32>(1u), params.dims.xyz - vec3<u32>(1u));
     }
-    for (var z = lo.z; z <= hi.z; z++) {
-        for (var y = lo.y; y <= hi.y; y++) {
-            for (var x = lo.x; x <= hi.x; x++) {
-                let v = vec3<u32>(x, y, z);
-                let is_own = all(v == vb.xyz);
-                var e = head[voxel_hash(v) & params.slot_mask];
-                while e != LIST_END {
-                    let i = e - 1u;
-                    e = next[i];
-                    let a = pos_a[i].xyz;
-                    // Aliasing: only vertices whose own voxel is v belong to v.
-                    let va = voxel_of(a, origin);
-                    if va.w == 0u || any(va.xyz != v) {
-                        continue;
-                    }
-                    let d2 = dist2(p, a);
-                    if voxel_only {
-                        if is_own {
-                            insert(&own, d2, i);
-                        }
-                        insert(&block, d2, i);
-                    } else if d2 < params.r2 {
-                        insert(&block, d2, i);
-                    }
-                }
+    // One loop over the block's voxels (x fastest) and their lists, one iteration per entry or
+    // voxel change, so that a driver's loop cap (llvmpipe: 65535) is reached as late as possible
+    // and, if it is reached, seen: the loop then ends before the last voxel.
+    let ext = hi - lo + vec3<u32>(1u);
+    let count = ext.x * ext.y * ext.z;
+    var vi = 0u;
+    var v = lo;
+    var e = head[voxel_hash(v) & params.slot_mask];
+    loop {
+        if e == LIST_END {
+            vi++;
+            if vi >= count {
+                break;
             }
+            v = lo + vec3<u32>(vi % ext.x, (vi / ext.x) % ext.y, vi / (ext.x * ext.y));
+            e = head[voxel_hash(v) & params.slot_mask];
+            continue;
         }
+        let i = e - 1u;
+        e = next[i];
+        let a = pos_a[i].xyz;
+        // Aliasing: only vertices whose own voxel is v belong to v.
+        let va = voxel_of(a, origin);
+        if va.w == 0u || any(va.xyz != v) {
+            continue;
+        }
+        let d2 = dist2(p, a);
+        if voxel_only {
+            if all(v == vb.xyz) {
+                insert(&own, d2, i);
+            }
+            insert(&block, d2, i);
+        } else if d2 < params.r2 {
+            insert(&block, d2, i);
+        }
+    }
+    if vi < count {
+        atomicMax(&state.truncated, ~j);
     }
     var partner: Nearest;
     if voxel_only {

@@ -185,7 +185,9 @@ pub enum Error {
     },
 
     /// An app's position buffer is smaller than the vertex count it was given with.
-    #[error("position buffer of body {body} has {size} bytes; {len} vertices need {needed} (16 per vec4<f32>)")]
+    #[error(
+        "position buffer of body {body} has {size} bytes; {len} vertices need {needed} (16 per vec4<f32>)"
+    )]
     BufferTooSmall {
         /// Whose buffer.
         body: Body,
@@ -202,5 +204,18 @@ pub enum Error {
     BufferUsage {
         /// Whose buffer.
         body: Body,
+    },
+
+    /// The device cut a voxel-list walk short, so a contact could have been missed: the driver
+    /// caps loop iterations (Mesa's llvmpipe/lavapipe at 65535 per loop nest) and the 3×3×3 block
+    /// around this B vertex holds more A vertices than that. Use a smaller voxel or another
+    /// adapter; the CPU backends have no such cap.
+    #[error(
+        "the GPU stopped the voxel-list walk of B vertex {b} early (the driver caps a shader's loop \
+         iterations, llvmpipe at 65535): its 3×3×3 block holds too many A vertices for this adapter"
+    )]
+    WalkTruncated {
+        /// The first B vertex whose walk was cut short.
+        b: u32,
     },
 }

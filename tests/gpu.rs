@@ -5,6 +5,7 @@
 mod common;
 
 use common::{all_params, bodies, compare, gpu};
+use voxcollide::glam::{UVec3, Vec3};
 use voxcollide::*;
 
 #[test]
@@ -25,4 +26,172 @@ fn gpu_matches_cpu_for_all_combinations() {
     }
     eprintln!("{contacts} contacts compared; {inexact} force components not bit-identical");
     assert!(contacts > 100_000, "only {contacts} contacts");
+}
+
+#[test]
+fn gpu_reports_are_bit_identical_run_after_run() {
+    let Some(ctx) = gpu() else { return };
+    let (a, b, voxel, grid) = bodies(11, 60_000);
+    for params in all_params(1.0, voxel) {
+        let mut backend = GpuCollision::new(&ctx, grid, params).unwrap();
+        let first = backend.step(&a, &b).unwrap();
+        let again = backend.step(&a, &b).unwrap();
+        let fresh = GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &b).unwrap();
+        assert!(first.colliding_b.len() > 1000, "{params:?}");
+        for other in [&again, &fresh] {
+            assert_eq!(
+                compare(&format!("{params:?}"), &first, other, 0.0),
+                0,
+                "{params:?}: not bit-identical"
+            );
+        }
+    }
+}
+
+#[test]
+fn one_long_voxel_list_is_walked_whole() {
+    // Every A vertex in one voxel: one list of 5000 entries, no capacity to run out of (lists
+    // chain through `next`), and every entry is a candidate.
+    let Some(ctx) = gpu() else { return };
+    let a: Vec<Vec3> = (0..5000)
+        .map(|i| Vec3::new(0.1 + (i % 97) as f32 * 0.008, 0.5, 0.1 + (i / 97) as f32 * 0.01))
+        .collect();
+    let b: Vec<Vec3> =
+        (0..3000).map(|i| Vec3::new(0.05 + (i % 89) as f32 * 0.01, 0.6, (i / 89) as f32 * 0.0125)).collect();
+    let grid = VoxelGrid::new(Vec3::splat(2.0), 1.0, UVec3::splat(4)).unwrap();
+    for params in all_params(1.0, 1.0) {
+        let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+        let gpu = GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &b).unwrap();
+        assert_eq!(cpu.binned_a, 5000);
+        assert!(cpu.colliding_b.len() > 2500, "{params:?}");
+        compare(&format!("{params:?}"), &cpu, &gpu, 1e-5);
+    }
+}
+
+#[test]
+fn every_one_of_eight_million_b_vertices_is_probed() {
+    // More than 65535 × 64 items: the probe dispatch wraps into rows. B vertex j collides iff
+    // j % 4099 == 0 or it is the last one; the others sit outside the grid.
+    let Some(ctx) = gpu() else { return };
+    let a: Vec<Vec3> =
+        (0..1000).map(|i| Vec3::new((i % 10) as f32, (i / 10 % 10) as f32, (i / 100) as f32)).collect();
+    let grid = Initializer::new(1.0).margin(1).build(&a).unwrap();
+    let params = ContactParams {
+        magnitude: 1.0,
+        search: Search::Neighbours { radius: 0.5 },
+        direction: Direction::Pairwise,
+        anchor: Anchor::Fixed,
+    };
+    let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
+    let n = gpu.max_vertices().min(8 << 20) as usize;
+    assert!(n >= 8 << 20 || !ctx.adapter_name().contains("llvmpipe"), "lavapipe allows {n}");
+    let hit = |j: usize| j % 4099 == 0 || j == n - 1;
+    let b: Vec<Vec3> = (0..n)
+        .map(|j| if hit(j) { a[j % 1000] + Vec3::new(0.0, 0.0, 0.25) } else { Vec3::splat(100.0) })
+        .collect();
+    let report = gpu.step(&a, &b).unwrap();
+    let expected: Vec<u32> = (0..n).filter(|&j| hit(j)).map(|j| j as u32).collect();
+    assert_eq!(report.colliding_b.len(), expected.len());
+    assert_eq!(report.colliding_b, expected);
+    assert_eq!(report.force_b[n - 1], Vec3::Z, "the last B vertex");
+    assert_eq!(report.force_b[n - 2], Vec3::ZERO);
+}
+
+#[test]
+fn more_vertices_than_the_device_binds_is_an_error() {
+    let Some(ctx) = gpu() else { return };
+    let a = [Vec3::ZERO];
+    let grid = Initializer::new(1.0).build(&a).unwrap();
+    let mut gpu = GpuCollision::new(&ctx, grid, all_params(1.0, 1.0)[0]).unwrap();
+    let max = gpu.max_vertices() as usize;
+    let b = vec![Vec3::ZERO; max + 1];
+    let err = gpu.step(&a, &b).unwrap_err();
+    assert!(
+        matches!(err, Error::DeviceLimit { body: Body::B, len, max: m, .. } if len == max + 1 && m == max),
+        "{err:?}"
+    );
+    assert!(err.to_string().contains("max_storage_buffer_binding_size"), "{err}");
+}
+
+#[test]
+fn force_overflow_is_reported_by_the_gpu_too() {
+    let Some(ctx) = gpu() else { return };
+    let grid = VoxelGrid::new(Vec3::splat(2.0), 1.0, UVec3::splat(4)).unwrap();
+    let params = all_params(1.0, 1.0)[0];
+    let a = [Vec3::splat(0.5)];
+    let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
+    // 32768 pushes of -65536 each: exactly i32::MIN, which fits.
+    let report = gpu.step(&a, &vec![Vec3::new(0.75, 0.5, 0.5); 32768]).unwrap();
+    assert_eq!(report.force_a[0], Vec3::new(-32768.0, 0.0, 0.0));
+    // One more leaves i32: the same error as the CPU reference, with the exact total.
+    let b = vec![Vec3::new(0.75, 0.5, 0.5); 32769];
+    let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap_err();
+    assert_eq!(gpu.step(&a, &b).unwrap_err(), expected);
+    assert_eq!(expected, Error::ForceOverflow { vertex: 0, axis: 0, count: -2_147_549_184 });
+    // And the backend is still usable afterwards.
+    assert_eq!(gpu.step(&a, &[Vec3::new(0.75, 0.5, 0.5)]).unwrap().colliding_b, vec![0]);
+}
+
+#[test]
+fn a_follow_a_center_beyond_f32_is_the_same_error_as_on_the_cpu() {
+    let Some(ctx) = gpu() else { return };
+    let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(4)).unwrap();
+    let params = ContactParams { anchor: Anchor::FollowA, ..all_params(1.0, 1.0)[0] };
+    let a = [Vec3::new(3e38, 0.0, 0.0), Vec3::new(3.2e38, 0.0, 0.0)];
+    let expected = CpuCollision::new(grid, params).unwrap().step(&a, &[Vec3::ZERO]).unwrap_err();
+    assert!(matches!(expected, Error::NonFiniteCenter { .. }));
+    assert_eq!(GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &[Vec3::ZERO]).unwrap_err(), expected);
+}
+
+#[test]
+fn bad_params_and_empty_bodies_are_errors_on_the_gpu() {
+    let Some(ctx) = gpu() else { return };
+    let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(4)).unwrap();
+    let good = all_params(1.0, 1.0)[0];
+    let err = GpuCollision::new(&ctx, grid, ContactParams { magnitude: f32::NAN, ..good }).unwrap_err();
+    assert!(matches!(err, Error::Magnitude { .. }));
+    let err =
+        GpuCollision::new(&ctx, grid, ContactParams { search: Search::Neighbours { radius: 2.0 }, ..good })
+            .unwrap_err();
+    assert!(matches!(err, Error::Radius { .. }));
+    let mut gpu = GpuCollision::new(&ctx, grid, good).unwrap();
+    assert_eq!(gpu.step(&[], &[Vec3::ZERO]).unwrap_err(), Error::EmptyBody { body: Body::A });
+    assert_eq!(gpu.step(&[Vec3::ZERO], &[]).unwrap_err(), Error::EmptyBody { body: Body::B });
+}
+
+#[test]
+fn bodies_that_grow_and_shrink_between_steps_stay_correct() {
+    let Some(ctx) = gpu() else { return };
+    let params = all_params(1.0, 0.45)[6]; // Neighbours, PlaneNormal, Fixed (voxel 0.5)
+    let (a, b, _, grid) = bodies(21, 20_000);
+    let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
+    let mut cpu = CpuCollision::new(grid, params).unwrap();
+    for (na, nb) in [(100, 50), (20_000, 20_000), (300, 19_000), (20_000, 10), (5_000, 5_000)] {
+        let (a, b) = (&a[..na], &b[..nb]);
+        compare(&format!("sizes {na} {nb}"), &cpu.step(a, b).unwrap(), &gpu.step(a, b).unwrap(), 1e-5);
+    }
+}
+
+#[test]
+fn a_walk_the_driver_cuts_short_is_an_error_not_a_missed_contact() {
+    // 70000 A vertices in one voxel: llvmpipe caps a shader's loop nest at 65535 iterations, so
+    // there the walk cannot finish and the step must fail; elsewhere it must match the CPU.
+    let Some(ctx) = gpu() else { return };
+    let a: Vec<Vec3> = (0..70_000)
+        .map(|i| Vec3::new(0.1 + (i % 97) as f32 * 0.008, 0.5, 0.1 + (i / 97) as f32 * 0.0001))
+        .collect();
+    let b: Vec<Vec3> = (0..10).map(|i| Vec3::new(0.05 + i as f32 * 0.01, 0.6, 0.0)).collect();
+    let grid = VoxelGrid::new(Vec3::splat(2.0), 1.0, UVec3::splat(4)).unwrap();
+    let params = all_params(1.0, 1.0)[0];
+    let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+    match GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &b) {
+        Ok(gpu) => {
+            compare("70000 in one voxel", &cpu, &gpu, 1e-5);
+        }
+        Err(err) => {
+            assert!(ctx.adapter_name().contains("llvmpipe"), "unexpected on {}: {err}", ctx.adapter_name());
+            assert_eq!(err, Error::WalkTruncated { b: 0 });
+            assert!(err.to_string().contains("65535"), "{err}");
+        }
+    }
 }

@@ -19,7 +19,11 @@ fn readme_commands() -> Vec<&'static str> {
 #[test]
 fn readme_states_two_commands_and_ci_runs_the_test_one() {
     let commands = readme_commands();
-    assert_eq!(commands, ["cargo run --release --example two_bodies", "cargo test --release"], "{commands:?}");
+    assert_eq!(
+        commands,
+        ["cargo run --release --example two_bodies", "cargo test --release"],
+        "{commands:?}"
+    );
     let ci_lines: Vec<&str> = CI.lines().map(str::trim).collect();
     assert!(ci_lines.contains(&commands[1]), ".ci/run does not run `{}`", commands[1]);
     assert!(CI.contains("export VOXCOLLIDE_REQUIRE_GPU=1"));

@@ -30,26 +30,47 @@ impl GpuContext {
     /// [`Error::NoAdapter`] when no adapter with compute shaders is found (or none matches
     /// `WGPU_ADAPTER_NAME`), or the device cannot be opened.
     pub fn new() -> Result<GpuContext, Error> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapters: Vec<Adapter> = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()))
-            .into_iter()
-            .filter(|a| a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS))
-            .collect();
+        // Without WGPU_BACKEND, the native backends are searched first and GL only when they
+        // offer nothing (probing GL wakes EGL, which is slow and noisy on headless machines).
+        let searches = match wgpu::Backends::from_env() {
+            Some(backends) => vec![backends],
+            None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::SECONDARY],
+        };
+        let mut adapters: Vec<Adapter> = Vec::new();
+        for backends in searches {
+            let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+                backends,
+                ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
+            });
+            adapters = pollster::block_on(instance.enumerate_adapters(backends))
+                .into_iter()
+                .filter(|a| {
+                    a.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS)
+                })
+                .collect();
+            if !adapters.is_empty() {
+                break;
+            }
+        }
         let names = || adapters.iter().map(|a| describe(&a.get_info())).collect::<Vec<_>>().join("; ");
         let wanted = std::env::var("WGPU_ADAPTER_NAME").ok().filter(|s| !s.is_empty());
         let chosen = match &wanted {
             Some(name) => {
                 let lower = name.to_lowercase();
-                adapters.iter().find(|a| a.get_info().name.to_lowercase().contains(&lower)).ok_or_else(|| {
-                    Error::NoAdapter {
-                        message: format!("WGPU_ADAPTER_NAME={name:?} matches none of the adapters found: [{}]", names()),
-                    }
-                })?
+                adapters.iter().find(|a| a.get_info().name.to_lowercase().contains(&lower)).ok_or_else(
+                    || Error::NoAdapter {
+                        message: format!(
+                            "WGPU_ADAPTER_NAME={name:?} matches none of the adapters found: [{}]",
+                            names()
+                        ),
+                    },
+                )?
             }
             None => adapters.iter().min_by_key(|a| rank(&a.get_info())).ok_or_else(|| Error::NoAdapter {
-                message: "no adapter with compute shaders was found (set WGPU_BACKEND to widen the search, or \
+                message:
+                    "no adapter with compute shaders was found (set WGPU_BACKEND to widen the search, or \
                           install a Vulkan driver such as Mesa's lavapipe: mesa-vulkan-drivers)"
-                    .into(),
+                        .into(),
             })?,
         };
         let info = chosen.get_info();
@@ -59,7 +80,9 @@ impl GpuContext {
             required_limits: chosen.limits(),
             ..Default::default()
         }))
-        .map_err(|e| Error::NoAdapter { message: format!("could not open a device on {}: {e}", describe(&info)) })?;
+        .map_err(|e| Error::NoAdapter {
+            message: format!("could not open a device on {}: {e}", describe(&info)),
+        })?;
         let lost = Arc::new(AtomicBool::new(false));
         let flag = lost.clone();
         device.set_device_lost_callback(move |_, _| flag.store(true, Ordering::SeqCst));

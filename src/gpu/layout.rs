@@ -77,12 +77,16 @@ pub(crate) struct GpuState {
     pub colliding: u32,
     pub overflow: u32,
     pub status: u32,
+    pub truncated: u32,
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(std::mem::size_of::<GpuState>() == 80);
+const _: () = assert!(std::mem::size_of::<GpuState>() == 96);
 
 impl GpuState {
     /// The part of the state cleared at the start of every step: bounds and counters.
-    pub const CLEARED: std::ops::Range<u64> = 32..80;
+    pub const CLEARED: std::ops::Range<u64> = 32..96;
+    /// Its size in bytes.
+    pub const SIZE: u64 = 96;
     /// `status` bit: the FollowA center was not finite.
     pub const NON_FINITE_CENTER: u32 = 1;
 }

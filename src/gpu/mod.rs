@@ -46,14 +46,24 @@ impl Kernels {
         Kernels {
             bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
             frame: Kernel::new(device, "voxcollide frame", shaders::FRAME, &[Uniform, ReadWrite]),
-            bin: Kernel::new(device, "voxcollide bin", shaders::BIN, &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite]),
+            bin: Kernel::new(
+                device,
+                "voxcollide bin",
+                shaders::BIN,
+                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
+            ),
             probe: Kernel::new(
                 device,
                 "voxcollide probe",
                 shaders::PROBE,
                 &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
             ),
-            resolve: Kernel::new(device, "voxcollide resolve", shaders::RESOLVE, &[Uniform, ReadWrite, Read, Read, ReadWrite]),
+            resolve: Kernel::new(
+                device,
+                "voxcollide resolve",
+                shaders::RESOLVE,
+                &[Uniform, ReadWrite, Read, Read, ReadWrite],
+            ),
         }
     }
 }
@@ -92,7 +102,7 @@ impl Buffers {
             cap_b,
             slots,
             params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
-            state: make("voxcollide state", 80, storage),
+            state: make("voxcollide state", GpuState::SIZE, storage),
             head: make("voxcollide head", 4 * u64::from(slots), storage),
             next: make("voxcollide next", 4 * a, storage),
             fixed_lo: make("voxcollide fixed_lo", 12 * a, storage),
@@ -236,7 +246,8 @@ impl GpuCollision {
         let device = self.ctx.device().clone();
         let grow = self.buffers.as_ref().is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b);
         if grow {
-            let (cap_a, cap_b) = self.buffers.as_ref().map_or((n_a, n_b), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b)));
+            let (cap_a, cap_b) =
+                self.buffers.as_ref().map_or((n_a, n_b), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b)));
             self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b))?);
             self.bound = None;
         }
@@ -260,9 +271,22 @@ impl GpuCollision {
                 bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.head, &bufs.next]),
                 probe: k.probe.bind(
                     &device,
-                    &[&bufs.params, &bufs.state, a, b, &bufs.head, &bufs.next, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_b],
+                    &[
+                        &bufs.params,
+                        &bufs.state,
+                        a,
+                        b,
+                        &bufs.head,
+                        &bufs.next,
+                        &bufs.fixed_lo,
+                        &bufs.fixed_hi,
+                        &bufs.force_b,
+                    ],
                 ),
-                resolve: k.resolve.bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_a]),
+                resolve: k.resolve.bind(
+                    &device,
+                    &[&bufs.params, &bufs.state, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_a],
+                ),
             })?;
             self.bound = Some(bound);
         }
@@ -274,8 +298,10 @@ impl GpuCollision {
         encoder.clear_buffer(&bufs.fixed_lo, 0, Some(12 * u64::from(n_a)));
         encoder.clear_buffer(&bufs.fixed_hi, 0, Some(12 * u64::from(n_a)));
         {
-            let mut pass = encoder
-                .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("voxcollide step"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("voxcollide step"),
+                timestamp_writes: None,
+            });
             let k = &self.kernels;
             if self.params.anchor == Anchor::FollowA {
                 k.bounds.dispatch(&mut pass, &bound.bounds, n_a, self.max_per_dim);
@@ -304,7 +330,7 @@ impl GpuCollision {
         self.buffers.as_ref().map(|b| &b.force_b)
     }
 
-    /// The step's state (80 bytes; see `State` in `shaders/common.wgsl`): grid center and
+    /// The step's state (96 bytes; see `State` in `shaders/common.wgsl`): grid center and
     /// origin, then at byte 64 the binned-A and colliding-B counts as `u32`.
     #[must_use]
     pub fn state_buffer(&self) -> Option<&Buffer> {
@@ -323,7 +349,8 @@ impl GpuCollision {
             return Err(Error::Gpu { message: "read_report() before any step was recorded".into() });
         };
         let device = self.ctx.device().clone();
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide readback") });
+        let mut encoder = device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide readback") });
         let size = readback_size(n_a, n_b);
         let staging = self.staging(size)?;
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
@@ -379,15 +406,19 @@ impl GpuCollision {
     fn finish_report(&mut self, staging: &Buffer, n_a: u32, n_b: u32) -> Result<ContactReport, Error> {
         let bytes = map_read(&self.ctx, staging, readback_size(n_a, n_b))?;
         let (a_end, b_end) = (VEC4 as usize * n_a as usize, VEC4 as usize * (n_a + n_b) as usize);
-        let state: GpuState = bytemuck::pod_read_unaligned(&bytes[b_end..b_end + 80]);
+        let state: GpuState = bytemuck::pod_read_unaligned(&bytes[b_end..b_end + GpuState::SIZE as usize]);
         let center = Vec3::from_slice(&state.center[..3]);
         if state.status & GpuState::NON_FINITE_CENTER != 0 {
             return Err(Error::NonFiniteCenter { center });
         }
+        if state.truncated != 0 {
+            return Err(Error::WalkTruncated { b: !state.truncated });
+        }
         if state.overflow != 0 {
             return Err(self.overflow_error(!state.overflow));
         }
-        let vec4s = |range: std::ops::Range<usize>| -> Vec<Vec4> { bytemuck::pod_collect_to_vec(&bytes[range]) };
+        let vec4s =
+            |range: std::ops::Range<usize>| -> Vec<Vec4> { bytemuck::pod_collect_to_vec(&bytes[range]) };
         let force_a: Vec<Vec3> = vec4s(0..a_end).into_iter().map(|f| f.truncate()).collect();
         let b4 = vec4s(a_end..b_end);
         let colliding_b: Vec<u32> = (0..n_b).filter(|&j| b4[j as usize].w == 1.0).collect();
@@ -435,7 +466,9 @@ impl GpuCollision {
                     mapped_at_creation: false,
                 })
             };
-            let keep = |i: usize, n: usize| self.upload.as_ref().map_or(n, |(ba, bb)| n.max(([ba, bb][i].size() / VEC4) as usize));
+            let keep = |i: usize, n: usize| {
+                self.upload.as_ref().map_or(n, |(ba, bb)| n.max(([ba, bb][i].size() / VEC4) as usize))
+            };
             let (na, nb) = (keep(0, a.len()), keep(1, b.len()));
             self.upload = Some(scoped(&device, || (make("voxcollide a", na), make("voxcollide b", nb)))?);
         }
@@ -467,7 +500,8 @@ impl Collision for GpuCollision {
         let staging = self.staging(readback_size(n_a, n_b))?;
         let (ba, bb) = self.upload.clone().unwrap_or_else(|| unreachable!("uploaded above"));
         let guard = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide step") });
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide step") });
         self.record(&mut encoder, &ba, n_a, &bb, n_b)?;
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
         copy_report(&mut encoder, bufs, &staging, n_a, n_b);
@@ -480,7 +514,7 @@ impl Collision for GpuCollision {
 }
 
 fn readback_size(n_a: u32, n_b: u32) -> u64 {
-    VEC4 * (u64::from(n_a) + u64::from(n_b)) + 80
+    VEC4 * (u64::from(n_a) + u64::from(n_b)) + GpuState::SIZE
 }
 
 /// Copies force_a, force_b and the state, back to back, into `staging`.
@@ -488,7 +522,7 @@ fn copy_report(encoder: &mut CommandEncoder, bufs: &Buffers, staging: &Buffer, n
     let (a, b) = (VEC4 * u64::from(n_a), VEC4 * u64::from(n_b));
     encoder.copy_buffer_to_buffer(&bufs.force_a, 0, staging, 0, a);
     encoder.copy_buffer_to_buffer(&bufs.force_b, 0, staging, a, b);
-    encoder.copy_buffer_to_buffer(&bufs.state, 0, staging, a + b, 80);
+    encoder.copy_buffer_to_buffer(&bufs.state, 0, staging, a + b, GpuState::SIZE);
 }
 
 /// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
@@ -498,8 +532,12 @@ fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Err
     slice.map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    let lost = |what: String| if ctx.is_lost() { Error::DeviceLost { message: what } } else { Error::Gpu { message: what } };
-    ctx.device().poll(wgpu::PollType::wait_indefinitely()).map_err(|e| lost(format!("waiting for the device: {e}")))?;
+    let lost = |what: String| {
+        if ctx.is_lost() { Error::DeviceLost { message: what } } else { Error::Gpu { message: what } }
+    };
+    ctx.device()
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| lost(format!("waiting for the device: {e}")))?;
     match rx.recv() {
         Ok(Ok(())) => {}
         Ok(Err(e)) => return Err(lost(format!("reading the results back: {e}"))),

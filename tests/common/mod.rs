@@ -41,7 +41,8 @@ pub fn bodies(seed: u64, n: usize) -> (Vec<Vec3>, Vec<Vec3>, f32, VoxelGrid) {
     let voxel = [0.5f32, 1.0, 2.0][(seed % 3) as usize];
     let side = voxel * ((n as f32 / 2.0).cbrt()).max(1.0);
     let mut point = |lo: f32, hi: f32| {
-        Vec3::new(rng.random_range(lo..hi), rng.random_range(lo..hi), rng.random_range(lo..hi)) - Vec3::splat(7.0)
+        Vec3::new(rng.random_range(lo..hi), rng.random_range(lo..hi), rng.random_range(lo..hi))
+            - Vec3::splat(7.0)
     };
     let mut a: Vec<Vec3> = (0..n).map(|_| point(0.0, side)).collect();
     let mut b: Vec<Vec3> = (0..n).map(|_| point(-0.1 * side, 1.1 * side)).collect();
@@ -59,17 +60,30 @@ pub fn bodies(seed: u64, n: usize) -> (Vec<Vec3>, Vec<Vec3>, f32, VoxelGrid) {
 /// returns the number of force components that differ in their bits.
 pub fn compare(what: &str, expected: &ContactReport, actual: &ContactReport, tolerance: f32) -> usize {
     assert_eq!(expected.colliding_b.len(), actual.colliding_b.len(), "{what}: colliding count");
-    if let Some(k) = (0..expected.colliding_b.len()).find(|&k| expected.colliding_b[k] != actual.colliding_b[k]) {
+    if let Some(k) =
+        (0..expected.colliding_b.len()).find(|&k| expected.colliding_b[k] != actual.colliding_b[k])
+    {
         panic!("{what}: colliding_b[{k}] {} != {}", expected.colliding_b[k], actual.colliding_b[k]);
     }
-    assert_eq!((expected.binned_a, expected.discarded_a), (actual.binned_a, actual.discarded_a), "{what}: binned");
+    assert_eq!(
+        (expected.binned_a, expected.discarded_a),
+        (actual.binned_a, actual.discarded_a),
+        "{what}: binned"
+    );
     assert_eq!(expected.grid_center, actual.grid_center, "{what}: grid center");
     let mut inexact = 0;
-    for (name, e, g) in [("force_a", &expected.force_a, &actual.force_a), ("force_b", &expected.force_b, &actual.force_b)] {
+    for (name, e, g) in
+        [("force_a", &expected.force_a, &actual.force_a), ("force_b", &expected.force_b, &actual.force_b)]
+    {
         assert_eq!(e.len(), g.len(), "{what}: {name} length");
         for i in 0..e.len() {
             let d = (e[i] - g[i]).abs().max_element();
-            assert!(d <= tolerance, "{what}: {name}[{i}] cpu {} gpu {} differ by {d} > {tolerance}", e[i], g[i]);
+            assert!(
+                d <= tolerance,
+                "{what}: {name}[{i}] cpu {} gpu {} differ by {d} > {tolerance}",
+                e[i],
+                g[i]
+            );
             inexact += (0..3).filter(|&k| e[i][k].to_bits() != g[i][k].to_bits()).count();
         }
     }
