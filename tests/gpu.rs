@@ -85,7 +85,7 @@ fn every_one_of_eight_million_b_vertices_is_probed() {
     let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
     let n = gpu.max_vertices().min(8 << 20) as usize;
     assert!(n >= 8 << 20 || !ctx.adapter_name().contains("llvmpipe"), "lavapipe allows {n}");
-    let hit = |j: usize| j % 4099 == 0 || j == n - 1;
+    let hit = |j: usize| j.is_multiple_of(4099) || j == n - 1;
     let b: Vec<Vec3> = (0..n)
         .map(|j| if hit(j) { a[j % 1000] + Vec3::new(0.0, 0.0, 0.25) } else { Vec3::splat(100.0) })
         .collect();

@@ -156,6 +156,7 @@ pub struct GpuCollision {
     bound: Option<Bound>,
     uploaded: GpuParams,
     recorded: Option<(u32, u32)>,
+    bind_group_builds: u32,
     // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
     upload: Option<(Buffer, Buffer)>,
     staging: Option<Buffer>,
@@ -187,6 +188,7 @@ impl GpuCollision {
             bound: None,
             uploaded: GpuParams::default(),
             recorded: None,
+            bind_group_builds: 0,
             upload: None,
             staging: None,
             scratch: Vec::new(),
@@ -198,6 +200,13 @@ impl GpuCollision {
     #[must_use]
     pub fn max_vertices(&self) -> u32 {
         self.max_vertices
+    }
+
+    /// How many times the bind groups have been built: once, then again only when the device
+    /// buffers grow or the app hands other position buffers to [`record`](Self::record).
+    #[must_use]
+    pub fn bind_group_builds(&self) -> u32 {
+        self.bind_group_builds
     }
 
     /// The grid as built.
@@ -289,6 +298,7 @@ impl GpuCollision {
                 ),
             })?;
             self.bound = Some(bound);
+            self.bind_group_builds += 1;
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bind groups were just made") };
 

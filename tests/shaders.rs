@@ -1,0 +1,31 @@
+//! Every composed shader module parses and validates with naga and default capabilities — no
+//! GPU needed, so a shader error shows on any machine.
+
+use voxcollide::gpu::shaders::SHADERS;
+
+#[test]
+fn every_shader_parses_and_validates_with_default_capabilities() {
+    for (name, source) in SHADERS {
+        let module = naga::front::wgsl::parse_str(source)
+            .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
+        let mut validator = naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        );
+        if let Err(e) = validator.validate(&module) {
+            panic!("{name}.wgsl does not validate: {}", e.emit_to_string(source));
+        }
+        assert!(module.entry_points.iter().any(|e| e.name == "main"), "{name}.wgsl has no `main`");
+    }
+}
+
+#[test]
+fn every_pass_starts_from_the_shared_definitions() {
+    let common = include_str!("../shaders/common.wgsl");
+    for (name, source) in SHADERS {
+        assert!(source.starts_with(common), "{name} is not composed from common.wgsl");
+        let path = format!("{}/shaders/{name}.wgsl", env!("CARGO_MANIFEST_DIR"));
+        let own = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(&source[common.len()..], own, "{path}");
+    }
+}
