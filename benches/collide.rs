@@ -1,0 +1,74 @@
+//! CPU reference vs GPU on DESIGN §7's lattice(N): the GPU resident (positions already on the
+//! device, no upload, no readback: the embedded case) and through `step()` (upload and readback
+//! included). Run: `cargo bench --bench collide`; the adapter is printed first.
+
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use voxcollide::glam::Vec4;
+use voxcollide::workload::{DEFAULT_SEED, lattice};
+use voxcollide::{Collision, CpuCollision, GpuCollision, GpuContext, wgpu};
+
+const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
+
+fn bench(c: &mut Criterion) {
+    let ctx = match GpuContext::new() {
+        Ok(ctx) => {
+            eprintln!("adapter: {}", ctx.adapter_name());
+            Some(ctx)
+        }
+        Err(e) => {
+            eprintln!("no adapter, GPU benches skipped: {e}");
+            None
+        }
+    };
+    let mut group = c.benchmark_group("lattice");
+    group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
+    for n in SIZES {
+        let w = lattice(n, DEFAULT_SEED).expect("workload");
+        group.throughput(Throughput::Elements((w.a.len() + w.b.len()) as u64));
+
+        let mut cpu = CpuCollision::new(w.grid, w.params).expect("params");
+        group.bench_function(BenchmarkId::new("cpu_reference_1_thread", n), |bench| {
+            bench.iter(|| black_box(cpu.step(&w.a, &w.b).expect("step")));
+        });
+
+        let Some(ctx) = &ctx else { continue };
+        let mut gpu = GpuCollision::new(ctx, w.grid, w.params).expect("gpu");
+        group.bench_function(BenchmarkId::new("gpu_step", n), |bench| {
+            bench.iter(|| black_box(gpu.step(&w.a, &w.b).expect("step")));
+        });
+
+        let (device, queue) = (ctx.device(), ctx.queue());
+        let upload = |points: &[voxcollide::glam::Vec3]| {
+            let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
+            wgpu::util::DeviceExt::create_buffer_init(
+                device,
+                &wgpu::util::BufferInitDescriptor {
+                    label: None,
+                    contents: bytemuck::cast_slice(&data),
+                    usage: wgpu::BufferUsages::STORAGE,
+                },
+            )
+        };
+        let (a, b) = (upload(&w.a), upload(&w.b));
+        let (n_a, n_b) = (w.a.len() as u32, w.b.len() as u32);
+        group.bench_function(BenchmarkId::new("gpu_resident", n), |bench| {
+            bench.iter_custom(|iters| {
+                let start = Instant::now();
+                for _ in 0..iters {
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    gpu.record(&mut encoder, &a, n_a, &b, n_b).expect("record");
+                    queue.submit([encoder.finish()]);
+                    device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
+                }
+                start.elapsed()
+            });
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(collide, bench);
+criterion_main!(collide);
