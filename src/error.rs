@@ -218,4 +218,33 @@ pub enum Error {
         /// The first B vertex whose walk was cut short.
         b: u32,
     },
+
+    /// A file could not be written or read.
+    #[error("{path}: {message}")]
+    Io {
+        /// The file.
+        path: String,
+        /// What went wrong.
+        message: String,
+    },
+
+    /// A simulation blew up or was set up outside its stable range.
+    #[error("simulation failed at step {step}: {message}")]
+    Simulation {
+        /// The step at which it was seen (0: at setup).
+        step: u64,
+        /// What was seen and its likely cause.
+        message: String,
+    },
+
+    /// A value given to the renderer or the command is outside what it supports.
+    #[error("{what} = {value} is invalid: {rule}")]
+    Invalid {
+        /// What the value is.
+        what: &'static str,
+        /// The value, as given.
+        value: String,
+        /// The rule it breaks.
+        rule: String,
+    },
 }

@@ -16,7 +16,11 @@ pub mod voxel_data; //   `VoxelData`: the sparse voxel hash of per-voxel vertex 
 // Supporting pieces.
 pub mod error;
 pub mod fixed_point;
+pub mod geometry; //     inside tests and distances on closed triangle surfaces
 pub mod math;
+pub mod mesh;
+pub mod output; //       VTK / ParaView files of the bodies
+pub mod render; //       offscreen PNG pictures with wgpu
 pub mod params;
 pub mod report;
 pub mod workload; //     the benchmark workloads of DESIGN §7
