@@ -23,6 +23,7 @@ pub mod output; //       VTK / ParaView files of the bodies
 pub mod render; //       offscreen PNG pictures with wgpu
 pub mod params;
 pub mod report;
+pub mod sim; //          mass-spring bodies and the paper's scenarios
 pub mod workload; //     the benchmark workloads of DESIGN §7
 
 pub use collision::Collision;
