@@ -6,7 +6,7 @@
 //! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
 
 mod context;
-mod kernel;
+pub(crate) mod kernel;
 mod layout;
 pub mod shaders;
 
@@ -535,6 +535,35 @@ fn copy_report(encoder: &mut CommandEncoder, bufs: &Buffers, staging: &Buffer, n
     encoder.copy_buffer_to_buffer(&bufs.state, 0, staging, a + b, GpuState::SIZE);
 }
 
+/// Copies `(buffer, size)` pairs into one staging buffer, submits, and returns each one's bytes.
+pub(crate) fn read_buffers(ctx: &GpuContext, parts: &[(&Buffer, u64)]) -> Result<Vec<Vec<u8>>, Error> {
+    let device = ctx.device();
+    let total: u64 = parts.iter().map(|(_, n)| n.div_ceil(4) * 4).sum();
+    let staging = scoped(device, || {
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("voxcollide readback"),
+            size: total.max(4),
+            usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        })
+    })?;
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let mut offset = 0;
+    for (buffer, size) in parts {
+        encoder.copy_buffer_to_buffer(buffer, 0, &staging, offset, *size);
+        offset += size.div_ceil(4) * 4;
+    }
+    ctx.queue().submit([encoder.finish()]);
+    let bytes = map_read(ctx, &staging, total.max(4))?;
+    let mut out = Vec::with_capacity(parts.len());
+    let mut offset = 0usize;
+    for (_, size) in parts {
+        out.push(bytes[offset..offset + *size as usize].to_vec());
+        offset += (size.div_ceil(4) * 4) as usize;
+    }
+    Ok(out)
+}
+
 /// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
 fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Error> {
     let slice = buffer.slice(..size);
@@ -563,7 +592,7 @@ fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Err
 
 /// Runs `f` inside validation and out-of-memory error scopes, turning a captured error into
 /// [`Error::Gpu`].
-fn scoped<T>(device: &Device, f: impl FnOnce() -> T) -> Result<T, Error> {
+pub(crate) fn scoped<T>(device: &Device, f: impl FnOnce() -> T) -> Result<T, Error> {
     let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
     let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let value = f();

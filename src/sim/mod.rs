@@ -10,5 +10,7 @@ pub mod scene;
 
 pub use scene::{Kind, Scene, SceneConfig};
 pub mod cpu;
+pub mod gpu;
 
 pub use cpu::CpuSim;
+pub use gpu::GpuSim;
