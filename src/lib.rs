@@ -20,9 +20,10 @@ pub mod geometry; //     inside tests and distances on closed triangle surfaces
 pub mod math;
 pub mod mesh;
 pub mod output; //       VTK / ParaView files of the bodies
-pub mod render; //       offscreen PNG pictures with wgpu
 pub mod params;
+pub mod render; //       offscreen PNG pictures with wgpu
 pub mod report;
+pub mod scenario; //     a scene run end to end: backend, frames, files, summary
 pub mod sim; //          mass-spring bodies and the paper's scenarios
 pub mod workload; //     the benchmark workloads of DESIGN §7
 

@@ -3,14 +3,17 @@
 
 use glam::{UVec3, Vec3};
 
-use super::body::{Material, MassSpring, Mode, Spring};
+use super::body::{MassSpring, Material, Mode, Spring};
 use crate::error::Error;
 use crate::math::cross;
 use crate::mesh::TriangleMesh;
 
 /// Adds springs between every pair in `pairs`, with rest lengths from `pos`.
 fn springs_from(pos: &[Vec3], pairs: impl IntoIterator<Item = (u32, u32)>, k: f32) -> Vec<Spring> {
-    pairs.into_iter().map(|(i, j)| Spring { i, j, rest: pos[i as usize].distance(pos[j as usize]), k }).collect()
+    pairs
+        .into_iter()
+        .map(|(i, j)| Spring { i, j, rest: pos[i as usize].distance(pos[j as usize]), k })
+        .collect()
 }
 
 /// Adds the quad `a b c d` as two triangles facing `outward` (flipped if they do not).
@@ -43,7 +46,11 @@ pub fn box_lattice(
     mode: impl Fn(UVec3) -> Mode,
 ) -> Result<MassSpring, Error> {
     if n.min_element() < 2 {
-        return Err(Error::Invalid { what: "lattice size", value: n.to_string(), rule: "needs 2 or more vertices per axis".into() });
+        return Err(Error::Invalid {
+            what: "lattice size",
+            value: n.to_string(),
+            rule: "needs 2 or more vertices per axis".into(),
+        });
     }
     let idx = |x: u32, y: u32, z: u32| x + n.x * (y + n.y * z);
     let mut pos = Vec::with_capacity((n.x * n.y * n.z) as usize);
@@ -89,21 +96,36 @@ pub fn box_lattice(
     for a in 0..mx {
         for b in 0..my {
             for (z, out) in [(0, Vec3::NEG_Z), (mz, Vec3::Z)] {
-                quad(&mut surface, &pos, [idx(a, b, z), idx(a + 1, b, z), idx(a + 1, b + 1, z), idx(a, b + 1, z)], out);
+                quad(
+                    &mut surface,
+                    &pos,
+                    [idx(a, b, z), idx(a + 1, b, z), idx(a + 1, b + 1, z), idx(a, b + 1, z)],
+                    out,
+                );
             }
         }
     }
     for a in 0..mx {
         for c in 0..mz {
             for (y, out) in [(0, Vec3::NEG_Y), (my, Vec3::Y)] {
-                quad(&mut surface, &pos, [idx(a, y, c), idx(a + 1, y, c), idx(a + 1, y, c + 1), idx(a, y, c + 1)], out);
+                quad(
+                    &mut surface,
+                    &pos,
+                    [idx(a, y, c), idx(a + 1, y, c), idx(a + 1, y, c + 1), idx(a, y, c + 1)],
+                    out,
+                );
             }
         }
     }
     for b in 0..my {
         for c in 0..mz {
             for (x, out) in [(0, Vec3::NEG_X), (mx, Vec3::X)] {
-                quad(&mut surface, &pos, [idx(x, b, c), idx(x, b + 1, c), idx(x, b + 1, c + 1), idx(x, b, c + 1)], out);
+                quad(
+                    &mut surface,
+                    &pos,
+                    [idx(x, b, c), idx(x, b + 1, c), idx(x, b + 1, c + 1), idx(x, b, c + 1)],
+                    out,
+                );
             }
         }
     }
@@ -149,7 +171,9 @@ pub fn cylinder(
     }
     let per_layer = 1 + rings * segments;
     // Vertex (l, m, s): m = 0 is the center line (s ignored), m >= 1 a ring.
-    let idx = |l: u32, m: u32, s: u32| l * per_layer + if m == 0 { 0 } else { 1 + (m - 1) * segments + s % segments };
+    let idx = |l: u32, m: u32, s: u32| {
+        l * per_layer + if m == 0 { 0 } else { 1 + (m - 1) * segments + s % segments }
+    };
     let mut pos = Vec::new();
     for l in 0..layers {
         let z = base.z + height * l as f32 / (layers - 1) as f32;
@@ -206,7 +230,12 @@ pub fn cylinder(
         for s in 0..segments {
             tri(&mut surface, &pos, [idx(l, 0, 0), idx(l, 1, s), idx(l, 1, s + 1)], out);
             for m in 1..rings {
-                quad(&mut surface, &pos, [idx(l, m, s), idx(l, m + 1, s), idx(l, m + 1, s + 1), idx(l, m, s + 1)], out);
+                quad(
+                    &mut surface,
+                    &pos,
+                    [idx(l, m, s), idx(l, m + 1, s), idx(l, m + 1, s + 1), idx(l, m, s + 1)],
+                    out,
+                );
             }
         }
     }
@@ -217,7 +246,9 @@ pub fn cylinder(
             quad(&mut surface, &pos, q, (mid - Vec3::new(base.x, base.y, mid.z)).normalize_or_zero());
         }
     }
-    let modes = (0..pos.len() as u32).map(|i| if i / per_layer == layers - 1 { Mode::Driven } else { Mode::Free }).collect();
+    let modes = (0..pos.len() as u32)
+        .map(|i| if i / per_layer == layers - 1 { Mode::Driven } else { Mode::Free })
+        .collect();
     MassSpring::new(pos, modes, springs, surface, material)
 }
 
@@ -271,7 +302,11 @@ pub fn ellipsoid_shell(
             pairs.push((ring(r, s), ring(r, s + 1)));
             pairs.push((ring(r, s), ring(r, s + 2)));
             if r + 1 < rings {
-                pairs.extend([(ring(r, s), ring(r + 1, s)), (ring(r, s), ring(r + 1, s + 1)), (ring(r, s + 1), ring(r + 1, s))]);
+                pairs.extend([
+                    (ring(r, s), ring(r + 1, s)),
+                    (ring(r, s), ring(r + 1, s + 1)),
+                    (ring(r, s + 1), ring(r + 1, s)),
+                ]);
                 let q = [ring(r, s), ring(r + 1, s), ring(r + 1, s + 1), ring(r, s + 1)];
                 quad(&mut surface, &pos, q, out(pos[q[0] as usize]));
             }

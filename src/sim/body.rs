@@ -127,17 +127,33 @@ impl MassSpring {
         let n = positions.len();
         let invalid = |what, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
         if mode.len() != n {
-            return Err(invalid("mode length", mode.len().to_string(), &format!("must equal the {n} vertices")));
+            return Err(invalid(
+                "mode length",
+                mode.len().to_string(),
+                &format!("must equal the {n} vertices"),
+            ));
         }
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(invalid("vertex position", format!("{} (vertex {i})", positions[i]), "must be finite"));
+            return Err(invalid(
+                "vertex position",
+                format!("{} (vertex {i})", positions[i]),
+                "must be finite",
+            ));
         }
         for s in &springs {
             if s.i as usize >= n || s.j as usize >= n || s.i == s.j {
-                return Err(invalid("spring", format!("{}-{}", s.i, s.j), &format!("needs two distinct vertices below {n}")));
+                return Err(invalid(
+                    "spring",
+                    format!("{}-{}", s.i, s.j),
+                    &format!("needs two distinct vertices below {n}"),
+                ));
             }
             if !(s.rest > 0.0 && s.k > 0.0 && s.rest.is_finite() && s.k.is_finite()) {
-                return Err(invalid("spring rest/k", format!("{}/{}", s.rest, s.k), "must be finite and positive"));
+                return Err(invalid(
+                    "spring rest/k",
+                    format!("{}/{}", s.rest, s.k),
+                    "must be finite and positive",
+                ));
             }
         }
         if let Some(t) = surface.triangles.iter().find(|t| t.iter().any(|&v| v as usize >= n)) {
@@ -163,7 +179,8 @@ impl MassSpring {
                 fill[a as usize] += 1;
             }
         }
-        let inv_mass = degree.iter().map(|&d| 1.0 / (material.mass * (d as f32 / REFERENCE_DEGREE).max(1.0))).collect();
+        let inv_mass =
+            degree.iter().map(|&d| 1.0 / (material.mass * (d as f32 / REFERENCE_DEGREE).max(1.0))).collect();
         let mut tri_offsets = vec![0u32; n + 1];
         for t in &surface.triangles {
             for &v in t {
@@ -217,7 +234,9 @@ impl MassSpring {
         let omega2 = (0..self.len())
             .map(|i| {
                 let adj = &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize];
-                4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>() * stiffen * self.inv_mass[i]
+                4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>()
+                    * stiffen
+                    * self.inv_mass[i]
             })
             .fold(0.0f32, f32::max);
         if omega2 > 0.0 { 0.5 * 2.0 / omega2.sqrt() } else { f32::INFINITY }
@@ -233,11 +252,20 @@ impl MassSpring {
             let mut f = contact[i] - m.damping * v;
             for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
                 let s = self.springs[k as usize];
-                f += spring_force(x, v, self.pos[j as usize], self.vel[j as usize], s.rest * inputs.rest_scale, s.k, m);
+                f += spring_force(
+                    x,
+                    v,
+                    self.pos[j as usize],
+                    self.vel[j as usize],
+                    s.rest * inputs.rest_scale,
+                    s.k,
+                    m,
+                );
             }
             if inputs.pressure != 0.0 {
                 // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.
-                for &t in &self.tri_adjacency[self.tri_offsets[i] as usize..self.tri_offsets[i + 1] as usize] {
+                for &t in &self.tri_adjacency[self.tri_offsets[i] as usize..self.tri_offsets[i + 1] as usize]
+                {
                     let [a, b, c] = self.surface.triangles[t as usize].map(|v| self.pos[v as usize]);
                     f += (inputs.pressure / 6.0) * cross(b - a, c - a);
                 }

@@ -28,7 +28,14 @@ impl CpuSim {
     /// The contact-parameter errors of [`CpuCollision::new`].
     pub fn new(scene: Scene) -> Result<CpuSim, Error> {
         let collision = CpuCollision::new(scene.grid, scene.params)?;
-        Ok(CpuSim { scene, collision, force_tissue: Vec::new(), force_foreign: Vec::new(), report: ContactReport::default(), step: 0 })
+        Ok(CpuSim {
+            scene,
+            collision,
+            force_tissue: Vec::new(),
+            force_foreign: Vec::new(),
+            report: ContactReport::default(),
+            step: 0,
+        })
     }
 
     /// Steps taken so far.

@@ -16,7 +16,8 @@ use crate::report::ContactReport;
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
 pub const SHADERS: [(&str, &str); 2] = [("forces", FORCES), ("integrate", INTEGRATE)];
 /// Pass 1: forces over mass.
-pub const FORCES: &str = concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/forces.wgsl"));
+pub const FORCES: &str =
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/forces.wgsl"));
 /// Pass 2: integration.
 pub const INTEGRATE: &str =
     concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/integrate.wgsl"));
@@ -64,13 +65,19 @@ impl GpuBody {
             // wgpu rejects empty buffers in bindings: pad to 16 bytes.
             let mut data = bytes.to_vec();
             data.resize(data.len().max(16), 0);
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: &data, usage })
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &data,
+                usage,
+            })
         };
         let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
         let pos: Vec<Vec4> = body.pos.iter().map(|p| p.extend(1.0)).collect();
         let vel: Vec<Vec4> = body.vel.iter().zip(&body.inv_mass).map(|(v, m)| v.extend(*m)).collect();
-        let info: Vec<Vec4> = body.rest_pos.iter().zip(&body.mode).map(|(p, m)| p.extend(*m as u32 as f32)).collect();
-        let offsets: Vec<[u32; 2]> = body.offsets.iter().zip(&body.tri_offsets).map(|(s, t)| [*s, *t]).collect();
+        let info: Vec<Vec4> =
+            body.rest_pos.iter().zip(&body.mode).map(|(p, m)| p.extend(*m as u32 as f32)).collect();
+        let offsets: Vec<[u32; 2]> =
+            body.offsets.iter().zip(&body.tri_offsets).map(|(s, t)| [*s, *t]).collect();
         let mut adjacency: Vec<u32> = body.adjacency.iter().flatten().copied().collect();
         let tri_base = adjacency.len() as u32;
         adjacency.extend(&body.tri_adjacency);
@@ -147,8 +154,18 @@ impl GpuSim {
         use Slot::{Read, ReadWrite, Uniform};
         let (forces, integrate, tissue, foreign) = scoped(device, || {
             (
-                Kernel::new(device, "voxcollide forces", FORCES, &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite]),
-                Kernel::new(device, "voxcollide integrate", INTEGRATE, &[Uniform, ReadWrite, ReadWrite, Read, Read, ReadWrite]),
+                Kernel::new(
+                    device,
+                    "voxcollide forces",
+                    FORCES,
+                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite],
+                ),
+                Kernel::new(
+                    device,
+                    "voxcollide integrate",
+                    INTEGRATE,
+                    &[Uniform, ReadWrite, ReadWrite, Read, Read, ReadWrite],
+                ),
                 GpuBody::new(device, &scene.tissue),
                 GpuBody::new(device, &scene.foreign),
             )
@@ -183,21 +200,52 @@ impl GpuSim {
         let queue = self.ctx.queue();
         let (in_t, in_f) = self.scene.inputs(self.step);
         let s = &self.scene;
-        queue.write_buffer(&self.tissue.params, 0, bytemuck::bytes_of(&self.tissue.params(&s.tissue, &in_t, s.v_max, self.step)));
-        queue.write_buffer(&self.foreign.params, 0, bytemuck::bytes_of(&self.foreign.params(&s.foreign, &in_f, s.v_max, self.step)));
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
-        self.collision.record(&mut encoder, &self.foreign.pos, self.foreign.n, &self.tissue.pos, self.tissue.n)?;
+        queue.write_buffer(
+            &self.tissue.params,
+            0,
+            bytemuck::bytes_of(&self.tissue.params(&s.tissue, &in_t, s.v_max, self.step)),
+        );
+        queue.write_buffer(
+            &self.foreign.params,
+            0,
+            bytemuck::bytes_of(&self.foreign.params(&s.foreign, &in_f, s.v_max, self.step)),
+        );
+        let mut encoder = device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
+        self.collision.record(
+            &mut encoder,
+            &self.foreign.pos,
+            self.foreign.n,
+            &self.tissue.pos,
+            self.tissue.n,
+        )?;
         if self.bound.is_none() {
-            let (Some(force_a), Some(force_b)) = (self.collision.force_a_buffer(), self.collision.force_b_buffer()) else {
-                return Err(Error::Gpu { message: "collision force buffers missing after a recorded step".into() });
+            let (Some(force_a), Some(force_b)) =
+                (self.collision.force_a_buffer(), self.collision.force_b_buffer())
+            else {
+                return Err(Error::Gpu {
+                    message: "collision force buffers missing after a recorded step".into(),
+                });
             };
             let forces = |b: &GpuBody, contact: &Buffer| {
                 self.forces.bind(
                     &device,
-                    &[&b.params, &b.pos, &b.vel, contact, &b.offsets, &b.adjacency, &b.springs, &b.triangles, &b.acc],
+                    &[
+                        &b.params,
+                        &b.pos,
+                        &b.vel,
+                        contact,
+                        &b.offsets,
+                        &b.adjacency,
+                        &b.springs,
+                        &b.triangles,
+                        &b.acc,
+                    ],
                 )
             };
-            let integrate = |b: &GpuBody| self.integrate.bind(&device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status]);
+            let integrate = |b: &GpuBody| {
+                self.integrate.bind(&device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status])
+            };
             self.bound = Some(scoped(&device, || Bound {
                 forces: [forces(&self.tissue, force_b), forces(&self.foreign, force_a)],
                 integrate: [integrate(&self.tissue), integrate(&self.foreign)],
@@ -205,7 +253,10 @@ impl GpuSim {
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bound above") };
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("voxcollide sim"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("voxcollide sim"),
+                timestamp_writes: None,
+            });
             for (k, body) in [&self.tissue, &self.foreign].into_iter().enumerate() {
                 self.forces.dispatch(&mut pass, &bound.forces[k], body.n, self.max_per_dim);
             }
@@ -229,7 +280,10 @@ impl GpuSim {
         for (name, tissue) in [("tissue", true), ("foreign body", false)] {
             let gpu = if tissue { &self.tissue } else { &self.foreign };
             let n = gpu.n as u64;
-            let bytes = crate::gpu::read_buffers(&self.ctx, &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8)])?;
+            let bytes = crate::gpu::read_buffers(
+                &self.ctx,
+                &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8)],
+            )?;
             let status: [u32; 2] = bytemuck::pod_read_unaligned(&bytes[2]);
             if status[0] != 0 {
                 let what = format!("vertex {} has a non-finite position or a runaway speed", !status[1]);

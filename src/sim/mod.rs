@@ -5,7 +5,7 @@
 pub mod bodies;
 pub mod body;
 
-pub use body::{Material, MassSpring, Mode, Spring, StepInputs};
+pub use body::{MassSpring, Material, Mode, Spring, StepInputs};
 pub mod scene;
 
 pub use scene::{Kind, Scene, SceneConfig};

@@ -4,7 +4,7 @@
 use glam::{UVec3, Vec3};
 
 use super::bodies::{box_lattice, box_slice, cylinder, ellipsoid_shell};
-use super::body::{Material, MassSpring, Mode, StepInputs};
+use super::body::{MassSpring, Material, Mode, StepInputs};
 use crate::error::Error;
 use crate::grid::VoxelGrid;
 use crate::initializer::Initializer;
@@ -56,7 +56,15 @@ impl SceneConfig {
     /// The defaults for `kind`.
     #[must_use]
     pub fn new(kind: Kind) -> SceneConfig {
-        SceneConfig { kind, resolution: 24, steps: 1200, stiffness: 40.0, magnitude: None, voxel_size: None, pressure: 80.0 }
+        SceneConfig {
+            kind,
+            resolution: 24,
+            steps: 1200,
+            stiffness: 40.0,
+            magnitude: None,
+            voxel_size: None,
+            pressure: 80.0,
+        }
     }
 }
 
@@ -114,7 +122,11 @@ impl Scene {
     pub fn new(config: SceneConfig) -> Result<Scene, Error> {
         let invalid = |what, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
         if !(4..=200).contains(&config.resolution) {
-            return Err(invalid("resolution", config.resolution.to_string(), "must be between 4 and 200 cells"));
+            return Err(invalid(
+                "resolution",
+                config.resolution.to_string(),
+                "must be between 4 and 200 cells",
+            ));
         }
         if config.steps == 0 {
             return Err(invalid("steps", "0".into(), "must be at least 1"));
@@ -137,25 +149,38 @@ impl Scene {
         let k_foreign = k * FOREIGN_STIFFNESS_RATIO;
         let (tissue, foreign, press_depth, foreign_spacing, growth, chest_wall) = match config.kind {
             Kind::Cylinder => {
-                let tissue = box_lattice(dims, h, origin, k, tissue_material, |v| if v.z == 0 { Mode::Pinned } else { Mode::Free })?;
+                let tissue = box_lattice(dims, h, origin, k, tissue_material, |v| {
+                    if v.z == 0 { Mode::Pinned } else { Mode::Free }
+                })?;
                 let radius = 0.15 * LAYER_WIDTH;
                 let rings = ((radius / h).round() as u32).max(2);
                 let segments = (6 * rings).max(12);
                 let height = 0.6 * thickness;
                 let layers = ((height / h).round() as u32).max(2) + 1;
                 let base = Vec3::new(0.0, 0.0, thickness + 1.0 * h);
-                let foreign = cylinder(base, radius, height, rings, segments, layers, k_foreign, foreign_material)?;
-                (tissue, foreign, 1.0 * h + 0.4 * thickness, radius / rings as f32, 0.0, f32::MIN)
+                let foreign =
+                    cylinder(base, radius, height, rings, segments, layers, k_foreign, foreign_material)?;
+                (tissue, foreign, 1.0 * h + 0.3 * thickness, radius / rings as f32, 0.0, f32::MIN)
             }
             Kind::Implant => {
                 let rim = |v: UVec3| v.x == 0 || v.y == 0 || v.x == n || v.y == n;
-                let tissue = box_lattice(dims, h, origin, k, tissue_material, |v| if rim(v) { Mode::Pinned } else { Mode::Free })?;
+                let tissue = box_lattice(dims, h, origin, k, tissue_material, |v| {
+                    if rim(v) { Mode::Pinned } else { Mode::Free }
+                })?;
                 let radii = Vec3::new(0.25 * LAYER_WIDTH, 0.25 * LAYER_WIDTH, 0.4 * thickness);
                 let center = Vec3::new(0.0, 0.0, -radii.z - 1.0 * h);
                 let segments = ((std::f32::consts::TAU * radii.x / h).round() as u32).max(12);
                 let rings = (segments / 2).max(4);
-                let foreign = ellipsoid_shell(center, radii, rings, segments, 0.6, k_foreign, foreign_material)?;
-                (tissue, foreign, 0.0, std::f32::consts::TAU * radii.x / segments as f32, IMPLANT_GROWTH, center.z - radii.z)
+                let foreign =
+                    ellipsoid_shell(center, radii, rings, segments, 0.6, k_foreign, foreign_material)?;
+                (
+                    tissue,
+                    foreign,
+                    0.0,
+                    std::f32::consts::TAU * radii.x / segments as f32,
+                    IMPLANT_GROWTH,
+                    center.z - radii.z,
+                )
             }
         };
         let spacing = h.max(foreign_spacing);
@@ -168,7 +193,7 @@ impl Scene {
             - foreign.pos.iter().fold(Vec3::splat(f32::MAX), |m, p| m.min(*p));
         let margin = (growth * extent.max_element() / voxel_size).ceil() as u32 + 2;
         let grid = Initializer::new(voxel_size).margin(margin).build(&foreign.pos)?;
-        let magnitude = config.magnitude.unwrap_or(2.0 * k * h);
+        let magnitude = config.magnitude.unwrap_or(4.0 * k * h);
         let params = ContactParams {
             magnitude,
             // Contact within three quarters of the coarser lattice spacing: the foreign body's
@@ -198,6 +223,12 @@ impl Scene {
         })
     }
 
+    /// The tissue lattice's spacing.
+    #[must_use]
+    pub fn tissue_spacing(&self) -> f32 {
+        LAYER_WIDTH / self.config.resolution as f32
+    }
+
     /// The layer's thickness.
     #[must_use]
     pub fn layer_thickness(&self) -> f32 {
@@ -208,13 +239,15 @@ impl Scene {
     #[must_use]
     pub fn inputs(&self, step: u64) -> (StepInputs, StepInputs) {
         let progress = smoothstep((step + 1) as f32 / (ACTIVE_FRACTION * self.config.steps as f32));
-        let tissue = StepInputs { dt: self.dt, rest_scale: 1.0, drive: Vec3::ZERO, pressure: 0.0, floor: f32::MIN };
+        let tissue =
+            StepInputs { dt: self.dt, rest_scale: 1.0, drive: Vec3::ZERO, pressure: 0.0, floor: f32::MIN };
         let foreign = match self.config.kind {
-            Kind::Cylinder => StepInputs {
-                drive: Vec3::new(0.0, 0.0, -self.press_depth * progress),
-                ..tissue
-            },
-            Kind::Implant => StepInputs { pressure: self.pressure * progress, floor: self.chest_wall, ..tissue },
+            Kind::Cylinder => {
+                StepInputs { drive: Vec3::new(0.0, 0.0, -self.press_depth * progress), ..tissue }
+            }
+            Kind::Implant => {
+                StepInputs { pressure: self.pressure * progress, floor: self.chest_wall, ..tissue }
+            }
         };
         (tissue, foreign)
     }
