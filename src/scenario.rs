@@ -206,7 +206,7 @@ pub fn run(
         while done < target {
             sim.step()?;
             done += 1;
-            if done % 16 == 0 || done == target {
+            if done.is_multiple_of(16) || done == target {
                 progress(done);
             }
         }
@@ -321,7 +321,7 @@ fn picture<'a>(scene: &'a Scene, tissue_scalars: &'a [f32]) -> RenderScene<'a> {
         ],
         scalar_range: (0.0, 0.5 * scene.layer_thickness()),
         clip: Some((Vec3::new(0.0, -0.5 * scene.tissue_spacing(), 0.0), Vec3::Y)),
-        view_dir: Vec3::new(0.35, 1.0, -0.45).normalize(),
+        view_dir: Vec3::new(0.3, 1.0, -0.25).normalize(),
         up: Vec3::Z,
     }
 }

@@ -19,18 +19,15 @@ fn readme_commands() -> Vec<&'static str> {
 #[test]
 fn readme_states_two_commands_and_ci_runs_the_test_one() {
     let commands = readme_commands();
-    assert_eq!(
-        commands,
-        ["cargo run --release --example two_bodies", "cargo test --release"],
-        "{commands:?}"
-    );
+    assert_eq!(commands, ["cargo run --release -- run implant", "cargo test --release"], "{commands:?}");
     let ci_lines: Vec<&str> = CI.lines().map(str::trim).collect();
     assert!(ci_lines.contains(&commands[1]), ".ci/run does not run `{}`", commands[1]);
     assert!(CI.contains("export VOXCOLLIDE_REQUIRE_GPU=1"));
 }
 
 #[test]
-fn the_main_job_example_exists() {
-    let example = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/two_bodies.rs");
-    assert!(example.is_file(), "{} is missing", example.display());
+fn the_readme_picture_exists() {
+    let picture = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/implant.png");
+    assert!(picture.is_file(), "{} is missing", picture.display());
+    assert!(README.contains("(docs/implant.png)"));
 }

@@ -3,7 +3,6 @@
 
 mod common;
 
-use voxcollide::Error;
 use voxcollide::glam::Vec3;
 use voxcollide::sim::*;
 
