@@ -134,18 +134,17 @@ impl<'a> ClosedSurface<'a> {
     ///
     /// Positions not used by any triangle are ignored (the bounding box is the triangles').
     ///
-    /// # Panics
+    /// # Errors
     ///
-    /// If a triangle indexes outside `positions`.
-    #[must_use]
-    pub fn new(positions: &'a [Vec3], mesh: &'a TriangleMesh) -> ClosedSurface<'a> {
+    /// [`Error::Invalid`](crate::Error::Invalid) if a triangle indexes outside `positions`.
+    pub fn new(positions: &'a [Vec3], mesh: &'a TriangleMesh) -> Result<ClosedSurface<'a>, crate::Error> {
         for (t, tri) in mesh.triangles.iter().enumerate() {
-            for &i in tri {
-                assert!(
-                    (i as usize) < positions.len(),
-                    "triangle {t} indexes vertex {i}, but there are {} positions",
-                    positions.len()
-                );
+            if let Some(&i) = tri.iter().find(|&&i| i as usize >= positions.len()) {
+                return Err(crate::Error::Invalid {
+                    what: "triangle vertex index",
+                    value: i.to_string(),
+                    rule: format!("triangle {t} must index one of the {} positions", positions.len()),
+                });
             }
         }
         let mut builder = Builder {
@@ -177,7 +176,15 @@ impl<'a> ClosedSurface<'a> {
             }
             None => 0.0,
         };
-        ClosedSurface { positions, mesh, triangles, caps: builder.caps, nodes: builder.nodes, root, margin }
+        Ok(ClosedSurface {
+            positions,
+            mesh,
+            triangles,
+            caps: builder.caps,
+            nodes: builder.nodes,
+            root,
+            margin,
+        })
     }
 
     /// The positions the surface was built on.

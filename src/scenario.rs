@@ -212,7 +212,7 @@ pub fn run(
         }
         let (scene, report) = sim.frame()?;
         stepping += started.elapsed().as_secs_f64();
-        let f = measure(frame, done, scene, &report);
+        let f = measure(frame, done, scene, &report)?;
         if let Some(r) = renderer.as_mut() {
             let file = format!("{name}_{frame:04}.png");
             let moved: Vec<f32> =
@@ -273,12 +273,12 @@ pub fn run(
 
 /// The measurements of one frame; penetration by the exact inside test on the foreign body's
 /// current closed surface, independent of the voxel model.
-fn measure(frame: u32, step: u64, scene: &Scene, report: &ContactReport) -> FrameSummary {
-    let surface = ClosedSurface::new(&scene.foreign.pos, &scene.foreign.surface);
+fn measure(frame: u32, step: u64, scene: &Scene, report: &ContactReport) -> Result<FrameSummary, Error> {
+    let surface = ClosedSurface::new(&scene.foreign.pos, &scene.foreign.surface)?;
     let p = penetration(&surface, &scene.tissue.pos);
     let max_disp =
         |pos: &[Vec3], rest: &[Vec3]| pos.iter().zip(rest).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
-    FrameSummary {
+    Ok(FrameSummary {
         frame,
         step,
         time: step as f64 * f64::from(scene.dt),
@@ -287,7 +287,7 @@ fn measure(frame: u32, step: u64, scene: &Scene, report: &ContactReport) -> Fram
         max_penetration: p.max_depth,
         max_tissue_displacement: max_disp(&scene.tissue.pos, &scene.tissue.rest_pos),
         max_foreign_displacement: max_disp(&scene.foreign.pos, &scene.foreign.rest_pos),
-    }
+    })
 }
 
 /// The picture of a frame: seen from the front and a little above, the front half cut away at

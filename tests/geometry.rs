@@ -165,7 +165,7 @@ fn test_meshes_are_closed_and_outward() {
 #[test]
 fn cube_inside_and_outside() {
     let (positions, mesh) = cube();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     assert_eq!(s.bounds(), Some((Vec3::splat(-1.0), Vec3::splat(1.0))));
     let inside = [
         Vec3::ZERO,
@@ -207,7 +207,7 @@ fn cube_inside_and_outside() {
 #[test]
 fn sphere_inside_and_outside() {
     let (positions, mesh) = sphere();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     for p in [Vec3::ZERO, Vec3::new(0.5, 0.5, 0.5), Vec3::new(0.0, 0.0, 0.95), Vec3::new(-0.97, 0.0, 0.0)] {
         assert!(s.contains(p), "{p}");
         assert!((s.winding_number(p) - 1.0).abs() < 1e-9, "{p}");
@@ -243,7 +243,7 @@ fn flattened_ellipsoid_inside_and_outside() {
     let axes = Vec3::new(1.5, 1.0, 0.4);
     let (positions, mesh) = uv_sphere(16, 32, axes);
     let h = tessellation_error(&uv_sphere(16, 32, Vec3::ONE).0, &mesh) as f32;
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(7);
     let (mut inside, mut outside) = (0, 0);
     for _ in 0..5000 {
@@ -272,7 +272,7 @@ fn flattened_ellipsoid_inside_and_outside() {
 fn reversed_orientation_gives_minus_one_and_is_not_inside() {
     for (positions, mesh) in [cube(), sphere()] {
         let rev = reversed(&mesh);
-        let s = ClosedSurface::new(&positions, &rev);
+        let s = ClosedSurface::new(&positions, &rev).unwrap();
         for p in [Vec3::ZERO, Vec3::new(0.3, -0.2, 0.5)] {
             let w = s.winding_number(p);
             assert!((w + 1.0).abs() < 1e-9, "{p}: w = {w}");
@@ -289,7 +289,7 @@ fn reversed_orientation_gives_minus_one_and_is_not_inside() {
 fn open_surface_has_fractional_winding() {
     let (positions, mut mesh) = cube();
     mesh.triangles.truncate(10); // drop the two +z triangles
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let w = s.winding_number(Vec3::ZERO);
     assert!((w - 5.0 / 6.0).abs() < 1e-9, "{w}");
     assert!(s.contains(Vec3::ZERO));
@@ -335,7 +335,7 @@ fn hierarchical_winding_equals_brute_force() {
     ];
     let mut rng = ChaCha8Rng::seed_from_u64(11);
     for (name, positions, mesh, extent) in cases {
-        let s = ClosedSurface::new(positions, mesh);
+        let s = ClosedSurface::new(positions, mesh).unwrap();
         let mut points: Vec<Vec3> = (0..500).map(|_| random_point(&mut rng, -extent, extent)).collect();
         // Near the surface: vertices pushed in and out a little.
         points.extend(positions.iter().step_by(3).flat_map(|&v| [v * 0.999, v * 1.001, v * 0.9]));
@@ -346,7 +346,7 @@ fn hierarchical_winding_equals_brute_force() {
         }
     }
     // The doubled face counts twice at the center.
-    let s = ClosedSurface::new(&cp, &doubled);
+    let s = ClosedSurface::new(&cp, &doubled).unwrap();
     assert!((s.winding_number(Vec3::ZERO) - 7.0 / 6.0).abs() < 1e-9);
 }
 
@@ -359,7 +359,7 @@ fn cube_distance_is_analytic() {
         [(Vec3::splat(-1.0), Vec3::splat(1.0)), (Vec3::new(0.5, -2.0, 1.0), Vec3::new(3.0, 0.0, 1.5))]
     {
         let (positions, mesh) = cuboid(lo, hi);
-        let s = ClosedSurface::new(&positions, &mesh);
+        let s = ClosedSurface::new(&positions, &mesh).unwrap();
         let mut rng = ChaCha8Rng::seed_from_u64(3);
         let center = (lo + hi) / 2.0;
         let size = (hi - lo).max_element();
@@ -389,7 +389,7 @@ fn sphere_distance_within_tessellation_error() {
     let h = tessellation_error(&positions, &mesh);
     // 16 rings × 32 segments: the largest triangles span about 0.28 rad, a sagitta under 0.01.
     assert!(h > 0.005 && h < 0.01, "{h}");
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(5);
     for _ in 0..5000 {
         let p = random_point(&mut rng, -2.0, 2.0);
@@ -409,7 +409,7 @@ fn sphere_distance_within_tessellation_error() {
 #[test]
 fn penetration_hand_computed_on_the_cube() {
     let (positions, mesh) = cube();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let points = [
         Vec3::new(2.0, 0.0, 0.0),      // 0: outside the box
         Vec3::new(0.5, 0.0, 0.0),      // 1: 0.5 from +x
@@ -444,7 +444,7 @@ fn random_points_agree_with_the_analytic_sphere() {
     let (positions, mesh) = sphere();
     let h = tessellation_error(&positions, &mesh) as f32;
     assert!(h < 0.02);
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(1);
     let points: Vec<Vec3> = (0..50_000).map(|_| random_point(&mut rng, -1.3, 1.3)).collect();
     let (mut checked, mut shell) = (0, 0);
@@ -481,7 +481,7 @@ fn random_points_agree_with_the_analytic_sphere() {
 #[test]
 fn non_finite_points_are_never_inside() {
     let (positions, mesh) = cube();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let bad = [
         Vec3::new(f32::NAN, 0.0, 0.0),
         Vec3::new(0.0, f32::INFINITY, 0.0),
@@ -511,7 +511,7 @@ fn with_degenerate_triangles() -> (Vec<Vec3>, TriangleMesh) {
 #[test]
 fn degenerate_triangles_give_no_nan() {
     let (positions, mesh) = with_degenerate_triangles();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(9);
     let mut points: Vec<Vec3> = (0..2000).map(|_| random_point(&mut rng, -1.5, 1.5)).collect();
     // On the degenerate triangles' lines and points, on and off the cube.
@@ -537,7 +537,7 @@ fn degenerate_triangles_give_no_nan() {
     }
     // Nothing but degenerate triangles: no solid angle anywhere, distances to the segments.
     let only = TriangleMesh { triangles: mesh.triangles[12..].to_vec() };
-    let s = ClosedSurface::new(&positions, &only);
+    let s = ClosedSurface::new(&positions, &only).unwrap();
     for p in [Vec3::ZERO, Vec3::new(0.0, -1.0, -1.0), Vec3::new(-3.0, -1.0, -1.0), Vec3::splat(1.0)] {
         assert_eq!(s.winding_number(p), 0.0, "{p}");
         assert!(!s.contains(p));
@@ -551,7 +551,7 @@ fn degenerate_triangles_give_no_nan() {
 #[test]
 fn empty_surface() {
     let mesh = TriangleMesh::default();
-    let s = ClosedSurface::new(&[], &mesh);
+    let s = ClosedSurface::new(&[], &mesh).unwrap();
     assert_eq!(s.bounds(), None);
     assert_eq!(s.winding_number(Vec3::ZERO), 0.0);
     assert!(!s.contains(Vec3::ZERO));
@@ -563,11 +563,12 @@ fn empty_surface() {
 }
 
 #[test]
-#[should_panic(expected = "indexes vertex 8")]
-fn out_of_range_index_panics() {
+fn out_of_range_index_is_a_typed_error() {
     let (positions, mut mesh) = cube();
     mesh.triangles.push([0, 1, 8]);
-    let _ = ClosedSurface::new(&positions, &mesh);
+    let err = ClosedSurface::new(&positions, &mesh).err().unwrap();
+    assert!(matches!(err, voxcollide::Error::Invalid { .. }), "{err:?}");
+    assert!(err.to_string().contains("triangle 12 must index one of the 8 positions"), "{err}");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -595,7 +596,7 @@ fn run_points_against_sphere_2k(n: usize) {
     // Points in the surface's box, so every one pays for a winding number.
     let points: Vec<Vec3> = (0..n).map(|_| random_point(&mut rng, -1.0, 1.0)).collect();
     let start = Instant::now();
-    let s = ClosedSurface::new(&positions, &mesh);
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
     let built = start.elapsed();
     let pen = penetration(&s, &points);
     let total = start.elapsed();

@@ -146,22 +146,31 @@ pub fn box_slice(n: UVec3, j: u32) -> Vec<[u32; 3]> {
     out
 }
 
-/// A solid cylinder along +z: base center `base`, `radius`, `height`, as a polar lattice of
-/// `rings` rings of `segments` vertices around a center line, in `layers` layers; springs along
-/// rings, radii, layers and the diagonals of every cell. Its top layer is driven, the rest free.
+/// The shape and lattice of a [`cylinder`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CylinderShape {
+    /// Center of the bottom face.
+    pub base: Vec3,
+    /// Radius.
+    pub radius: f32,
+    /// Height along +z.
+    pub height: f32,
+    /// Rings of vertices around the center line.
+    pub rings: u32,
+    /// Vertices per ring.
+    pub segments: u32,
+    /// Layers of vertices along the axis.
+    pub layers: u32,
+}
+
+/// A solid cylinder along +z as a polar lattice of `rings` rings of `segments` vertices around a
+/// center line, in `layers` layers; springs along rings, radii, layers and the diagonals of every
+/// cell. Its top layer is driven, the rest free.
 ///
 /// # Errors
 /// [`Error::Invalid`] for fewer than 1 ring, 3 segments or 2 layers.
-pub fn cylinder(
-    base: Vec3,
-    radius: f32,
-    height: f32,
-    rings: u32,
-    segments: u32,
-    layers: u32,
-    k: f32,
-    material: Material,
-) -> Result<MassSpring, Error> {
+pub fn cylinder(shape: CylinderShape, k: f32, material: Material) -> Result<MassSpring, Error> {
+    let CylinderShape { base, radius, height, rings, segments, layers } = shape;
     if rings < 1 || segments < 3 || layers < 2 {
         return Err(Error::Invalid {
             what: "cylinder lattice",

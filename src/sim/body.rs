@@ -275,6 +275,7 @@ impl MassSpring {
     }
 
     /// One integration step with the forces `f`. CPU twin of `shaders/integrate.wgsl`.
+    #[allow(clippy::needless_range_loop)] // one index over five arrays, as the shader has it
     pub fn integrate(&mut self, inputs: &StepInputs, f: &[Vec3]) {
         for i in 0..self.len() {
             match self.mode[i] {

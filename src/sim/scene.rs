@@ -3,7 +3,7 @@
 
 use glam::{UVec3, Vec3};
 
-use super::bodies::{box_lattice, box_slice, cylinder, ellipsoid_shell};
+use super::bodies::{CylinderShape, box_lattice, box_slice, cylinder, ellipsoid_shell};
 use super::body::{MassSpring, Material, Mode, StepInputs};
 use crate::error::Error;
 use crate::grid::VoxelGrid;
