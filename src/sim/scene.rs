@@ -158,8 +158,8 @@ impl Scene {
                 let height = 0.6 * thickness;
                 let layers = ((height / h).round() as u32).max(2) + 1;
                 let base = Vec3::new(0.0, 0.0, thickness + 1.0 * h);
-                let foreign =
-                    cylinder(base, radius, height, rings, segments, layers, k_foreign, foreign_material)?;
+                let shape = CylinderShape { base, radius, height, rings, segments, layers };
+                let foreign = cylinder(shape, k_foreign, foreign_material)?;
                 (tissue, foreign, 1.0 * h + 0.3 * thickness, radius / rings as f32, 0.0, f32::MIN)
             }
             Kind::Implant => {
