@@ -20,6 +20,7 @@ pub mod geometry; //     inside tests and distances on closed triangle surfaces
 pub mod math;
 pub mod mesh;
 pub mod output; //       VTK / ParaView files of the bodies
+pub mod parallel; //     `ParallelCpuCollision`: the multi-threaded CPU backend
 pub mod params;
 pub mod render; //       offscreen PNG pictures with wgpu
 pub mod report;
@@ -33,6 +34,7 @@ pub use error::{Body, Error};
 pub use gpu::{GpuCollision, GpuContext};
 pub use grid::VoxelGrid;
 pub use initializer::Initializer;
+pub use parallel::ParallelCpuCollision;
 pub use params::{Anchor, ContactParams, Direction, Search};
 pub use report::ContactReport;
 

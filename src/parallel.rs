@@ -1,0 +1,345 @@
+//! `ParallelCpuCollision`: a multi-threaded CPU backend (rayon) for machines without an adapter,
+//! giving the same reports as the reference.
+//!
+//! What makes it fast, and why it stays exact:
+//! - A is binned by a counting sort on hash slots instead of linked lists, and its positions
+//!   and voxels are copied into slot order, so a walk reads contiguous memory.
+//! - B is probed in parallel; under `Search::Neighbours` only the voxels of the 3×3×3 block that
+//!   the radius can reach are walked (a voxel is skipped only when its nearest face is farther
+//!   than the radius plus a rounding margin, so no candidate is lost).
+//! - Forces on A are summed in fixed point with atomic 64-bit integers: integer sums do not
+//!   depend on their order, so the totals equal the reference's exactly.
+
+use std::sync::atomic::{AtomicI64, Ordering};
+
+use glam::{UVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::collision::Collision;
+use crate::cpu::{check_body, step_grid};
+use crate::eliminate::{pairwise_direction, plane_normal};
+use crate::error::{Body, Error};
+use crate::grid::VoxelGrid;
+use crate::math::dist2;
+use crate::params::{ContactParams, Direction, Search};
+use crate::report::ContactReport;
+use crate::voxel_data::voxel_hash;
+
+/// B vertices per parallel task: large enough to amortise scheduling, small enough to balance.
+const CHUNK: usize = 4096;
+
+/// The three nearest candidates in `(d2, index)` order.
+#[derive(Clone, Copy, Debug)]
+struct Nearest {
+    d: [f32; 3],
+    i: [u32; 3],
+    n: usize,
+}
+
+impl Nearest {
+    const EMPTY: Nearest = Nearest { d: [0.0; 3], i: [0; 3], n: 0 };
+
+    #[inline]
+    fn insert(&mut self, d: f32, i: u32) {
+        let before = |k: usize| self.d[k] < d || (self.d[k] == d && self.i[k] < i);
+        let mut k = 0;
+        while k < self.n && before(k) {
+            k += 1;
+        }
+        if k == 3 {
+            return;
+        }
+        let mut j = self.n.min(2);
+        while j > k {
+            self.d[j] = self.d[j - 1];
+            self.i[j] = self.i[j - 1];
+            j -= 1;
+        }
+        self.d[k] = d;
+        self.i[k] = i;
+        self.n = (self.n + 1).min(3);
+    }
+}
+
+/// A's vertices grouped by hash slot, with copies of their positions and voxels in that order.
+#[derive(Debug, Default)]
+struct Bins {
+    mask: u32,
+    /// Per slot, where its vertices start in `index`/`pos`/`voxel` (`slots + 1` entries).
+    start: Vec<u32>,
+    /// Binned A vertices in slot order, with their positions and voxels.
+    index: Vec<u32>,
+    pos: Vec<Vec3>,
+    voxel: Vec<UVec3>,
+    /// Per A vertex: its slot (`u32::MAX`: discarded) and its voxel.
+    slot_of: Vec<u32>,
+    voxel_of_a: Vec<UVec3>,
+    /// Scratch of the counting sort.
+    cursor: Vec<u32>,
+}
+
+/// The multi-threaded CPU backend. Reports equal [`CpuCollision`](crate::CpuCollision)'s.
+///
+/// Runs on rayon's global thread pool (one thread per core unless `RAYON_NUM_THREADS` says
+/// otherwise).
+#[derive(Debug)]
+pub struct ParallelCpuCollision {
+    grid: VoxelGrid,
+    params: ContactParams,
+    bins: Bins,
+    fixed: Vec<AtomicI64>,
+    hit: Vec<bool>,
+}
+
+impl ParallelCpuCollision {
+    /// A parallel backend for the pair of bodies that `grid` was built for.
+    ///
+    /// # Errors
+    /// [`Error::Magnitude`] or [`Error::Radius`] when `params` are invalid for `grid`.
+    pub fn new(grid: VoxelGrid, params: ContactParams) -> Result<ParallelCpuCollision, Error> {
+        params.validate(&grid)?;
+        Ok(ParallelCpuCollision { grid, params, bins: Bins::default(), fixed: Vec::new(), hit: Vec::new() })
+    }
+
+    /// The grid as built.
+    #[must_use]
+    pub fn grid(&self) -> &VoxelGrid {
+        &self.grid
+    }
+
+    /// The contact parameters.
+    #[must_use]
+    pub fn params(&self) -> &ContactParams {
+        &self.params
+    }
+
+    /// One step into `report`, reusing its vectors: once they have reached the bodies' sizes a
+    /// step allocates nothing.
+    ///
+    /// # Errors
+    /// As [`Collision::step`].
+    pub fn step_into(&mut self, a: &[Vec3], b: &[Vec3], report: &mut ContactReport) -> Result<(), Error> {
+        check_body(Body::A, a)?;
+        check_body(Body::B, b)?;
+        let grid = step_grid(&self.grid, self.params.anchor, a)?;
+        let binned = self.bin(&grid, a);
+        self.fixed.resize_with(3 * a.len(), || AtomicI64::new(0));
+        self.fixed.par_iter().for_each(|c| c.store(0, Ordering::Relaxed));
+        report.force_b.clear();
+        report.force_b.resize(b.len(), Vec3::ZERO);
+        self.hit.clear();
+        self.hit.resize(b.len(), false);
+
+        let m = self.params.magnitude;
+        let probe = Probe {
+            grid: &grid,
+            params: &self.params,
+            bins: &self.bins,
+            a,
+            fixed: &self.fixed,
+            scale: 65536.0 / m,
+        };
+        report.force_b.par_chunks_mut(CHUNK).zip(self.hit.par_chunks_mut(CHUNK)).enumerate().for_each(|(c, (forces, hits))| {
+            for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
+                let j = c * CHUNK + k;
+                if let Some(force) = probe.probe(b[j]) {
+                    *f = force;
+                    *hit = true;
+                }
+            }
+        });
+
+        // Back to f32; the first overflow in (vertex, axis) order is the error, as on the CPU.
+        let unit = m / 65536.0;
+        if let Some(k) = self.fixed.par_iter().position_first(|c| i32::try_from(c.load(Ordering::Relaxed)).is_err()) {
+            let count = self.fixed[k].load(Ordering::Relaxed);
+            return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
+        }
+        report.force_a.clear();
+        report.force_a.resize(a.len(), Vec3::ZERO);
+        report.force_a.par_iter_mut().enumerate().for_each(|(i, f)| {
+            let c = |axis: usize| self.fixed[3 * i + axis].load(Ordering::Relaxed) as i32 as f32 * unit;
+            *f = Vec3::new(c(0), c(1), c(2));
+        });
+        report.colliding_b.clear();
+        report.colliding_b.extend(self.hit.iter().enumerate().filter(|(_, h)| **h).map(|(j, _)| j as u32));
+        report.binned_a = binned;
+        report.discarded_a = a.len() as u32 - binned;
+        report.grid_center = grid.center();
+        Ok(())
+    }
+
+    /// Counting sort of A's binned vertices by hash slot (stable: ascending index within a slot).
+    fn bin(&mut self, grid: &VoxelGrid, a: &[Vec3]) -> u32 {
+        let bins = &mut self.bins;
+        let slots = a.len().next_power_of_two();
+        bins.mask = slots as u32 - 1;
+        let mask = bins.mask;
+        bins.voxel_of_a.clear();
+        bins.voxel_of_a.resize(a.len(), UVec3::ZERO);
+        bins.slot_of.clear();
+        bins.slot_of.resize(a.len(), u32::MAX);
+        bins.voxel_of_a.par_iter_mut().zip(bins.slot_of.par_iter_mut()).zip(a.par_iter()).for_each(|((v, s), p)| {
+            if let Some(q) = grid.voxel_of(*p) {
+                *v = q;
+                *s = voxel_hash(q) & mask;
+            }
+        });
+        bins.start.clear();
+        bins.start.resize(slots + 1, 0);
+        let mut binned = 0u32;
+        for &s in &bins.slot_of {
+            if s != u32::MAX {
+                bins.start[s as usize + 1] += 1;
+                binned += 1;
+            }
+        }
+        for k in 0..slots {
+            bins.start[k + 1] += bins.start[k];
+        }
+        let n = binned as usize;
+        bins.cursor.clear();
+        bins.cursor.extend_from_slice(&bins.start[..slots]);
+        bins.index.resize(n, 0);
+        bins.pos.resize(n, Vec3::ZERO);
+        bins.voxel.resize(n, UVec3::ZERO);
+        for (i, &s) in bins.slot_of.iter().enumerate() {
+            if s != u32::MAX {
+                let k = bins.cursor[s as usize] as usize;
+                bins.cursor[s as usize] += 1;
+                bins.index[k] = i as u32;
+                bins.pos[k] = a[i];
+                bins.voxel[k] = bins.voxel_of_a[i];
+            }
+        }
+        binned
+    }
+}
+
+/// What a B vertex needs to probe.
+struct Probe<'a> {
+    grid: &'a VoxelGrid,
+    params: &'a ContactParams,
+    bins: &'a Bins,
+    a: &'a [Vec3],
+    fixed: &'a [AtomicI64],
+    scale: f32,
+}
+
+impl Probe<'_> {
+    /// The voxels of the block around `q` along one axis that a sphere of radius `r` around
+    /// `p` can reach (all three when `r` is `None`), clipped to the grid.
+    fn axis_range(&self, axis: usize, p: f32, q: u32, r: Option<f32>) -> (u32, u32) {
+        let dim = self.grid.dims()[axis];
+        let (mut lo, mut hi) = (q.saturating_sub(1), (q + 1).min(dim - 1));
+        if let Some(r) = r {
+            let vs = f64::from(self.grid.voxel_size());
+            let origin = f64::from(self.grid.origin()[axis]);
+            let p = f64::from(p);
+            // Generous for f32 rounding of positions, voxel indices and d2.
+            let margin = 1e-4 * f64::from(r) + 8.0 * f64::from(f32::EPSILON) * (p.abs() + origin.abs() + vs * f64::from(dim));
+            let reach = f64::from(r) + margin;
+            if lo < q && p - (origin + f64::from(q) * vs) > reach {
+                lo = q;
+            }
+            if hi > q && (origin + f64::from(q + 1) * vs) - p > reach {
+                hi = q;
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Walks voxels `lo..=hi`, offering every A vertex of each (and whether it is in `own`) to
+    /// `visit(d2, index, in_own)`.
+    fn walk(&self, p: Vec3, lo: UVec3, hi: UVec3, own: UVec3, mut visit: impl FnMut(f32, u32, bool)) {
+        let bins = self.bins;
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                for x in lo.x..=hi.x {
+                    let v = UVec3::new(x, y, z);
+                    let slot = (voxel_hash(v) & bins.mask) as usize;
+                    let is_own = v == own;
+                    for k in bins.start[slot] as usize..bins.start[slot + 1] as usize {
+                        if bins.voxel[k] == v {
+                            visit(dist2(p, bins.pos[k]), bins.index[k], is_own);
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    /// The force on B vertex `p`, or `None` when it does not collide; adds A's shares.
+    fn probe(&self, p: Vec3) -> Option<Vec3> {
+        let q = self.grid.voxel_of(p)?;
+        let plane = self.params.direction == Direction::PlaneNormal;
+        let (own, block) = match self.params.search {
+            Search::Voxel => {
+                let mut own = Nearest::EMPTY;
+                let mut block = Nearest::EMPTY;
+                if plane {
+                    let r = |k: usize| self.axis_range(k, p[k], q[k], None);
+                    let ((x0, x1), (y0, y1), (z0, z1)) = (r(0), r(1), r(2));
+                    self.walk(p, UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1), q, |d, i, is_own| {
+                        block.insert(d, i);
+                        if is_own {
+                            own.insert(d, i);
+                        }
+                    });
+                } else {
+                    self.walk(p, q, q, q, |d, i, _| own.insert(d, i));
+                }
+                (own, block)
+            }
+            Search::Neighbours { radius } => {
+                let r2 = radius * radius;
+                let r = |k: usize| self.axis_range(k, p[k], q[k], Some(radius));
+                let ((x0, x1), (y0, y1), (z0, z1)) = (r(0), r(1), r(2));
+                let mut block = Nearest::EMPTY;
+                self.walk(p, UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1), q, |d, i, _| {
+                    if d < r2 {
+                        block.insert(d, i);
+                    }
+                });
+                (block, block)
+            }
+        };
+        if own.n == 0 {
+            return None;
+        }
+        let m = self.params.magnitude;
+        let center = self.grid.center();
+        if plane && block.n == 3 {
+            let [i0, i1, i2] = block.i;
+            if let Some(n) = plane_normal(center, self.a[i0 as usize], self.a[i1 as usize], self.a[i2 as usize]) {
+                let f_b = m * n;
+                let share = -f_b / 3.0;
+                for i in block.i {
+                    self.add(i, share);
+                }
+                return Some(f_b);
+            }
+        }
+        let partner = own.i[0];
+        let f_b = m * pairwise_direction(center, self.a[partner as usize], p);
+        self.add(partner, -f_b);
+        Some(f_b)
+    }
+
+    fn add(&self, i: u32, f: Vec3) {
+        for axis in 0..3 {
+            let c = (f[axis] * self.scale).round_ties_even() as i32;
+            if c != 0 {
+                self.fixed[3 * i as usize + axis].fetch_add(i64::from(c), Ordering::Relaxed);
+            }
+        }
+    }
+}
+
+impl Collision for ParallelCpuCollision {
+    fn step(&mut self, a: &[Vec3], b: &[Vec3]) -> Result<ContactReport, Error> {
+        let mut report = ContactReport::default();
+        self.step_into(a, b, &mut report)?;
+        Ok(report)
+    }
+}

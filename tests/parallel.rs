@@ -1,0 +1,48 @@
+//! `ParallelCpuCollision` gives the same reports as the reference on random inputs, for all
+//! eight search × direction × anchor combinations, and allocates nothing once warm.
+
+mod common;
+
+use common::{all_params, bodies};
+use voxcollide::*;
+
+#[test]
+fn parallel_reports_equal_the_reference() {
+    let mut contacts = 0;
+    for (seed, n) in [(1u64, 1usize), (2, 2), (3, 17), (4, 300), (5, 5_000), (6, 40_000), (8, 120_000)] {
+        let (a, b, voxel, grid) = bodies(seed, n);
+        for radius in [0.9 * voxel, voxel, 0.31 * voxel] {
+            for params in all_params([1.0f32, 3.7, 1e-3][(seed % 3) as usize], radius) {
+                let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+                let actual = ParallelCpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+                assert_eq!(expected.colliding_b, actual.colliding_b, "seed {seed} n {n} {params:?}");
+                assert_eq!(common::compare(&format!("seed {seed} n {n} {params:?}"), &expected, &actual, 0.0), 0);
+                contacts += expected.colliding_b.len();
+            }
+        }
+    }
+    assert!(contacts > 500_000, "{contacts}");
+}
+
+#[test]
+fn parallel_follows_the_reference_on_the_workloads() {
+    for w in [workload::lattice(30_000, 3).unwrap(), workload::paper(30_000, 4).unwrap()] {
+        let expected = CpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
+        let actual = ParallelCpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
+        assert!(expected == actual, "{:?}", w.params);
+        assert!(expected.colliding_b.len() > 20_000);
+    }
+}
+
+#[test]
+fn parallel_errors_match_the_reference() {
+    let grid = VoxelGrid::new(voxcollide::glam::Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
+    let params = all_params(1.0, 1.0)[0];
+    let a = [voxcollide::glam::Vec3::splat(0.5)];
+    let b = vec![voxcollide::glam::Vec3::new(0.75, 0.5, 0.5); 32769];
+    let mut par = ParallelCpuCollision::new(grid, params).unwrap();
+    assert_eq!(par.step(&a, &b).unwrap_err(), CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap_err());
+    assert_eq!(par.step(&[], &b).unwrap_err(), Error::EmptyBody { body: Body::A });
+    let bad = ContactParams { magnitude: -1.0, ..params };
+    assert!(matches!(ParallelCpuCollision::new(grid, bad).unwrap_err(), Error::Magnitude { .. }));
+}
