@@ -94,8 +94,9 @@ fn voxel_of(p: vec3<f32>, origin: vec3<f32>) -> vec4<u32> {
     return vec4<u32>(x.x, y.x, z.x, x.y & y.y & z.y);
 }
 
-// Keep in sync with voxel_hash in src/voxel_data.rs.
+// Keep in sync with voxel_hash in src/voxel_data.rs: a scrambled hash of the row (y, z) plus x,
+// so that a row's voxels sit in consecutive slots.
 fn voxel_hash(v: vec3<u32>) -> u32 {
-    let h = (v.x * 0x9e3779b1u) ^ (v.y * 0x85ebca77u) ^ (v.z * 0xc2b2ae3du);
-    return h ^ (h >> 16u);
+    let h = (v.y * 0x9e3779b1u) ^ (v.z * 0x85ebca77u);
+    return (h ^ (h >> 16u)) + v.x;
 }

@@ -14,6 +14,7 @@ pub mod initializer; //  `Initializer`: the grid around body A
 pub mod voxel_data; //   `VoxelData`: the sparse voxel hash of per-voxel vertex lists
 
 // Supporting pieces.
+pub mod bench; //        `voxcollide bench`: every backend against a k-d tree baseline
 pub mod error;
 pub mod fixed_point;
 pub mod geometry; //     inside tests and distances on closed triangle surfaces

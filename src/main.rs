@@ -20,6 +20,48 @@ struct Cli {
 enum Command {
     /// Run one of the paper's scenarios: pictures (PNG), ParaView files (VTK) and summary.json.
     Run(RunArgs),
+    /// Time every backend on DESIGN §7's lattice(N) and paper(N) against a k-d tree (kiddo).
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct BenchArgs {
+    /// Vertices per body, comma-separated; k and M suffixes allowed.
+    #[arg(long, default_value = "10k,100k,1M", value_parser = parse_sizes)]
+    sizes: Sizes,
+    /// Timed steps per case (after a warm-up step); medians are reported.
+    #[arg(long, default_value_t = 5)]
+    samples: usize,
+    /// Skip the GPU even when there is an adapter.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Skip the single-threaded CPU reference (slow at 1M).
+    #[arg(long)]
+    no_reference: bool,
+    /// Where to write the table as JSON.
+    #[arg(long, default_value = "out/bench.json")]
+    json: PathBuf,
+}
+
+#[derive(Clone, Debug)]
+struct Sizes(Vec<usize>);
+
+fn parse_sizes(s: &str) -> Result<Sizes, String> {
+    s.split(',')
+        .map(|part| {
+            let part = part.trim();
+            let (digits, mul) = match part.chars().last() {
+                Some('k' | 'K') => (&part[..part.len() - 1], 1_000),
+                Some('m' | 'M') => (&part[..part.len() - 1], 1_000_000),
+                _ => (part, 1),
+            };
+            match digits.parse::<usize>() {
+                Ok(n) if n > 0 => Ok(n * mul),
+                _ => Err(format!("{part:?} is not a size such as 10k, 100000 or 1M")),
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(Sizes)
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
@@ -89,7 +131,10 @@ fn parse_size(s: &str) -> Result<(u32, u32), String> {
 }
 
 fn main() -> ExitCode {
-    let Command::Run(args) = Cli::parse().command;
+    let args = match Cli::parse().command {
+        Command::Run(args) => args,
+        Command::Bench(args) => return bench(&args),
+    };
     let kind = match args.scenario {
         Scenario::Cylinder => Kind::Cylinder,
         Scenario::Implant => Kind::Implant,
@@ -141,6 +186,40 @@ fn main() -> ExitCode {
             println!("{:<28} {}", "contacts at the end", last.colliding);
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
             ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn bench(args: &BenchArgs) -> ExitCode {
+    let config = voxcollide::bench::BenchConfig {
+        sizes: args.sizes.0.clone(),
+        samples: args.samples,
+        gpu: !args.no_gpu,
+        reference: !args.no_reference,
+    };
+    println!("{}", voxcollide::bench::table(&[]).trim_end());
+    let result = voxcollide::bench::run(&config, &mut |row| print!("{}", voxcollide::bench::table(std::slice::from_ref(row)).lines().nth(1).map(|l| format!("{l}\n")).unwrap_or_default()));
+    match result {
+        Ok(rows) => {
+            let written = args
+                .json
+                .parent()
+                .map_or(Ok(()), |dir| if dir.as_os_str().is_empty() { Ok(()) } else { std::fs::create_dir_all(dir) })
+                .and_then(|()| std::fs::write(&args.json, serde_json::to_string_pretty(&rows).unwrap_or_default() + "\n"));
+            match written {
+                Ok(()) => {
+                    println!("written: {}", args.json.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {}: {e}", args.json.display());
+                    ExitCode::FAILURE
+                }
+            }
         }
         Err(e) => {
             eprintln!("error: {e}");

@@ -4,9 +4,10 @@
 //! What makes it fast, and why it stays exact:
 //! - A is binned by a counting sort on hash slots instead of linked lists, and its positions
 //!   and voxels are copied into slot order, so a walk reads contiguous memory.
-//! - B is probed in parallel; under `Search::Neighbours` only the voxels of the 3×3×3 block that
-//!   the radius can reach are walked (a voxel is skipped only when its nearest face is farther
-//!   than the radius plus a rounding margin, so no candidate is lost).
+//! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
+//!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
+//!   radius cannot reach are skipped (only when their nearest face is farther than the radius
+//!   plus a rounding margin, so no candidate is lost).
 //! - Forces on A are summed in fixed point with atomic 64-bit integers: integer sums do not
 //!   depend on their order, so the totals equal the reference's exactly.
 
@@ -123,11 +124,11 @@ impl ParallelCpuCollision {
         check_body(Body::B, b)?;
         let grid = step_grid(&self.grid, self.params.anchor, a)?;
         let binned = self.bin(&grid, a);
+        // The accumulators are left at zero by the previous step's resolve (which swaps them out).
+        self.fixed.truncate(3 * a.len());
         self.fixed.resize_with(3 * a.len(), || AtomicI64::new(0));
-        self.fixed.par_iter().for_each(|c| c.store(0, Ordering::Relaxed));
-        report.force_b.clear();
+        // Every entry is written by the probe below, hit or not.
         report.force_b.resize(b.len(), Vec3::ZERO);
-        self.hit.clear();
         self.hit.resize(b.len(), false);
 
         let m = self.params.magnitude;
@@ -141,26 +142,42 @@ impl ParallelCpuCollision {
         };
         report.force_b.par_chunks_mut(CHUNK).zip(self.hit.par_chunks_mut(CHUNK)).enumerate().for_each(|(c, (forces, hits))| {
             for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
-                let j = c * CHUNK + k;
-                if let Some(force) = probe.probe(b[j]) {
-                    *f = force;
-                    *hit = true;
-                }
+                let force = probe.probe(b[c * CHUNK + k]);
+                *hit = force.is_some();
+                *f = force.unwrap_or(Vec3::ZERO);
             }
         });
 
-        // Back to f32; the first overflow in (vertex, axis) order is the error, as on the CPU.
+        // Back to f32, leaving every accumulator at zero for the next step; the first overflow
+        // in (vertex, axis) order is the error, as on the CPU.
         let unit = m / 65536.0;
-        if let Some(k) = self.fixed.par_iter().position_first(|c| i32::try_from(c.load(Ordering::Relaxed)).is_err()) {
-            let count = self.fixed[k].load(Ordering::Relaxed);
+        report.force_a.resize(a.len(), Vec3::ZERO);
+        let overflow = report
+            .force_a
+            .par_chunks_mut(CHUNK)
+            .zip(self.fixed.par_chunks(3 * CHUNK))
+            .enumerate()
+            .filter_map(|(c, (forces, counts))| {
+                let mut first = None;
+                for (k, f) in forces.iter_mut().enumerate() {
+                    let mut out = [0.0f32; 3];
+                    for axis in 0..3 {
+                        let count = counts[3 * k + axis].swap(0, Ordering::Relaxed);
+                        match i32::try_from(count) {
+                            Ok(c) => out[axis] = c as f32 * unit,
+                            Err(_) => {
+                                first = first.or(Some((3 * (c * CHUNK + k) + axis, count)));
+                            }
+                        }
+                    }
+                    *f = Vec3::from_array(out);
+                }
+                first
+            })
+            .min_by_key(|(k, _)| *k);
+        if let Some((k, count)) = overflow {
             return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
         }
-        report.force_a.clear();
-        report.force_a.resize(a.len(), Vec3::ZERO);
-        report.force_a.par_iter_mut().enumerate().for_each(|(i, f)| {
-            let c = |axis: usize| self.fixed[3 * i + axis].load(Ordering::Relaxed) as i32 as f32 * unit;
-            *f = Vec3::new(c(0), c(1), c(2));
-        });
         report.colliding_b.clear();
         report.colliding_b.extend(self.hit.iter().enumerate().filter(|(_, h)| **h).map(|(j, _)| j as u32));
         report.binned_a = binned;
@@ -172,7 +189,9 @@ impl ParallelCpuCollision {
     /// Counting sort of A's binned vertices by hash slot (stable: ascending index within a slot).
     fn bin(&mut self, grid: &VoxelGrid, a: &[Vec3]) -> u32 {
         let bins = &mut self.bins;
-        let slots = a.len().next_power_of_two();
+        // Four slots a vertex keep aliasing rare, so a row's scan reads little else (measured:
+        // benches/NOTES.md); memory stays O(|A|).
+        let slots = (4 * a.len()).next_power_of_two();
         bins.mask = slots as u32 - 1;
         let mask = bins.mask;
         bins.voxel_of_a.clear();
@@ -233,16 +252,16 @@ impl Probe<'_> {
         let dim = self.grid.dims()[axis];
         let (mut lo, mut hi) = (q.saturating_sub(1), (q + 1).min(dim - 1));
         if let Some(r) = r {
-            let vs = f64::from(self.grid.voxel_size());
-            let origin = f64::from(self.grid.origin()[axis]);
-            let p = f64::from(p);
-            // Generous for f32 rounding of positions, voxel indices and d2.
-            let margin = 1e-4 * f64::from(r) + 8.0 * f64::from(f32::EPSILON) * (p.abs() + origin.abs() + vs * f64::from(dim));
-            let reach = f64::from(r) + margin;
-            if lo < q && p - (origin + f64::from(q) * vs) > reach {
+            let vs = self.grid.voxel_size();
+            let origin = self.grid.origin()[axis];
+            // Generous for the f32 rounding of positions, voxel indices, faces and d2: a few
+            // ulps of the largest magnitude involved, and 1e-3 of the radius.
+            let margin = 1e-3 * r + 16.0 * f32::EPSILON * (p.abs() + origin.abs() + vs * dim as f32);
+            let reach = r + margin;
+            if lo < q && p - (origin + q as f32 * vs) > reach {
                 lo = q;
             }
-            if hi > q && (origin + f64::from(q + 1) * vs) - p > reach {
+            if hi > q && (origin + (q + 1) as f32 * vs) - p > reach {
                 hi = q;
             }
         }
@@ -250,20 +269,29 @@ impl Probe<'_> {
     }
 
     /// Walks voxels `lo..=hi`, offering every A vertex of each (and whether it is in `own`) to
-    /// `visit(d2, index, in_own)`.
+    /// `visit(d2, index, in_own)`. A row's voxels sit in consecutive slots (see
+    /// [`voxel_hash`]), so each row of the block is one contiguous scan.
+    #[inline]
     fn walk(&self, p: Vec3, lo: UVec3, hi: UVec3, own: UVec3, mut visit: impl FnMut(f32, u32, bool)) {
         let bins = self.bins;
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
-                for x in lo.x..=hi.x {
-                    let v = UVec3::new(x, y, z);
-                    let slot = (voxel_hash(v) & bins.mask) as usize;
-                    let is_own = v == own;
-                    for k in bins.start[slot] as usize..bins.start[slot + 1] as usize {
-                        if bins.voxel[k] == v {
-                            visit(dist2(p, bins.pos[k]), bins.index[k], is_own);
+                let s0 = voxel_hash(UVec3::new(lo.x, y, z)) & bins.mask;
+                let s1 = voxel_hash(UVec3::new(hi.x, y, z)) & bins.mask;
+                let mut scan = |from: u32, to: u32| {
+                    for k in bins.start[from as usize] as usize..bins.start[to as usize + 1] as usize {
+                        let v = bins.voxel[k];
+                        if v.y == y && v.z == z && v.x >= lo.x && v.x <= hi.x {
+                            visit(dist2(p, bins.pos[k]), bins.index[k], v == own);
                         }
                     }
+                };
+                if s0 <= s1 {
+                    scan(s0, s1);
+                } else {
+                    // The row wraps around the end of the table.
+                    scan(s0, bins.mask);
+                    scan(0, s1);
                 }
             }
         }

@@ -12,14 +12,18 @@ use crate::grid::VoxelGrid;
 /// Marks the end of a list, and a discarded vertex.
 pub const EMPTY: u32 = u32::MAX;
 
-/// The slot-independent hash of a voxel. Which slot a voxel lands in only affects speed, never a
-/// result: walks check every vertex's own voxel.
+/// The slot-independent hash of a voxel: a scrambled hash of its row `(y, z)` plus `x`, so that
+/// the voxels of a row land in consecutive slots. Which slot a voxel lands in only affects
+/// speed, never a result (walks check every vertex's own voxel); keeping rows contiguous makes a
+/// 3×3×3 walk touch 9 runs of adjacent slots instead of 27 scattered ones, and neighbouring B
+/// vertices reuse them (see `benches/NOTES.md`). Keep in sync with `voxel_hash` in
+/// `shaders/common.wgsl`.
 #[must_use]
 pub fn voxel_hash(v: UVec3) -> u32 {
-    // Large odd multipliers (golden ratio and two from murmur3's finaliser) spread the three
-    // axes across the word; the final xor-shift folds the high bits into the masked low ones.
-    let h = v.x.wrapping_mul(0x9e37_79b1) ^ v.y.wrapping_mul(0x85eb_ca77) ^ v.z.wrapping_mul(0xc2b2_ae3d);
-    h ^ (h >> 16)
+    // Large odd multipliers (golden ratio, murmur3's finaliser) spread y and z across the word;
+    // the xor-shift folds the high bits into the masked low ones.
+    let h = v.y.wrapping_mul(0x9e37_79b1) ^ v.z.wrapping_mul(0x85eb_ca77);
+    (h ^ (h >> 16)).wrapping_add(v.x)
 }
 
 /// Per-voxel lists of body-A vertices in a sparse hash, rebuilt by [`bin`](Self::bin) every step.
