@@ -1,14 +1,18 @@
-//! CPU reference vs GPU on DESIGN §7's lattice(N): the GPU resident (positions already on the
-//! device, no upload, no readback: the embedded case) and through `step()` (upload and readback
-//! included). Run: `cargo bench --bench collide`; the adapter is printed first.
+//! Every backend on DESIGN §7's lattice(N) and paper(N), with the k-d tree baseline (kiddo):
+//! CPU reference (1 thread), parallel CPU (rayon's threads), GPU resident (positions already on
+//! the device, no upload, no readback: the embedded case) and GPU through `step()` (upload and
+//! readback included). Run: `cargo bench --bench collide`; the adapter is printed first.
+//! `voxcollide bench` measures the same cases and prints a table.
 
 use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use voxcollide::glam::Vec4;
-use voxcollide::workload::{DEFAULT_SEED, lattice};
-use voxcollide::{Collision, CpuCollision, GpuCollision, GpuContext, wgpu};
+use voxcollide::workload::{DEFAULT_SEED, Workload, lattice, paper};
+use voxcollide::{
+    Collision, ContactReport, CpuCollision, GpuCollision, GpuContext, ParallelCpuCollision, wgpu,
+};
 
 const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
 
@@ -23,51 +27,73 @@ fn bench(c: &mut Criterion) {
             None
         }
     };
-    let mut group = c.benchmark_group("lattice");
-    group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
-    for n in SIZES {
-        let w = lattice(n, DEFAULT_SEED).expect("workload");
-        group.throughput(Throughput::Elements((w.a.len() + w.b.len()) as u64));
+    eprintln!("threads: {}", rayon::current_num_threads());
+    for (name, make) in
+        [("lattice", lattice as fn(usize, u64) -> Result<Workload, voxcollide::Error>), ("paper", paper)]
+    {
+        let mut group = c.benchmark_group(name);
+        group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
+        for n in SIZES {
+            let w = make(n, DEFAULT_SEED).expect("workload");
+            group.throughput(Throughput::Elements((w.a.len() + w.b.len()) as u64));
 
-        let mut cpu = CpuCollision::new(w.grid, w.params).expect("params");
-        group.bench_function(BenchmarkId::new("cpu_reference_1_thread", n), |bench| {
-            bench.iter(|| black_box(cpu.step(&w.a, &w.b).expect("step")));
-        });
-
-        let Some(ctx) = &ctx else { continue };
-        let mut gpu = GpuCollision::new(ctx, w.grid, w.params).expect("gpu");
-        group.bench_function(BenchmarkId::new("gpu_step", n), |bench| {
-            bench.iter(|| black_box(gpu.step(&w.a, &w.b).expect("step")));
-        });
-
-        let (device, queue) = (ctx.device(), ctx.queue());
-        let upload = |points: &[voxcollide::glam::Vec3]| {
-            let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
-            wgpu::util::DeviceExt::create_buffer_init(
-                device,
-                &wgpu::util::BufferInitDescriptor {
-                    label: None,
-                    contents: bytemuck::cast_slice(&data),
-                    usage: wgpu::BufferUsages::STORAGE,
-                },
-            )
-        };
-        let (a, b) = (upload(&w.a), upload(&w.b));
-        let (n_a, n_b) = (w.a.len() as u32, w.b.len() as u32);
-        group.bench_function(BenchmarkId::new("gpu_resident", n), |bench| {
-            bench.iter_custom(|iters| {
-                let start = Instant::now();
-                for _ in 0..iters {
-                    let mut encoder = device.create_command_encoder(&Default::default());
-                    gpu.record(&mut encoder, &a, n_a, &b, n_b).expect("record");
-                    queue.submit([encoder.finish()]);
-                    device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
-                }
-                start.elapsed()
+            let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
+            let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
+            group.bench_function(BenchmarkId::new("kdtree_kiddo", n), |bench| {
+                bench.iter(|| {
+                    let tree = kiddo::ImmutableKdTree::<f32, 3>::new_from_slice(&a).expect("tree");
+                    let nearest =
+                        tree.query_batch(&b).nearest_one::<kiddo::SquaredEuclidean<f32>>().execute();
+                    black_box(nearest.iter().filter(|r| r.distance < 0.81).count())
+                });
             });
-        });
+
+            let mut par = ParallelCpuCollision::new(w.grid, w.params).expect("params");
+            let mut report = ContactReport::default();
+            group.bench_function(BenchmarkId::new("parallel_cpu", n), |bench| {
+                bench.iter(|| par.step_into(&w.a, &w.b, &mut report).expect("step"));
+            });
+
+            let mut cpu = CpuCollision::new(w.grid, w.params).expect("params");
+            group.bench_function(BenchmarkId::new("cpu_reference_1_thread", n), |bench| {
+                bench.iter(|| black_box(cpu.step(&w.a, &w.b).expect("step")));
+            });
+
+            let Some(ctx) = &ctx else { continue };
+            let mut gpu = GpuCollision::new(ctx, w.grid, w.params).expect("gpu");
+            group.bench_function(BenchmarkId::new("gpu_step", n), |bench| {
+                bench.iter(|| black_box(gpu.step(&w.a, &w.b).expect("step")));
+            });
+
+            let (device, queue) = (ctx.device(), ctx.queue());
+            let upload = |points: &[voxcollide::glam::Vec3]| {
+                let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
+                wgpu::util::DeviceExt::create_buffer_init(
+                    device,
+                    &wgpu::util::BufferInitDescriptor {
+                        label: None,
+                        contents: bytemuck::cast_slice(&data),
+                        usage: wgpu::BufferUsages::STORAGE,
+                    },
+                )
+            };
+            let (a, b) = (upload(&w.a), upload(&w.b));
+            let (n_a, n_b) = (w.a.len() as u32, w.b.len() as u32);
+            group.bench_function(BenchmarkId::new("gpu_resident", n), |bench| {
+                bench.iter_custom(|iters| {
+                    let start = Instant::now();
+                    for _ in 0..iters {
+                        let mut encoder = device.create_command_encoder(&Default::default());
+                        gpu.record(&mut encoder, &a, n_a, &b, n_b).expect("record");
+                        queue.submit([encoder.finish()]);
+                        device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
+                    }
+                    start.elapsed()
+                });
+            });
+        }
+        group.finish();
     }
-    group.finish();
 }
 
 criterion_group!(collide, bench);

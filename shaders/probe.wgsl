@@ -8,7 +8,7 @@
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> pos_b: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> head: array<u32>;
-@group(0) @binding(5) var<storage, read> next: array<u32>;
+@group(0) @binding(5) var<storage, read> next: array<vec4<u32>>; // (next entry, voxel xyz)
 @group(0) @binding(6) var<storage, read_write> fixed_lo: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> fixed_hi: array<atomic<i32>>;
 @group(0) @binding(8) var<storage, read_write> force_b: array<vec4<f32>>;
@@ -146,14 +146,13 @@ fn probe(j: u32) -> bool {
             continue;
         }
         let i = e - 1u;
-        e = next[i];
-        let a = pos_a[i].xyz;
+        let link = next[i];
+        e = link.x;
         // Aliasing: only vertices whose own voxel is v belong to v.
-        let va = voxel_of(a, origin);
-        if va.w == 0u || any(va.xyz != v) {
+        if any(link.yzw != v) {
             continue;
         }
-        let d2 = dist2(p, a);
+        let d2 = dist2(p, pos_a[i].xyz);
         if voxel_only {
             if all(v == vb.xyz) {
                 insert(&own, d2, i);

@@ -98,7 +98,9 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();
     for &size in &config.sizes {
-        for (name, make) in [("lattice", lattice as fn(usize, u64) -> Result<Workload, Error>), ("paper", paper)] {
+        for (name, make) in
+            [("lattice", lattice as fn(usize, u64) -> Result<Workload, Error>), ("paper", paper)]
+        {
             let w = make(size, crate::workload::DEFAULT_SEED)?;
             let n = w.a.len();
             let mut measured: Vec<(String, f64, String, usize, usize)> = Vec::new();
@@ -110,8 +112,11 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
             let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
             let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
             let (ms, colliding) = time(config.samples, || {
-                let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a)
-                    .map_err(|e| Error::Invalid { what: "k-d tree", value: format!("{e:?}"), rule: "kiddo could not build it".into() })?;
+                let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
+                    what: "k-d tree",
+                    value: format!("{e:?}"),
+                    rule: "kiddo could not build it".into(),
+                })?;
                 let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
                 Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
             })?;

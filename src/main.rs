@@ -202,14 +202,27 @@ fn bench(args: &BenchArgs) -> ExitCode {
         reference: !args.no_reference,
     };
     println!("{}", voxcollide::bench::table(&[]).trim_end());
-    let result = voxcollide::bench::run(&config, &mut |row| print!("{}", voxcollide::bench::table(std::slice::from_ref(row)).lines().nth(1).map(|l| format!("{l}\n")).unwrap_or_default()));
+    let result = voxcollide::bench::run(&config, &mut |row| {
+        print!(
+            "{}",
+            voxcollide::bench::table(std::slice::from_ref(row))
+                .lines()
+                .nth(1)
+                .map(|l| format!("{l}\n"))
+                .unwrap_or_default()
+        )
+    });
     match result {
         Ok(rows) => {
             let written = args
                 .json
                 .parent()
-                .map_or(Ok(()), |dir| if dir.as_os_str().is_empty() { Ok(()) } else { std::fs::create_dir_all(dir) })
-                .and_then(|()| std::fs::write(&args.json, serde_json::to_string_pretty(&rows).unwrap_or_default() + "\n"));
+                .map_or(Ok(()), |dir| {
+                    if dir.as_os_str().is_empty() { Ok(()) } else { std::fs::create_dir_all(dir) }
+                })
+                .and_then(|()| {
+                    std::fs::write(&args.json, serde_json::to_string_pretty(&rows).unwrap_or_default() + "\n")
+                });
             match written {
                 Ok(()) => {
                     println!("written: {}", args.json.display());

@@ -140,13 +140,15 @@ impl ParallelCpuCollision {
             fixed: &self.fixed,
             scale: 65536.0 / m,
         };
-        report.force_b.par_chunks_mut(CHUNK).zip(self.hit.par_chunks_mut(CHUNK)).enumerate().for_each(|(c, (forces, hits))| {
-            for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
-                let force = probe.probe(b[c * CHUNK + k]);
-                *hit = force.is_some();
-                *f = force.unwrap_or(Vec3::ZERO);
-            }
-        });
+        report.force_b.par_chunks_mut(CHUNK).zip(self.hit.par_chunks_mut(CHUNK)).enumerate().for_each(
+            |(c, (forces, hits))| {
+                for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
+                    let force = probe.probe(b[c * CHUNK + k]);
+                    *hit = force.is_some();
+                    *f = force.unwrap_or(Vec3::ZERO);
+                }
+            },
+        );
 
         // Back to f32, leaving every accumulator at zero for the next step; the first overflow
         // in (vertex, axis) order is the error, as on the CPU.
@@ -198,12 +200,14 @@ impl ParallelCpuCollision {
         bins.voxel_of_a.resize(a.len(), UVec3::ZERO);
         bins.slot_of.clear();
         bins.slot_of.resize(a.len(), u32::MAX);
-        bins.voxel_of_a.par_iter_mut().zip(bins.slot_of.par_iter_mut()).zip(a.par_iter()).for_each(|((v, s), p)| {
-            if let Some(q) = grid.voxel_of(*p) {
-                *v = q;
-                *s = voxel_hash(q) & mask;
-            }
-        });
+        bins.voxel_of_a.par_iter_mut().zip(bins.slot_of.par_iter_mut()).zip(a.par_iter()).for_each(
+            |((v, s), p)| {
+                if let Some(q) = grid.voxel_of(*p) {
+                    *v = q;
+                    *s = voxel_hash(q) & mask;
+                }
+            },
+        );
         bins.start.clear();
         bins.start.resize(slots + 1, 0);
         let mut binned = 0u32;
@@ -339,7 +343,9 @@ impl Probe<'_> {
         let center = self.grid.center();
         if plane && block.n == 3 {
             let [i0, i1, i2] = block.i;
-            if let Some(n) = plane_normal(center, self.a[i0 as usize], self.a[i1 as usize], self.a[i2 as usize]) {
+            if let Some(n) =
+                plane_normal(center, self.a[i0 as usize], self.a[i1 as usize], self.a[i2 as usize])
+            {
                 let f_b = m * n;
                 let share = -f_b / 3.0;
                 for i in block.i {

@@ -16,7 +16,10 @@ fn parallel_reports_equal_the_reference() {
                 let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
                 let actual = ParallelCpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
                 assert_eq!(expected.colliding_b, actual.colliding_b, "seed {seed} n {n} {params:?}");
-                assert_eq!(common::compare(&format!("seed {seed} n {n} {params:?}"), &expected, &actual, 0.0), 0);
+                assert_eq!(
+                    common::compare(&format!("seed {seed} n {n} {params:?}"), &expected, &actual, 0.0),
+                    0
+                );
                 contacts += expected.colliding_b.len();
             }
         }
@@ -36,12 +39,16 @@ fn parallel_follows_the_reference_on_the_workloads() {
 
 #[test]
 fn parallel_errors_match_the_reference() {
-    let grid = VoxelGrid::new(voxcollide::glam::Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
+    let grid =
+        VoxelGrid::new(voxcollide::glam::Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
     let params = all_params(1.0, 1.0)[0];
     let a = [voxcollide::glam::Vec3::splat(0.5)];
     let b = vec![voxcollide::glam::Vec3::new(0.75, 0.5, 0.5); 32769];
     let mut par = ParallelCpuCollision::new(grid, params).unwrap();
-    assert_eq!(par.step(&a, &b).unwrap_err(), CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap_err());
+    assert_eq!(
+        par.step(&a, &b).unwrap_err(),
+        CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap_err()
+    );
     assert_eq!(par.step(&[], &b).unwrap_err(), Error::EmptyBody { body: Body::A });
     let bad = ContactParams { magnitude: -1.0, ..params };
     assert!(matches!(ParallelCpuCollision::new(grid, bad).unwrap_err(), Error::Magnitude { .. }));

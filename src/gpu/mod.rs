@@ -104,7 +104,7 @@ impl Buffers {
             params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
             state: make("voxcollide state", GpuState::SIZE, storage),
             head: make("voxcollide head", 4 * u64::from(slots), storage),
-            next: make("voxcollide next", 4 * a, storage),
+            next: make("voxcollide next", VEC4 * a, storage),
             fixed_lo: make("voxcollide fixed_lo", 12 * a, storage),
             fixed_hi: make("voxcollide fixed_hi", 12 * a, storage),
             force_a: make("voxcollide force_a", VEC4 * a, storage),
