@@ -26,8 +26,14 @@ use crate::params::{ContactParams, Direction, Search};
 use crate::report::ContactReport;
 use crate::voxel_data::voxel_hash;
 
-/// B vertices per parallel task: large enough to amortise scheduling, small enough to balance.
+/// The most B vertices per parallel task: large enough to amortise scheduling.
 const CHUNK: usize = 4096;
+
+/// Items per task for `n` items: at most [`CHUNK`], and small enough that every thread gets
+/// several tasks (3 tasks on 2 threads would leave one thread idle a third of the time).
+fn chunk(n: usize) -> usize {
+    (n / (8 * rayon::current_num_threads())).clamp(256, CHUNK)
+}
 
 /// The three nearest candidates in `(d2, index)` order.
 #[derive(Clone, Copy, Debug)]
@@ -140,10 +146,11 @@ impl ParallelCpuCollision {
             fixed: &self.fixed,
             scale: 65536.0 / m,
         };
-        report.force_b.par_chunks_mut(CHUNK).zip(self.hit.par_chunks_mut(CHUNK)).enumerate().for_each(
+        let size = chunk(b.len());
+        report.force_b.par_chunks_mut(size).zip(self.hit.par_chunks_mut(size)).enumerate().for_each(
             |(c, (forces, hits))| {
                 for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
-                    let force = probe.probe(b[c * CHUNK + k]);
+                    let force = probe.probe(b[c * size + k]);
                     *hit = force.is_some();
                     *f = force.unwrap_or(Vec3::ZERO);
                 }
@@ -154,10 +161,11 @@ impl ParallelCpuCollision {
         // in (vertex, axis) order is the error, as on the CPU.
         let unit = m / 65536.0;
         report.force_a.resize(a.len(), Vec3::ZERO);
+        let size = chunk(a.len());
         let overflow = report
             .force_a
-            .par_chunks_mut(CHUNK)
-            .zip(self.fixed.par_chunks(3 * CHUNK))
+            .par_chunks_mut(size)
+            .zip(self.fixed.par_chunks(3 * size))
             .enumerate()
             .filter_map(|(c, (forces, counts))| {
                 let mut first = None;
@@ -168,7 +176,7 @@ impl ParallelCpuCollision {
                         match i32::try_from(count) {
                             Ok(c) => out[axis] = c as f32 * unit,
                             Err(_) => {
-                                first = first.or(Some((3 * (c * CHUNK + k) + axis, count)));
+                                first = first.or(Some((3 * (c * size + k) + axis, count)));
                             }
                         }
                     }
