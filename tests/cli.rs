@@ -55,3 +55,43 @@ fn bad_arguments_fail_with_a_clear_message() {
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("cylinder"));
 }
+
+#[test]
+fn bench_prints_every_backend_and_writes_json() {
+    let json = std::env::temp_dir().join(format!("voxcollide-bench-{}.json", std::process::id()));
+    let output = voxcollide()
+        .args(["bench", "--sizes", "2k", "--samples", "1", "--json"])
+        .arg(&json)
+        .env("VOXCOLLIDE_REQUIRE_GPU", "0")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    for backend in ["kdtree_kiddo", "cpu_reference", "parallel_cpu"] {
+        assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
+    }
+    let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert!(rows.len() >= 6, "{rows:?}");
+    // Every backend finds the same contacts as the reference on the same workload.
+    for workload in ["lattice", "paper"] {
+        let counts: Vec<u64> = rows
+            .iter()
+            .filter(|r| r["workload"] == workload && r["backend"] != "kdtree_kiddo")
+            .map(|r| r["colliding"].as_u64().unwrap())
+            .collect();
+        assert!(counts.windows(2).all(|w| w[0] == w[1]) && counts[0] > 1000, "{workload}: {counts:?}");
+    }
+    let lattice_kdtree =
+        rows.iter().find(|r| r["workload"] == "lattice" && r["backend"] == "kdtree_kiddo").unwrap();
+    let lattice_ref =
+        rows.iter().find(|r| r["workload"] == "lattice" && r["backend"] == "cpu_reference").unwrap();
+    assert_eq!(
+        lattice_kdtree["colliding"], lattice_ref["colliding"],
+        "the baseline answers the same question"
+    );
+
+    let output = voxcollide().args(["bench", "--sizes", "0"]).output().unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("is not a size"));
+}
