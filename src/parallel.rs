@@ -68,9 +68,56 @@ impl Nearest {
     }
 }
 
+/// `x.floor()`, inline: without SSE4.1 (the x86-64 baseline) `floor` is a libm call, which
+/// was 3 % of a lattice(1M) step. Equal to `floor` for every finite `x` (up to the sign of a
+/// zero result, which no caller can see: it only becomes a voxel index).
+#[inline]
+fn floor(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32;
+        if t > x { t - 1.0 } else { t }
+    } else {
+        x // already an integer (or not finite)
+    }
+}
+
+/// `x.round_ties_even() as i32` for the fixed-point counts, inline (likewise a libm call
+/// otherwise): adding and subtracting 1.5 · 2^23 rounds to the nearest even integer in the
+/// default rounding mode, exactly, for |x| < 2^22 — counts are at most about 2^16.
+#[inline]
+fn round_count(x: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    if x.abs() < 4_194_304.0 { ((x + MAGIC) - MAGIC) as i32 } else { x.round_ties_even() as i32 }
+}
+
+/// `grid.voxel_of(p)` with the inline [`floor`]: the same voxel or `None` for every `p`.
+#[inline]
+fn voxel_of(grid: &VoxelGrid, p: Vec3) -> Option<UVec3> {
+    if !p.is_finite() {
+        return None;
+    }
+    let (o, inv, d) = (grid.origin(), grid.inv_voxel_size(), grid.dims());
+    let axis = |p: f32, o: f32, dim: u32| {
+        let q = floor((p - o) * inv);
+        (q >= 0.0 && q < dim as f32).then_some(q as u32)
+    };
+    Some(UVec3::new(axis(p.x, o.x, d.x)?, axis(p.y, o.y, d.y)?, axis(p.z, o.z, d.z)?))
+}
+
+/// The slot of voxel `v`: its linear index in a dense table, else its hash.
+#[inline]
+fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
+    match dense {
+        Some([dx, dy]) => v.x + dx * (v.y + dy * v.z),
+        None => voxel_hash(v) & mask,
+    }
+}
+
 /// A's vertices grouped by hash slot, with copies of their positions and voxels in that order.
 #[derive(Debug, Default)]
 struct Bins {
+    /// `Some([dx, dy])`: one slot per voxel, at `x + dx * (y + dy * z)`.
+    dense: Option<[u32; 2]>,
     mask: u32,
     /// Per slot, where its vertices start in `index`/`pos`/`voxel` (`slots + 1` entries).
     start: Vec<u32>,
@@ -199,20 +246,27 @@ impl ParallelCpuCollision {
     /// Counting sort of A's binned vertices by hash slot (stable: ascending index within a slot).
     fn bin(&mut self, grid: &VoxelGrid, a: &[Vec3]) -> u32 {
         let bins = &mut self.bins;
-        // Four slots a vertex keep aliasing rare, so a row's scan reads little else (measured:
-        // benches/NOTES.md); memory stays O(|A|).
-        let slots = (4 * a.len()).next_power_of_two();
-        bins.mask = slots as u32 - 1;
-        let mask = bins.mask;
+        // A grid with at most four voxels a vertex gets one slot per voxel, in (z, y, x) order:
+        // no aliasing, and a row is one run of A's vertices in spatial order. Otherwise four
+        // hash slots a vertex keep aliasing rare (benches/NOTES.md). Either way memory is O(|A|).
+        let d = grid.dims();
+        let voxels = u64::from(d.x) * u64::from(d.y) * u64::from(d.z);
+        bins.dense = (voxels <= 4 * a.len() as u64).then_some([d.x, d.y]);
+        let slots = match bins.dense {
+            Some(_) => voxels as usize,
+            None => (4 * a.len()).next_power_of_two(),
+        };
+        bins.mask = (slots - 1) as u32;
+        let (mask, dense) = (bins.mask, bins.dense);
         bins.voxel_of_a.clear();
         bins.voxel_of_a.resize(a.len(), UVec3::ZERO);
         bins.slot_of.clear();
         bins.slot_of.resize(a.len(), u32::MAX);
         bins.voxel_of_a.par_iter_mut().zip(bins.slot_of.par_iter_mut()).zip(a.par_iter()).for_each(
             |((v, s), p)| {
-                if let Some(q) = grid.voxel_of(*p) {
+                if let Some(q) = voxel_of(grid, *p) {
                     *v = q;
-                    *s = voxel_hash(q) & mask;
+                    *s = slot(dense, mask, q);
                 }
             },
         );
@@ -286,6 +340,19 @@ impl Probe<'_> {
     #[inline]
     fn walk(&self, p: Vec3, lo: UVec3, hi: UVec3, own: UVec3, mut visit: impl FnMut(f32, u32, bool)) {
         let bins = self.bins;
+        if bins.dense.is_some() {
+            // Every entry of the run is in this row and in lo.x..=hi.x: no checks.
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    let s0 = slot(bins.dense, bins.mask, UVec3::new(lo.x, y, z)) as usize;
+                    let s1 = slot(bins.dense, bins.mask, UVec3::new(hi.x, y, z)) as usize;
+                    for k in bins.start[s0] as usize..bins.start[s1 + 1] as usize {
+                        visit(dist2(p, bins.pos[k]), bins.index[k], bins.voxel[k] == own);
+                    }
+                }
+            }
+            return;
+        }
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
                 let s0 = voxel_hash(UVec3::new(lo.x, y, z)) & bins.mask;
@@ -311,7 +378,7 @@ impl Probe<'_> {
 
     /// The force on B vertex `p`, or `None` when it does not collide; adds A's shares.
     fn probe(&self, p: Vec3) -> Option<Vec3> {
-        let q = self.grid.voxel_of(p)?;
+        let q = voxel_of(self.grid, p)?;
         let plane = self.params.direction == Direction::PlaneNormal;
         let (own, block) = match self.params.search {
             Search::Voxel => {
@@ -370,7 +437,7 @@ impl Probe<'_> {
 
     fn add(&self, i: u32, f: Vec3) {
         for axis in 0..3 {
-            let c = (f[axis] * self.scale).round_ties_even() as i32;
+            let c = round_count(f[axis] * self.scale);
             if c != 0 {
                 self.fixed[3 * i as usize + axis].fetch_add(i64::from(c), Ordering::Relaxed);
             }
@@ -383,5 +450,34 @@ impl Collision for ParallelCpuCollision {
         let mut report = ContactReport::default();
         self.step_into(a, b, &mut report)?;
         Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inline_floor_and_round_equal_the_library_ones() {
+        let mut x = -70_000_000.0f32;
+        let specials = [0.0, -0.0, 0.5, -0.5, 1.5, 2.5, -2.5, -1.0, 8_388_607.5, -8_388_607.5, 4_194_303.5, 1e30, -1e30];
+        for v in specials {
+            assert_eq!(floor(v), v.floor(), "{v}");
+            assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+        }
+        while x < 70_000_000.0 {
+            for v in [x, x + 0.25, x + 0.5, x + 0.75, f32::from_bits(x.to_bits() + 1)] {
+                assert_eq!(floor(v), v.floor(), "{v}");
+                if v.abs() < 1e9 {
+                    assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+                }
+            }
+            x += 997.3;
+        }
+        for k in -300_000..300_000 {
+            let v = k as f32 * 0.5;
+            assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+            assert_eq!(floor(v), v.floor(), "{v}");
+        }
     }
 }
