@@ -212,14 +212,15 @@ impl ParallelCpuCollision {
         let overflow = report
             .force_a
             .par_chunks_mut(size)
-            .zip(self.fixed.par_chunks(3 * size))
+            .zip(self.fixed.par_chunks_mut(3 * size))
             .enumerate()
             .filter_map(|(c, (forces, counts))| {
                 let mut first = None;
                 for (k, f) in forces.iter_mut().enumerate() {
                     let mut out = [0.0f32; 3];
                     for axis in 0..3 {
-                        let count = counts[3 * k + axis].swap(0, Ordering::Relaxed);
+                        // Exclusive access here: a plain read and clear, no locked instruction.
+                        let count = std::mem::take(counts[3 * k + axis].get_mut());
                         match i32::try_from(count) {
                             Ok(c) => out[axis] = c as f32 * unit,
                             Err(_) => {
@@ -403,11 +404,25 @@ impl Probe<'_> {
                 let r = |k: usize| self.axis_range(k, p[k], q[k], Some(radius));
                 let ((x0, x1), (y0, y1), (z0, z1)) = (r(0), r(1), r(2));
                 let mut block = Nearest::EMPTY;
-                self.walk(p, UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1), q, |d, i, _| {
-                    if d < r2 {
-                        block.insert(d, i);
+                let (lo, hi) = (UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1));
+                if plane {
+                    self.walk(p, lo, hi, q, |d, i, _| {
+                        if d < r2 {
+                            block.insert(d, i);
+                        }
+                    });
+                } else {
+                    // Only the partner is needed: keep the best, no top-3 bookkeeping.
+                    let (mut best_d, mut best_i) = (r2, u32::MAX);
+                    self.walk(p, lo, hi, q, |d, i, _| {
+                        if d < best_d || (d == best_d && d < r2 && i < best_i) {
+                            (best_d, best_i) = (d, i);
+                        }
+                    });
+                    if best_i != u32::MAX {
+                        block = Nearest { d: [best_d, 0.0, 0.0], i: [best_i, 0, 0], n: 1 };
                     }
-                });
+                }
                 (block, block)
             }
         };
@@ -460,7 +475,8 @@ mod tests {
     #[test]
     fn inline_floor_and_round_equal_the_library_ones() {
         let mut x = -70_000_000.0f32;
-        let specials = [0.0, -0.0, 0.5, -0.5, 1.5, 2.5, -2.5, -1.0, 8_388_607.5, -8_388_607.5, 4_194_303.5, 1e30, -1e30];
+        let specials =
+            [0.0, -0.0, 0.5, -0.5, 1.5, 2.5, -2.5, -1.0, 8_388_607.5, -8_388_607.5, 4_194_303.5, 1e30, -1e30];
         for v in specials {
             assert_eq!(floor(v), v.floor(), "{v}");
             assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
