@@ -153,7 +153,15 @@ fn probe(j: u32) -> bool {
             continue;
         }
         let d2 = dist2(p, pos_a[i].xyz);
-        if voxel_only {
+        if !plane {
+            // Pairwise needs only the partner: keep the best (d2, index) as block's first entry
+            // (under the voxel search only b's own voxel is walked).
+            if (voxel_only || d2 < params.r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
+                block.d.x = d2;
+                block.i.x = i;
+                block.n = 1u;
+            }
+        } else if voxel_only {
             if all(v == vb.xyz) {
                 insert(&own, d2, i);
             }
@@ -165,11 +173,9 @@ fn probe(j: u32) -> bool {
     if vi < count {
         atomicMax(&state.truncated, ~j);
     }
-    var partner: Nearest;
-    if voxel_only {
+    var partner = block;
+    if voxel_only && plane {
         partner = own;
-    } else {
-        partner = block;
     }
     if partner.n == 0u {
         force_b[j] = vec4<f32>(0.0);
