@@ -83,7 +83,7 @@ fn pairwise_direction(center: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> vec3<f32
     return vec3<f32>(0.0, 0.0, 1.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
     @builtin(global_invocation_id) gid: vec3<u32>,
     @builtin(num_workgroups) nwg: vec3<u32>,

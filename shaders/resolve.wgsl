@@ -7,7 +7,7 @@
 @group(0) @binding(3) var<storage, read> fixed_hi: array<i32>;
 @group(0) @binding(4) var<storage, read_write> force_a: array<vec4<f32>>;
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = item_index(gid, nwg);
     if i >= params.n_a {

@@ -24,7 +24,8 @@ use crate::grid::VoxelGrid;
 use crate::params::{Anchor, ContactParams};
 use crate::report::ContactReport;
 
-/// Invocations per workgroup in every pass but `frame`. Keep in sync with `WORKGROUP_SIZE` in
+/// Invocations per workgroup in every pass but `frame` (64, 128 and 256 measured alike on
+/// lavapipe: benches/NOTES.md). Keep in sync with `WORKGROUP_SIZE` in
 /// `shaders/common.wgsl`.
 pub const WORKGROUP_SIZE: u32 = 64;
 /// Bytes per vertex position and per force: `vec4<f32>`.
