@@ -26,7 +26,7 @@ fn spring_force(x: vec3<f32>, v: vec3<f32>, y: vec3<f32>, w: vec3<f32>, rest: f3
     return (tension + damping) * u;
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = item_index(gid, nwg);
     if i >= sim.n {

@@ -9,7 +9,7 @@
 @group(0) @binding(4) var<storage, read> acc: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> status: array<atomic<u32>, 2>; // ~step, ~vertex
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = item_index(gid, nwg);
     if i >= sim.n {

@@ -5,7 +5,11 @@ use voxcollide::gpu::shaders::SHADERS;
 
 #[test]
 fn every_shader_parses_and_validates_with_default_capabilities() {
-    for (name, source) in SHADERS {
+    let all = SHADERS
+        .iter()
+        .chain(voxcollide::sim::gpu::SHADERS.iter())
+        .chain([("render", voxcollide::render::SHADER)].iter());
+    for &(name, source) in all {
         let module = naga::front::wgsl::parse_str(source)
             .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
         let mut validator = naga::valid::Validator::new(
@@ -15,7 +19,10 @@ fn every_shader_parses_and_validates_with_default_capabilities() {
         if let Err(e) = validator.validate(&module) {
             panic!("{name}.wgsl does not validate: {}", e.emit_to_string(source));
         }
-        assert!(module.entry_points.iter().any(|e| e.name == "main"), "{name}.wgsl has no `main`");
+        let expected: &[&str] = if name == "render" { &["vs_main", "fs_main"] } else { &["main"] };
+        for entry in expected {
+            assert!(module.entry_points.iter().any(|e| e.name == *entry), "{name}.wgsl has no `{entry}`");
+        }
     }
 }
 
@@ -28,4 +35,13 @@ fn every_pass_starts_from_the_shared_definitions() {
         let own = std::fs::read_to_string(&path).unwrap();
         assert_eq!(&source[common.len()..], own, "{path}");
     }
+}
+
+#[test]
+fn the_workgroup_size_is_the_same_in_rust_and_wgsl() {
+    let common = include_str!("../shaders/common.wgsl");
+    let sim = include_str!("../shaders/sim_common.wgsl");
+    let line = format!("const WORKGROUP_SIZE: u32 = {}u;", voxcollide::gpu::WORKGROUP_SIZE);
+    assert!(common.contains(&line), "common.wgsl lacks `{line}`");
+    assert!(sim.contains(&line), "sim_common.wgsl lacks `{line}`");
 }
