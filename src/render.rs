@@ -317,33 +317,12 @@ impl Renderer {
 
     /// Maps the readback buffer, waits for the device, and strips the row padding.
     fn read_back(&self) -> Result<Vec<u8>, Error> {
-        let ctx = &self.ctx;
-        let lost = |what: String| {
-            if ctx.is_lost() { Error::DeviceLost { message: what } } else { Error::Gpu { message: what } }
-        };
-        let slice = self.readback.slice(..);
-        let (tx, rx) = std::sync::mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        ctx.device()
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| lost(format!("waiting for the render: {e}")))?;
-        match rx.recv() {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => return Err(lost(format!("reading the picture back: {e}"))),
-            Err(_) => return Err(lost("reading the picture back: the map callback never ran".into())),
-        }
+        let padded = crate::gpu::map_read(&self.ctx, &self.readback, self.readback.size())?;
         let row = 4 * self.width as usize;
         let mut rgba = Vec::with_capacity(row * self.height as usize);
-        {
-            let view =
-                slice.get_mapped_range().map_err(|e| lost(format!("reading the picture back: {e}")))?;
-            for padded in view.chunks(self.padded_row as usize).take(self.height as usize) {
-                rgba.extend_from_slice(&padded[..row]);
-            }
+        for line in padded.chunks(self.padded_row as usize).take(self.height as usize) {
+            rgba.extend_from_slice(&line[..row]);
         }
-        self.readback.unmap();
         Ok(rgba)
     }
 }

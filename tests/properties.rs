@@ -1,24 +1,15 @@
 //! Property tests of the CPU reference on seeded random inputs: Newton's third law, invariance
 //! of `FollowA` under translation by whole voxels, and no contact outside the grid.
 
+mod common;
+
+use common::all_params;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use voxcollide::glam::{IVec3, UVec3, Vec3};
 use voxcollide::*;
 
 const SEEDS: std::ops::Range<u64> = 0..12;
-
-fn all_params(magnitude: f32, radius: f32) -> Vec<ContactParams> {
-    let mut out = Vec::new();
-    for search in [Search::Voxel, Search::Neighbours { radius }] {
-        for direction in [Direction::Pairwise, Direction::PlaneNormal] {
-            for anchor in [Anchor::Fixed, Anchor::FollowA] {
-                out.push(ContactParams { magnitude, search, direction, anchor });
-            }
-        }
-    }
-    out
-}
 
 /// `n` points in the box `lo..hi`, each coordinate a multiple of 2^-8 (so that whole-voxel
 /// translations are exact in f32).

@@ -566,7 +566,7 @@ pub(crate) fn read_buffers(ctx: &GpuContext, parts: &[(&Buffer, u64)]) -> Result
 }
 
 /// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
-fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Error> {
+pub(crate) fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Error> {
     let slice = buffer.slice(..size);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
