@@ -15,6 +15,12 @@
 
 var<workgroup> wg_colliding: atomic<u32>;
 
+// The search and direction, fixed when the pipeline is made (they equal params.search and
+// params.direction), so that the compiler drops the paths a backend never takes: a software
+// adapter such as llvmpipe otherwise runs every branch under a mask (benches/NOTES.md).
+override SEARCH: u32 = SEARCH_VOXEL;
+override DIRECTION: u32 = DIRECTION_PAIRWISE;
+
 // The nearest candidates so far, in (d2, index) order; only the first `n` are valid.
 struct Nearest {
     d: vec3<f32>,
@@ -115,8 +121,8 @@ fn probe(j: u32) -> bool {
         force_b[j] = vec4<f32>(0.0);
         return false;
     }
-    let voxel_only = params.search == SEARCH_VOXEL;
-    let plane = params.direction == DIRECTION_PLANE_NORMAL;
+    let voxel_only = SEARCH == SEARCH_VOXEL;
+    let plane = DIRECTION == DIRECTION_PLANE_NORMAL;
     // Voxel search: partner candidates in b's voxel (`own`), plane candidates in the block.
     // Neighbours: one candidate set, the block within the radius, for both.
     var own = Nearest();

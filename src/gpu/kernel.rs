@@ -26,6 +26,17 @@ pub(crate) struct Kernel {
 
 impl Kernel {
     pub fn new(device: &Device, label: &'static str, source: &str, slots: &[Slot]) -> Kernel {
+        Kernel::with_constants(device, label, source, slots, &[])
+    }
+
+    /// As [`new`](Self::new), with values for the shader's pipeline-overridable constants.
+    pub fn with_constants(
+        device: &Device,
+        label: &'static str,
+        source: &str,
+        slots: &[Slot],
+        constants: &[(&str, f64)],
+    ) -> Kernel {
         let entries: Vec<wgpu::BindGroupLayoutEntry> = slots
             .iter()
             .enumerate()
@@ -62,7 +73,7 @@ impl Kernel {
             layout: Some(&pipeline_layout),
             module: &module,
             entry_point: Some("main"),
-            compilation_options: Default::default(),
+            compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         });
         Kernel { label, layout, pipeline }

@@ -42,7 +42,8 @@ struct Kernels {
 }
 
 impl Kernels {
-    fn new(device: &Device) -> Kernels {
+    /// The kernels for `params`: the probe is specialised to its search and direction.
+    fn new(device: &Device, params: &GpuParams) -> Kernels {
         use Slot::{Read, ReadWrite, Uniform};
         Kernels {
             bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
@@ -53,11 +54,12 @@ impl Kernels {
                 shaders::BIN,
                 &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
             ),
-            probe: Kernel::new(
+            probe: Kernel::with_constants(
                 device,
                 "voxcollide probe",
                 shaders::PROBE,
                 &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                &[("SEARCH", f64::from(params.search)), ("DIRECTION", f64::from(params.direction))],
             ),
             resolve: Kernel::new(
                 device,
@@ -175,13 +177,14 @@ impl GpuCollision {
         params.validate(&grid)?;
         let device = ctx.device();
         let limits = device.limits();
-        let kernels = scoped(device, || Kernels::new(device))?;
+        let base = GpuParams::new(&grid, &params);
+        let kernels = scoped(device, || Kernels::new(device, &base))?;
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         Ok(GpuCollision {
             ctx: ctx.clone(),
             grid,
             params,
-            base: GpuParams::new(&grid, &params),
+            base,
             kernels,
             max_per_dim: limits.max_compute_workgroups_per_dimension,
             max_vertices: (binding / VEC4).min(u64::from(crate::cpu::MAX_VERTICES as u32)) as u32,
