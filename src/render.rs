@@ -35,6 +35,7 @@ use std::path::Path;
 use glam::{DMat4, DVec3, DVec4, Vec3};
 use wgpu::{Buffer, BufferUsages, Device, Texture, TextureFormat, TextureUsages, TextureView};
 
+use crate::gpu::scoped;
 use crate::{Error, GpuContext};
 
 /// The renderer's WGSL (vertex `vs_main`, fragment `fs_main`), for validating it without a GPU.
@@ -664,18 +665,5 @@ impl Camera {
         let w = row(forward, eye_z, 1.0);
         let z = w * a + DVec4::new(0.0, 0.0, 0.0, b);
         Camera { view_proj: DMat4::from_cols(x, y, z, w).transpose(), light }
-    }
-}
-
-/// Runs `f` inside validation and out-of-memory error scopes, turning a captured error into
-/// [`Error::Gpu`].
-fn scoped<T>(device: &Device, f: impl FnOnce() -> T) -> Result<T, Error> {
-    let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-    let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let value = f();
-    let errors = [pollster::block_on(validation.pop()), pollster::block_on(oom.pop())];
-    match errors.into_iter().flatten().next() {
-        Some(e) => Err(Error::Gpu { message: e.to_string() }),
-        None => Ok(value),
     }
 }
