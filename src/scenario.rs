@@ -130,6 +130,12 @@ impl Sim {
     }
 }
 
+/// The report's forces for a body of `n` vertices, borrowed; zeros before the first step, when
+/// the report is still empty.
+fn forces_or_zero(v: &[Vec3], n: usize) -> std::borrow::Cow<'_, [Vec3]> {
+    if v.len() == n { v.into() } else { vec![Vec3::ZERO; n].into() }
+}
+
 fn io(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Io { path: path.display().to_string(), message: e.to_string() }
 }
@@ -227,9 +233,10 @@ pub fn run(
                 report.colliding_b.iter().for_each(|&j| c[j as usize] = true);
                 c
             };
-            let force = |v: &[Vec3], n: usize| if v.len() == n { v.to_vec() } else { vec![Vec3::ZERO; n] };
-            let (ft, ff) =
-                (force(&report.force_b, scene.tissue.len()), force(&report.force_a, scene.foreign.len()));
+            let (ft, ff) = (
+                forces_or_zero(&report.force_b, scene.tissue.len()),
+                forces_or_zero(&report.force_a, scene.foreign.len()),
+            );
             for (pvd, body, forces, flags, prefix) in [
                 (tissue, &scene.tissue, &ft, colliding, "tissue"),
                 (foreign, &scene.foreign, &ff, ff.iter().map(|f| *f != Vec3::ZERO).collect(), name),
