@@ -3,8 +3,10 @@
 // Keep Params and State in sync with src/gpu/layout.rs (GpuParams, GpuState).
 
 const WORKGROUP_SIZE: u32 = 64u;
-// Heads and `next` hold vertex index + 1; 0 ends a list.
-const LIST_END: u32 = 0u;
+// place[i].x of an A vertex outside the grid (or not finite): it is in no slot.
+const NOT_BINNED: u32 = 0xffffffffu;
+// Slots per block of the prefix sum (4 per invocation).
+const SCAN_BLOCK: u32 = 4u * WORKGROUP_SIZE;
 
 const SEARCH_VOXEL: u32 = 0u;
 const SEARCH_NEIGHBOURS: u32 = 1u;
@@ -27,11 +29,11 @@ struct Params {
     unit: f32,              // magnitude / 65536
     n_a: u32,
     n_b: u32,
-    slot_mask: u32,         // hash slots - 1 (a power of two minus one)
+    slot_mask: u32,         // slots - 1 (hashed: a power of two minus one)
     search: u32,
     direction: u32,
     anchor: u32,
-    _pad: u32,
+    dense: u32,             // 1: a slot per voxel of the grid, at its linear index; 0: hashed
 }
 
 struct State {
@@ -94,9 +96,27 @@ fn voxel_of(p: vec3<f32>, origin: vec3<f32>) -> vec4<u32> {
     return vec4<u32>(x.x, y.x, z.x, x.y & y.y & z.y);
 }
 
+// Blocks of the prefix sum over the slots: slot_mask + 1 slots and the end mark after them.
+// Keep in sync with scan_blocks in src/gpu/mod.rs.
+fn scan_blocks() -> u32 {
+    return (params.slot_mask + 2u + SCAN_BLOCK - 1u) / SCAN_BLOCK;
+}
+
+// The slot of voxel `v`: its linear index when the table is dense, else its hash, masked.
+fn slot_of(v: vec3<u32>) -> u32 {
+    if params.dense != 0u {
+        return v.x + params.dims.x * (v.y + params.dims.y * v.z);
+    }
+    return voxel_hash(v) & params.slot_mask;
+}
+
 // Keep in sync with voxel_hash in src/voxel_data.rs: a scrambled hash of the row (y, z) plus x,
 // so that a row's voxels sit in consecutive slots.
 fn voxel_hash(v: vec3<u32>) -> u32 {
-    let h = (v.y * 0x9e3779b1u) ^ (v.z * 0x85ebca77u);
-    return (h ^ (h >> 16u)) + v.x;
+    return row_hash(v.y, v.z) + v.x;
+}
+
+fn row_hash(y: u32, z: u32) -> u32 {
+    let h = (y * 0x9e3779b1u) ^ (z * 0x85ebca77u);
+    return h ^ (h >> 16u);
 }

@@ -1,14 +1,14 @@
-// Pass 3: each B vertex finds its voxel (or the 3×3×3 block), walks the lists, picks its
-// partner(s) by (d2, index), writes its own force (w = 1 when it collides) and adds the
-// fixed-point shares of the opposite force to A's 64-bit accumulators. CPU twins:
+// Pass 3: each B vertex finds its voxel (or the 3×3×3 block), walks the sorted A vertices of
+// its voxels, picks its partner(s) by (d2, index), writes its own force (w = 1 when it collides)
+// and adds the fixed-point shares of the opposite force to A's 64-bit accumulators. CPU twins:
 // VoxelDetector::detect and the eliminators.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> pos_b: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> head: array<u32>;
-@group(0) @binding(5) var<storage, read> next: array<vec4<u32>>; // (next entry, voxel xyz)
+@group(0) @binding(4) var<storage, read> start: array<u32>;
+@group(0) @binding(5) var<storage, read> sorted: array<vec4<u32>>; // (position bits, index)
 @group(0) @binding(6) var<storage, read_write> fixed_lo: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> fixed_hi: array<atomic<i32>>;
 @group(0) @binding(8) var<storage, read_write> force_b: array<vec4<f32>>;
@@ -20,6 +20,8 @@ var<workgroup> wg_colliding: atomic<u32>;
 // adapter such as llvmpipe otherwise runs every branch under a mask (benches/NOTES.md).
 override SEARCH: u32 = SEARCH_VOXEL;
 override DIRECTION: u32 = DIRECTION_PAIRWISE;
+// Equals params.dense != 0u: with a slot per voxel, no slot holds another voxel's vertices.
+override DENSE: bool = false;
 
 // The nearest candidates so far, in (d2, index) order; only the first `n` are valid.
 struct Nearest {
@@ -133,54 +135,109 @@ fn probe(j: u32) -> bool {
         lo = max(vb.xyz, vec3<u32>(1u)) - vec3<u32>(1u);
         hi = min(vb.xyz + vec3<u32>(1u), params.dims.xyz - vec3<u32>(1u));
     }
-    // One loop over the block's voxels (x fastest) and their lists, one iteration per entry or
-    // voxel change, so that a driver's loop cap (llvmpipe: 65535) is reached as late as possible
-    // and, if it is reached, seen: the loop then ends before the last voxel.
+    // A block row's voxels (x = lo.x ..= hi.x) are consecutive slots, so their vertices are one
+    // range of the sorted array (hashed: a row whose slots wrap past the last one is two). The
+    // ranges are read first, so that the walk's loop reads nothing but vertices: llvmpipe runs
+    // every load in a loop body on every iteration, masked, even in a branch no lane takes.
     let ext = hi - lo + vec3<u32>(1u);
-    let count = ext.x * ext.y * ext.z;
-    var vi = 0u;
-    var v = lo;
-    var e = head[voxel_hash(v) & params.slot_mask];
+    let rows = ext.y * ext.z;
+    let slots = params.slot_mask + 1u;
+    // Loop-invariant values in locals: llvmpipe reloads a uniform read inside a loop, lane by lane.
+    let origin_v = state.origin.xyz;
+    let inv = params.inv;
+    let r2 = params.r2;
+    var range_start: array<u32, 18>;
+    var range_end: array<u32, 18>;
+    var range_y: array<u32, 18>;
+    var range_z: array<u32, 18>;
+    var ranges = 0u;
+    // No division anywhere in the walk: a vector integer division is eight scalar ones on a
+    // CPU adapter.
+    var y = lo.y;
+    var z = lo.z;
+    for (var r = 0u; r < rows; r++) {
+        var first: u32;
+        var k1: u32;
+        if DENSE {
+            first = lo.x + params.dims.x * (y + params.dims.y * z);
+            k1 = start[first + ext.x];
+        } else {
+            first = (row_hash(y, z) + lo.x) & params.slot_mask;
+            k1 = start[min(first + ext.x, slots)];
+        }
+        let k0 = start[first];
+        if k1 > k0 {
+            range_start[ranges] = k0;
+            range_end[ranges] = k1;
+            range_y[ranges] = y;
+            range_z[ranges] = z;
+            ranges++;
+        }
+        if !DENSE && first + ext.x > slots {
+            // The wrapped part: slots 0 .. first + ext.x - slots (start[0] is 0).
+            let k2 = start[first + ext.x - slots];
+            if k2 > 0u {
+                range_start[ranges] = 0u;
+                range_end[ranges] = k2;
+                range_y[ranges] = y;
+                range_z[ranges] = z;
+                ranges++;
+            }
+        }
+        y++;
+        if y > hi.y {
+            y = lo.y;
+            z++;
+        }
+    }
+    // One loop over the ranges' vertices, one iteration each, so that a driver's loop cap
+    // (llvmpipe: 65535) is reached as late as possible and, if it is reached, seen: the loop
+    // then ends before the last range is done.
+    var next_range = 0u;
+    var k = 0u;
+    var end = 0u;
+    var done = false;
     loop {
-        if e == LIST_END {
-            vi++;
-            if vi >= count {
+        if k >= end {
+            if next_range >= ranges {
+                done = true;
                 break;
             }
-            v = lo + vec3<u32>(vi % ext.x, (vi / ext.x) % ext.y, vi / (ext.x * ext.y));
-            e = head[voxel_hash(v) & params.slot_mask];
-            // Go on with the new voxel's first entry in this same iteration: with about one
-            // vertex a voxel this halves the iterations (what llvmpipe pays for).
-            if e == LIST_END {
-                continue;
-            }
+            k = range_start[next_range];
+            end = range_end[next_range];
+            y = range_y[next_range];
+            z = range_z[next_range];
+            next_range++;
         }
-        let i = e - 1u;
-        let link = next[i];
-        e = link.x;
-        // Aliasing: only vertices whose own voxel is v belong to v.
-        if any(link.yzw != v) {
+        let entry = sorted[k];
+        k++;
+        let a = bitcast<vec3<f32>>(entry.xyz);
+        let i = entry.w;
+        // The voxel is computed as the bin pass computed it, so it is the same one.
+        let q = floor((a - origin_v) * inv);
+        // Hashed: only vertices whose own voxel is in this row belong to it (aliasing).
+        if !DENSE && (q.y != f32(y) || q.z != f32(z) || q.x < f32(lo.x) || q.x > f32(hi.x)) {
             continue;
         }
-        let d2 = dist2(p, pos_a[i].xyz);
+        let d2 = dist2(p, a);
         if !plane {
             // Pairwise needs only the partner: keep the best (d2, index) as block's first entry
             // (under the voxel search only b's own voxel is walked).
-            if (voxel_only || d2 < params.r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
+            if (voxel_only || d2 < r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
                 block.d.x = d2;
                 block.i.x = i;
                 block.n = 1u;
             }
         } else if voxel_only {
-            if all(v == vb.xyz) {
+            if all(vec3<f32>(q.x, f32(y), f32(z)) == vec3<f32>(vb.xyz)) {
                 insert(&own, d2, i);
             }
             insert(&block, d2, i);
-        } else if d2 < params.r2 {
+        } else if d2 < r2 {
             insert(&block, d2, i);
         }
     }
-    if vi < count {
+    if !done {
         atomicMax(&state.truncated, ~j);
     }
     var partner = block;

@@ -5,6 +5,8 @@
 mod common;
 
 use common::{all_params, bodies, compare, gpu};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use voxcollide::glam::{UVec3, Vec3};
 use voxcollide::*;
 
@@ -26,6 +28,53 @@ fn gpu_matches_cpu_for_all_combinations() {
     }
     eprintln!("{contacts} contacts compared; {inexact} force components not bit-identical");
     assert!(contacts > 100_000, "only {contacts} contacts");
+}
+
+#[test]
+fn dense_and_hashed_voxel_tables_both_match_the_cpu() {
+    // The same bodies in the grid built for them (at most 4 voxels per A vertex: a dense table)
+    // and in one 8× wider per axis (512× the voxels: hashed, with aliasing).
+    let Some(ctx) = gpu() else { return };
+    let (a, b, voxel, built) = bodies(21, 20_000);
+    let wide = VoxelGrid::new(built.center(), voxel, built.dims() * 8).unwrap();
+    for (grid, dense) in [(built, true), (wide, false)] {
+        for params in all_params(1.0, 0.9 * voxel) {
+            let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+            let mut backend = GpuCollision::new(&ctx, grid, params).unwrap();
+            assert_eq!(backend.dense_table(), None);
+            let gpu = backend.step(&a, &b).unwrap();
+            assert_eq!(backend.dense_table(), Some(dense), "{:?}", grid.dims());
+            assert!(cpu.colliding_b.len() > 1000, "{params:?}");
+            compare(&format!("dense {dense} {params:?}"), &cpu, &gpu, 1e-5);
+        }
+    }
+}
+
+#[test]
+fn tiny_hashed_tables_whose_rows_wrap_match_the_cpu() {
+    // Five A vertices in a 1024³ grid: 8 hash slots, so most block rows (3 slots) wrap past the
+    // last slot to the first; the plane normal needs three candidates from such rows.
+    let Some(ctx) = gpu() else { return };
+    let grid = VoxelGrid::new(Vec3::ZERO, 1.0, UVec3::splat(1024)).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(5);
+    for round in 0..12 {
+        let corner = Vec3::new(
+            rng.random_range(-50.0..50.0f32).floor(),
+            rng.random_range(-50.0..50.0f32).floor(),
+            rng.random_range(-50.0..50.0f32).floor(),
+        );
+        let mut jitter = || Vec3::new(rng.random(), rng.random(), rng.random());
+        let a: Vec<Vec3> =
+            (0..5).map(|i| corner + Vec3::new((i % 3) as f32, (i / 3) as f32, 0.0) + jitter()).collect();
+        let b: Vec<Vec3> = (0..20).map(|_| corner + 3.0 * jitter() - Vec3::splat(0.5)).collect();
+        for params in all_params(1.0, 1.0) {
+            let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+            let mut backend = GpuCollision::new(&ctx, grid, params).unwrap();
+            let gpu = backend.step(&a, &b).unwrap();
+            assert_eq!(backend.dense_table(), Some(false));
+            compare(&format!("round {round} {params:?}"), &cpu, &gpu, 1e-5);
+        }
+    }
 }
 
 #[test]

@@ -105,7 +105,7 @@ impl Kernel {
         pass.dispatch_workgroups(x, y, 1);
     }
 
-    /// Dispatches a single invocation (the kernel's workgroup size must be 1).
+    /// Dispatches a single workgroup.
     pub fn dispatch_one(&self, pass: &mut ComputePass<'_>, bind_group: &BindGroup) {
         pass.set_pipeline(&self.pipeline);
         pass.set_bind_group(0, bind_group, &[]);

@@ -24,7 +24,7 @@ pub(crate) struct GpuParams {
     pub search: u32,
     pub direction: u32,
     pub anchor: u32,
-    pub _pad: u32,
+    pub dense: u32,
 }
 const _: () = assert!(std::mem::size_of::<GpuParams>() == 96);
 
@@ -60,7 +60,7 @@ impl GpuParams {
                 Anchor::Fixed => 0,
                 Anchor::FollowA => 1,
             },
-            _pad: 0,
+            dense: 0,
         }
     }
 }

@@ -1,8 +1,9 @@
 //! The GPU backend: WGSL compute passes on wgpu (DESIGN §3), checked against the CPU reference.
 //!
-//! A step is five passes recorded into one command encoder — bounds (FollowA only), frame, bin,
-//! probe, resolve — with every intermediate in device buffers that are created once and reused
-//! while the sizes fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
+//! A step is nine passes recorded into one command encoder — bounds (FollowA only), frame, a
+//! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), probe, resolve —
+//! with every intermediate in device buffers that are created once and reused while the sizes
+//! fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
 //! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
 
 mod context;
@@ -31,13 +32,18 @@ pub const WORKGROUP_SIZE: u32 = 64;
 /// Bytes per vertex position and per force: `vec4<f32>`.
 const VEC4: u64 = 16;
 
-/// The five kernels of a step.
+/// The kernels of a step.
 #[derive(Debug)]
 struct Kernels {
     bounds: Kernel,
     frame: Kernel,
     bin: Kernel,
-    probe: Kernel,
+    scan: Kernel,
+    scan_carry: Kernel,
+    scan_add: Kernel,
+    sort: Kernel,
+    probe_hashed: Kernel,
+    probe_dense: Kernel,
     resolve: Kernel,
 }
 
@@ -45,6 +51,19 @@ impl Kernels {
     /// The kernels for `params`: the probe is specialised to its search and direction.
     fn new(device: &Device, params: &GpuParams) -> Kernels {
         use Slot::{Read, ReadWrite, Uniform};
+        let probe = |dense: bool| {
+            Kernel::with_constants(
+                device,
+                if dense { "voxcollide probe (dense)" } else { "voxcollide probe (hashed)" },
+                shaders::PROBE,
+                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                &[
+                    ("SEARCH", f64::from(params.search)),
+                    ("DIRECTION", f64::from(params.direction)),
+                    ("DENSE", f64::from(u8::from(dense))),
+                ],
+            )
+        };
         Kernels {
             bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
             frame: Kernel::new(device, "voxcollide frame", shaders::FRAME, &[Uniform, ReadWrite]),
@@ -54,13 +73,32 @@ impl Kernels {
                 shaders::BIN,
                 &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
             ),
-            probe: Kernel::with_constants(
+            scan: Kernel::new(
                 device,
-                "voxcollide probe",
-                shaders::PROBE,
-                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
-                &[("SEARCH", f64::from(params.search)), ("DIRECTION", f64::from(params.direction))],
+                "voxcollide scan",
+                shaders::SCAN,
+                &[Uniform, Read, ReadWrite, ReadWrite],
             ),
+            scan_carry: Kernel::new(
+                device,
+                "voxcollide scan_carry",
+                shaders::SCAN_CARRY,
+                &[Uniform, ReadWrite],
+            ),
+            scan_add: Kernel::new(
+                device,
+                "voxcollide scan_add",
+                shaders::SCAN_ADD,
+                &[Uniform, ReadWrite, Read],
+            ),
+            sort: Kernel::new(
+                device,
+                "voxcollide sort",
+                shaders::SORT,
+                &[Uniform, Read, Read, Read, ReadWrite],
+            ),
+            probe_hashed: probe(false),
+            probe_dense: probe(true),
             resolve: Kernel::new(
                 device,
                 "voxcollide resolve",
@@ -71,16 +109,20 @@ impl Kernels {
     }
 }
 
-/// The device buffers of a step, sized for `cap_a` A and `cap_b` B vertices.
+/// The device buffers of a step, sized for `cap_a` A and `cap_b` B vertices and `cap_slots`
+/// voxel slots.
 #[derive(Debug)]
 struct Buffers {
     cap_a: u32,
     cap_b: u32,
-    slots: u32,
+    cap_slots: u32,
     params: Buffer,
     state: Buffer,
-    head: Buffer,
-    next: Buffer,
+    count: Buffer,
+    start: Buffer,
+    partial: Buffer,
+    place: Buffer,
+    sorted: Buffer,
     fixed_lo: Buffer,
     fixed_hi: Buffer,
     force_a: Buffer,
@@ -88,8 +130,8 @@ struct Buffers {
 }
 
 impl Buffers {
-    fn new(device: &Device, cap_a: u32, cap_b: u32) -> Buffers {
-        let slots = cap_a.next_power_of_two();
+    fn new(device: &Device, cap_a: u32, cap_b: u32, cap_slots: u32) -> Buffers {
+        let slots = cap_slots;
         let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
         let make = |label: &str, size: u64, usage: BufferUsages| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -103,11 +145,18 @@ impl Buffers {
         Buffers {
             cap_a,
             cap_b,
-            slots,
+            cap_slots,
             params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
             state: make("voxcollide state", GpuState::SIZE, storage),
-            head: make("voxcollide head", 4 * u64::from(slots), storage),
-            next: make("voxcollide next", VEC4 * a, storage),
+            count: make("voxcollide count", 4 * u64::from(scan_slots(slots)), storage),
+            start: make("voxcollide start", 4 * u64::from(scan_slots(slots)), storage),
+            partial: make(
+                "voxcollide partial",
+                4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
+                storage,
+            ),
+            place: make("voxcollide place", 8 * a, storage),
+            sorted: make("voxcollide sorted", VEC4 * a, storage),
             fixed_lo: make("voxcollide fixed_lo", 12 * a, storage),
             fixed_hi: make("voxcollide fixed_hi", 12 * a, storage),
             force_a: make("voxcollide force_a", VEC4 * a, storage),
@@ -124,8 +173,24 @@ struct Bound {
     bounds: wgpu::BindGroup,
     frame: wgpu::BindGroup,
     bin: wgpu::BindGroup,
-    probe: wgpu::BindGroup,
+    scan: wgpu::BindGroup,
+    scan_carry: wgpu::BindGroup,
+    scan_add: wgpu::BindGroup,
+    sort: wgpu::BindGroup,
+    /// Hashed, dense.
+    probe: [wgpu::BindGroup; 2],
     resolve: wgpu::BindGroup,
+}
+
+/// Blocks of the slot prefix sum: `slots` and the end mark after them, `SCAN_BLOCK` (4 per
+/// invocation) a block. Keep in sync with `scan_blocks` in `shaders/common.wgsl`.
+fn scan_blocks(slots: u32) -> u32 {
+    (slots + 1).div_ceil(4 * WORKGROUP_SIZE)
+}
+
+/// Slots of the count and start buffers: whole scan blocks.
+fn scan_slots(slots: u32) -> u32 {
+    scan_blocks(slots) * 4 * WORKGROUP_SIZE
 }
 
 /// The GPU collision backend.
@@ -155,10 +220,12 @@ pub struct GpuCollision {
     kernels: Kernels,
     max_per_dim: u32,
     max_vertices: u32,
+    max_binding: u64,
     buffers: Option<Buffers>,
     bound: Option<Bound>,
     uploaded: GpuParams,
     recorded: Option<(u32, u32)>,
+    dense: Option<bool>,
     bind_group_builds: u32,
     // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
     upload: Option<(Buffer, Buffer)>,
@@ -188,10 +255,12 @@ impl GpuCollision {
             kernels,
             max_per_dim: limits.max_compute_workgroups_per_dimension,
             max_vertices: (binding / VEC4).min(u64::from(crate::cpu::MAX_VERTICES as u32)) as u32,
+            max_binding: binding,
             buffers: None,
             bound: None,
             uploaded: GpuParams::default(),
             recorded: None,
+            dense: None,
             bind_group_builds: 0,
             upload: None,
             staging: None,
@@ -211,6 +280,14 @@ impl GpuCollision {
     #[must_use]
     pub fn bind_group_builds(&self) -> u32 {
         self.bind_group_builds
+    }
+
+    /// Whether the last recorded step used a dense voxel table — a slot per voxel of the grid,
+    /// chosen while the grid has at most 4 voxels per A vertex — rather than a hashed one, whose
+    /// walks also pass other voxels' vertices; `None` before the first step.
+    #[must_use]
+    pub fn dense_table(&self) -> Option<bool> {
+        self.dense
     }
 
     /// The grid as built.
@@ -257,18 +334,24 @@ impl GpuCollision {
         self.check_input(Body::A, a, n_a)?;
         self.check_input(Body::B, b, n_b)?;
         let device = self.ctx.device().clone();
-        let grow = self.buffers.as_ref().is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b);
+        let (slots, dense) = self.slots(n_a);
+        let grow = self
+            .buffers
+            .as_ref()
+            .is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b || slots > bufs.cap_slots);
         if grow {
-            let (cap_a, cap_b) =
-                self.buffers.as_ref().map_or((n_a, n_b), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b)));
-            self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b))?);
+            let (cap_a, cap_b, cap_slots) = self
+                .buffers
+                .as_ref()
+                .map_or((n_a, n_b, slots), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b), x.cap_slots.max(slots)));
+            self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b, cap_slots))?);
             self.bound = None;
         }
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
 
-        // Sizes live in the uniform; the hash uses every slot of the buffer, so it never fills:
-        // lists chain, and aliasing only lengthens a walk.
-        let params = GpuParams { n_a, n_b, slot_mask: bufs.slots - 1, ..self.base };
+        // Sizes live in the uniform. A slot holds any number of vertices, so the table never
+        // fills; in a hashed one, aliasing only lengthens a walk.
+        let params = GpuParams { n_a, n_b, slot_mask: slots - 1, dense: u32::from(dense), ..self.base };
         if params != self.uploaded {
             self.ctx.queue().write_buffer(&bufs.params, 0, bytemuck::bytes_of(&params));
             self.uploaded = params;
@@ -281,21 +364,27 @@ impl GpuCollision {
                 b: b.clone(),
                 bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
                 frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
-                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.head, &bufs.next]),
-                probe: k.probe.bind(
-                    &device,
-                    &[
-                        &bufs.params,
-                        &bufs.state,
-                        a,
-                        b,
-                        &bufs.head,
-                        &bufs.next,
-                        &bufs.fixed_lo,
-                        &bufs.fixed_hi,
-                        &bufs.force_b,
-                    ],
-                ),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.count, &bufs.place]),
+                scan: k.scan.bind(&device, &[&bufs.params, &bufs.count, &bufs.start, &bufs.partial]),
+                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial]),
+                scan_add: k.scan_add.bind(&device, &[&bufs.params, &bufs.start, &bufs.partial]),
+                sort: k.sort.bind(&device, &[&bufs.params, a, &bufs.place, &bufs.start, &bufs.sorted]),
+                probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
+                    probe.bind(
+                        &device,
+                        &[
+                            &bufs.params,
+                            &bufs.state,
+                            a,
+                            b,
+                            &bufs.start,
+                            &bufs.sorted,
+                            &bufs.fixed_lo,
+                            &bufs.fixed_hi,
+                            &bufs.force_b,
+                        ],
+                    )
+                }),
                 resolve: k.resolve.bind(
                     &device,
                     &[&bufs.params, &bufs.state, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_a],
@@ -308,7 +397,7 @@ impl GpuCollision {
 
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
-        encoder.clear_buffer(&bufs.head, 0, Some(4 * u64::from(bufs.slots)));
+        encoder.clear_buffer(&bufs.count, 0, Some(4 * u64::from(scan_slots(slots))));
         encoder.clear_buffer(&bufs.fixed_lo, 0, Some(12 * u64::from(n_a)));
         encoder.clear_buffer(&bufs.fixed_hi, 0, Some(12 * u64::from(n_a)));
         {
@@ -322,10 +411,17 @@ impl GpuCollision {
             }
             k.frame.dispatch_one(&mut pass, &bound.frame);
             k.bin.dispatch(&mut pass, &bound.bin, n_a, self.max_per_dim);
-            k.probe.dispatch(&mut pass, &bound.probe, n_b, self.max_per_dim);
+            let quads = scan_blocks(slots) * WORKGROUP_SIZE;
+            k.scan.dispatch(&mut pass, &bound.scan, quads, self.max_per_dim);
+            k.scan_carry.dispatch_one(&mut pass, &bound.scan_carry);
+            k.scan_add.dispatch(&mut pass, &bound.scan_add, quads, self.max_per_dim);
+            k.sort.dispatch(&mut pass, &bound.sort, n_a, self.max_per_dim);
+            let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
+            probe.dispatch(&mut pass, &bound.probe[usize::from(dense)], n_b, self.max_per_dim);
             k.resolve.dispatch(&mut pass, &bound.resolve, n_a, self.max_per_dim);
         }
         self.recorded = Some((n_a, n_b));
+        self.dense = Some(dense);
         Ok(())
     }
 
@@ -371,6 +467,24 @@ impl GpuCollision {
         copy_report(&mut encoder, bufs, &staging, n_a, n_b);
         self.ctx.queue().submit([encoder.finish()]);
         self.finish_report(&staging, n_a, n_b)
+    }
+
+    /// The slots of the voxel table for `n_a` vertices, and whether it is dense. Dense — a slot
+    /// per voxel of the grid, at its linear index, so no slot holds another voxel's vertices —
+    /// while the grid has at most 4 voxels per A vertex (memory stays O(|A|)) and the table
+    /// fits a storage binding; hashed otherwise, with `n_a` rounded up to a power of two slots
+    /// (at least 4).
+    fn slots(&self, n_a: u32) -> (u32, bool) {
+        let dims = self.grid.dims();
+        let voxels = u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z);
+        let fits = voxels <= 4 * u64::from(n_a)
+            && 4 * u64::from(scan_slots(voxels.min(u64::from(u32::MAX / 2)) as u32)) <= self.max_binding;
+        if fits {
+            (voxels as u32, true)
+        } else {
+            // At least 4 slots, so that a block row (3 slots) never meets itself when it wraps.
+            (n_a.next_power_of_two().max(4), false)
+        }
     }
 
     fn check_input(&self, body: Body, buffer: &Buffer, n: u32) -> Result<(), Error> {

@@ -1,8 +1,17 @@
 //! The WGSL of each pass, composed without a preprocessor: `common.wgsl` followed by the pass.
 
 /// `(name, composed source)` of every pass, in the order a step runs them.
-pub const SHADERS: [(&str, &str); 5] =
-    [("bounds", BOUNDS), ("frame", FRAME), ("bin", BIN), ("probe", PROBE), ("resolve", RESOLVE)];
+pub const SHADERS: [(&str, &str); 9] = [
+    ("bounds", BOUNDS),
+    ("frame", FRAME),
+    ("bin", BIN),
+    ("scan", SCAN),
+    ("scan_carry", SCAN_CARRY),
+    ("scan_add", SCAN_ADD),
+    ("sort", SORT),
+    ("probe", PROBE),
+    ("resolve", RESOLVE),
+];
 
 /// Pass 1 (FollowA): A's bounds.
 pub const BOUNDS: &str =
@@ -10,10 +19,22 @@ pub const BOUNDS: &str =
 /// Pass 1b: the step's grid center and origin.
 pub const FRAME: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/frame.wgsl"));
-/// Pass 2: A into the sparse voxel hash.
+/// Pass 2a: A's vertices counted per hash slot, each with its rank in the slot.
 pub const BIN: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/bin.wgsl"));
-/// Pass 3: B probes the lists; forces.
+/// Pass 2b: prefix sums of the slot counts within blocks.
+pub const SCAN: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan.wgsl"));
+/// Pass 2c: prefix sums of the block totals.
+pub const SCAN_CARRY: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan_carry.wgsl"));
+/// Pass 2d: the slots' starts.
+pub const SCAN_ADD: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan_add.wgsl"));
+/// Pass 2e: A's vertices in slot order.
+pub const SORT: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/sort.wgsl"));
+/// Pass 3: B probes the sorted vertices of its voxels; forces.
 pub const PROBE: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/probe.wgsl"));
 /// Pass 4: A's fixed-point totals to f32.
