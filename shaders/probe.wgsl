@@ -151,32 +151,59 @@ fn probe(j: u32) -> bool {
     var range_y: array<u32, 18>;
     var range_z: array<u32, 18>;
     var ranges = 0u;
+    // Under the neighbour search a row (or one end voxel of it) that the sphere of the radius
+    // around p cannot reach is left out. Generous for the f32 rounding of positions, faces and
+    // d2 (as ParallelCpuCollision): a few ulps of the largest magnitude and 1e-3 of the radius.
+    let neighbours = SEARCH == SEARCH_NEIGHBOURS;
+    let vs = 1.0 / inv;
+    let radius = sqrt(r2);
+    let margins = 1e-3 * radius
+        + 16.0 * 1.1920929e-7 * (abs(p) + abs(origin_v) + vs * vec3<f32>(params.dims.xyz));
+    let margin = max(margins.x, max(margins.y, margins.z));
+    let reach2 = (radius + margin) * (radius + margin);
+    // How far p is from the faces of its voxel below and above, along x.
+    let below_x = p.x - (origin_v.x + f32(vb.x) * vs);
+    let above_x = (origin_v.x + f32(vb.x + 1u) * vs) - p.x;
     // No division anywhere in the walk: a vector integer division is eight scalar ones on a
     // CPU adapter.
     var y = lo.y;
     var z = lo.z;
     for (var r = 0u; r < rows; r++) {
+        var x0 = lo.x;
+        var x1 = hi.x;
+        var reached = true;
+        if neighbours {
+            // The distances from p to the row's slab in y and in z, less the margin.
+            let gy = max(max(p.y - (origin_v.y + f32(y + 1u) * vs), (origin_v.y + f32(y) * vs) - p.y) - margin, 0.0);
+            let gz = max(max(p.z - (origin_v.z + f32(z + 1u) * vs), (origin_v.z + f32(z) * vs) - p.z) - margin, 0.0);
+            let rest = reach2 - gy * gy - gz * gz;
+            reached = rest >= 0.0;
+            let half = sqrt(max(rest, 0.0)) + margin;
+            x0 = select(x0, vb.x, below_x > half);
+            x1 = select(x1, vb.x, above_x > half);
+        }
+        let len = x1 - x0 + 1u;
         var first: u32;
         var k1: u32;
         if DENSE {
-            first = lo.x + params.dims.x * (y + params.dims.y * z);
-            k1 = start[first + ext.x];
+            first = x0 + params.dims.x * (y + params.dims.y * z);
+            k1 = start[first + len];
         } else {
-            first = (row_hash(y, z) + lo.x) & params.slot_mask;
-            k1 = start[min(first + ext.x, slots)];
+            first = (row_hash(y, z) + x0) & params.slot_mask;
+            k1 = start[min(first + len, slots)];
         }
         let k0 = start[first];
-        if k1 > k0 {
+        if reached && k1 > k0 {
             range_start[ranges] = k0;
             range_end[ranges] = k1;
             range_y[ranges] = y;
             range_z[ranges] = z;
             ranges++;
         }
-        if !DENSE && first + ext.x > slots {
-            // The wrapped part: slots 0 .. first + ext.x - slots (start[0] is 0).
-            let k2 = start[first + ext.x - slots];
-            if k2 > 0u {
+        if !DENSE && first + len > slots {
+            // The wrapped part: slots 0 .. first + len - slots (start[0] is 0).
+            let k2 = start[first + len - slots];
+            if reached && k2 > 0u {
                 range_start[ranges] = 0u;
                 range_end[ranges] = k2;
                 range_y[ranges] = y;

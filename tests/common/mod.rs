@@ -89,3 +89,45 @@ pub fn compare(what: &str, expected: &ContactReport, actual: &ContactReport, tol
     }
     inexact
 }
+
+/// Pairs that test the radius to the last bit: B vertices on a jittered lattice `spacing` apart,
+/// and for each an A vertex in a random direction at `radius` × (1 ± up to 1e-5), so that many
+/// candidates lie within rounding of the radius, in every direction across voxel faces and
+/// edges; the grid is built over A with a margin of one voxel. A spacing of one voxel gives a
+/// dense voxel table, a wider one a hashed table.
+pub fn radius_shell(
+    seed: u64,
+    pairs: usize,
+    voxel: f32,
+    radius: f32,
+    spacing: f32,
+) -> (Vec<Vec3>, Vec<Vec3>, VoxelGrid) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let side = (pairs as f32).cbrt().ceil() as usize;
+    let mut a = Vec::with_capacity(pairs);
+    let mut b = Vec::with_capacity(pairs);
+    for k in 0..pairs {
+        let cell = Vec3::new((k % side) as f32, (k / side % side) as f32, (k / side / side) as f32);
+        let p = cell * spacing * voxel
+            + Vec3::new(
+                rng.random_range(0.0..voxel),
+                rng.random_range(0.0..voxel),
+                rng.random_range(0.0..voxel),
+            );
+        let dir = loop {
+            let d = Vec3::new(
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+                rng.random_range(-1.0..1.0),
+            );
+            if d.length_squared() > 0.01 && d.length_squared() <= 1.0 {
+                break d.normalize();
+            }
+        };
+        let stretch = 1.0 + rng.random_range(-1e-5..1e-5f32);
+        b.push(p);
+        a.push(p + dir * (radius * stretch));
+    }
+    let grid = Initializer::new(voxel).margin(1).build(&a).unwrap();
+    (a, b, grid)
+}
