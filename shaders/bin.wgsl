@@ -1,12 +1,11 @@
 // Pass 2a: count the A vertices of every slot (a counting sort by slot, DESIGN §3's
-// VoxelData): each A vertex whose voxel is inside the grid takes the next rank in its slot,
-// place[i] = (slot, rank); the others get NOT_BINNED. CPU twin: VoxelData::bin.
+// VoxelData): each A vertex whose voxel is inside the grid adds one to its slot's count. CPU
+// twin: VoxelData::bin.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
 @group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> count: array<atomic<u32>>;
-@group(0) @binding(4) var<storage, read_write> place: array<vec2<u32>>; // (slot, rank in slot)
 
 var<workgroup> wg_binned: atomic<u32>;
 
@@ -20,11 +19,8 @@ fn main(
     if i < params.n_a {
         let v = voxel_of(pos_a[i].xyz, state.origin.xyz);
         if v.w == 1u {
-            let slot = slot_of(v.xyz);
-            place[i] = vec2<u32>(slot, atomicAdd(&count[slot], 1u));
+            atomicAdd(&count[slot_of(v.xyz)], 1u);
             atomicAdd(&wg_binned, 1u);
-        } else {
-            place[i] = vec2<u32>(NOT_BINNED, 0u);
         }
     }
     workgroupBarrier();

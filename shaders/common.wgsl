@@ -3,8 +3,6 @@
 // Keep Params and State in sync with src/gpu/layout.rs (GpuParams, GpuState).
 
 const WORKGROUP_SIZE: u32 = 64u;
-// place[i].x of an A vertex outside the grid (or not finite): it is in no slot.
-const NOT_BINNED: u32 = 0xffffffffu;
 // Slots per block of the prefix sum (4 per invocation).
 const SCAN_BLOCK: u32 = 4u * WORKGROUP_SIZE;
 

@@ -9,9 +9,9 @@
 @group(0) @binding(3) var<storage, read> pos_b: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> start: array<u32>;
 @group(0) @binding(5) var<storage, read> sorted: array<vec4<u32>>; // (position bits, index)
-@group(0) @binding(6) var<storage, read_write> fixed_lo: array<atomic<u32>>;
-@group(0) @binding(7) var<storage, read_write> fixed_hi: array<atomic<i32>>;
-@group(0) @binding(8) var<storage, read_write> force_b: array<vec4<f32>>;
+// Per A vertex 8 words: the low words of the x, y, z totals, one unused, then the high words.
+@group(0) @binding(6) var<storage, read_write> fixed: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> force_b: array<vec4<f32>>;
 
 var<workgroup> wg_colliding: atomic<u32>;
 
@@ -57,25 +57,26 @@ fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
     (*t).n = min(n + 1u, 3u);
 }
 
-// Adds count `c` to the 64-bit accumulator `k` (lo: u32 atomic, hi: i32 atomic). The sum is exact
-// and independent of order: the carries out of `lo` add up to the same total whatever the order.
-fn add_fixed(k: u32, c: i32) {
+// Adds count `c` to the 64-bit accumulator of vertex `i`, `axis` (low word: u32, high word:
+// two's complement). The sum is exact and independent of order: the carries out of the low word
+// add up to the same total whatever the order.
+fn add_fixed(i: u32, axis: u32, c: i32) {
     if c == 0 {
         return;
     }
     let u = bitcast<u32>(c);
-    let old = atomicAdd(&fixed_lo[k], u);
-    let carry = select(0, 1, old + u < old);
-    let delta = carry + select(0, -1, c < 0);
-    if delta != 0 {
-        atomicAdd(&fixed_hi[k], delta);
+    let old = atomicAdd(&fixed[8u * i + axis], u);
+    let carry = select(0u, 1u, old + u < old);
+    let delta = carry + select(0u, 0xffffffffu, c < 0);
+    if delta != 0u {
+        atomicAdd(&fixed[8u * i + 4u + axis], delta);
     }
 }
 
 fn add_force_a(i: u32, f: vec3<f32>) {
-    add_fixed(3u * i, i32(round(f.x * params.scale)));
-    add_fixed(3u * i + 1u, i32(round(f.y * params.scale)));
-    add_fixed(3u * i + 2u, i32(round(f.z * params.scale)));
+    add_fixed(i, 0u, i32(round(f.x * params.scale)));
+    add_fixed(i, 1u, i32(round(f.y * params.scale)));
+    add_fixed(i, 2u, i32(round(f.z * params.scale)));
 }
 
 // (b - a) / sqrt(d2), or for coincident vertices the unit vector from the center, or +z.

@@ -3,9 +3,9 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
-@group(0) @binding(2) var<storage, read> fixed_lo: array<u32>;
-@group(0) @binding(3) var<storage, read> fixed_hi: array<i32>;
-@group(0) @binding(4) var<storage, read_write> force_a: array<vec4<f32>>;
+// Per A vertex: the low words of the x, y, z totals (w unused), then the high words.
+@group(0) @binding(2) var<storage, read> fixed: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read_write> force_a: array<vec4<f32>>;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -14,9 +14,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     var f = vec3<f32>(0.0);
+    let low = fixed[2u * i].xyz;
+    let high = bitcast<vec3<i32>>(fixed[2u * i + 1u].xyz);
     for (var k = 0u; k < 3u; k++) {
-        let lo = fixed_lo[3u * i + k];
-        let hi = fixed_hi[3u * i + k];
+        let lo = low[k];
+        let hi = high[k];
         // The 64-bit total hi:lo fits i32 iff hi is the sign extension of lo.
         let fits = (hi == 0 && lo < 0x80000000u) || (hi == -1 && lo >= 0x80000000u);
         if fits {

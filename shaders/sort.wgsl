@@ -1,10 +1,12 @@
-// Pass 2e: every binned A vertex to its place in slot order, with its index in w, so that the
-// vertices of consecutive slots (a block row's voxels) are one contiguous range for the probe.
+// Pass 2e: every binned A vertex to the next free place of its slot, with its index in w, so
+// that the vertices of consecutive slots (a block row's voxels) are one contiguous range for the
+// probe. The order within a slot varies from run to run; no result depends on it (candidates
+// are ranked by (d2, index), forces are summed exactly).
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> pos_a: array<vec4<f32>>;
-@group(0) @binding(2) var<storage, read> place: array<vec2<u32>>;
-@group(0) @binding(3) var<storage, read> start: array<u32>;
+@group(0) @binding(1) var<storage, read_write> state: State;
+@group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> cursor: array<atomic<u32>>;
 @group(0) @binding(4) var<storage, read_write> sorted: array<vec4<u32>>; // (position bits, index)
 
 @compute @workgroup_size(WORKGROUP_SIZE)
@@ -13,8 +15,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     if i >= params.n_a {
         return;
     }
-    let at = place[i];
-    if at.x != NOT_BINNED {
-        sorted[start[at.x] + at.y] = vec4<u32>(bitcast<vec3<u32>>(pos_a[i].xyz), i);
+    let p = pos_a[i].xyz;
+    let v = voxel_of(p, state.origin.xyz);
+    if v.w == 1u {
+        sorted[atomicAdd(&cursor[slot_of(v.xyz)], 1u)] = vec4<u32>(bitcast<vec3<u32>>(p), i);
     }
 }

@@ -56,7 +56,7 @@ impl Kernels {
                 device,
                 if dense { "voxcollide probe (dense)" } else { "voxcollide probe (hashed)" },
                 shaders::PROBE,
-                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite],
                 &[
                     ("SEARCH", f64::from(params.search)),
                     ("DIRECTION", f64::from(params.direction)),
@@ -67,12 +67,7 @@ impl Kernels {
         Kernels {
             bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
             frame: Kernel::new(device, "voxcollide frame", shaders::FRAME, &[Uniform, ReadWrite]),
-            bin: Kernel::new(
-                device,
-                "voxcollide bin",
-                shaders::BIN,
-                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
-            ),
+            bin: Kernel::new(device, "voxcollide bin", shaders::BIN, &[Uniform, ReadWrite, Read, ReadWrite]),
             scan: Kernel::new(
                 device,
                 "voxcollide scan",
@@ -89,13 +84,13 @@ impl Kernels {
                 device,
                 "voxcollide scan_add",
                 shaders::SCAN_ADD,
-                &[Uniform, ReadWrite, Read],
+                &[Uniform, ReadWrite, Read, ReadWrite],
             ),
             sort: Kernel::new(
                 device,
                 "voxcollide sort",
                 shaders::SORT,
-                &[Uniform, Read, Read, Read, ReadWrite],
+                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
             ),
             probe_hashed: probe(false),
             probe_dense: probe(true),
@@ -103,7 +98,7 @@ impl Kernels {
                 device,
                 "voxcollide resolve",
                 shaders::RESOLVE,
-                &[Uniform, ReadWrite, Read, Read, ReadWrite],
+                &[Uniform, ReadWrite, Read, ReadWrite],
             ),
         }
     }
@@ -121,10 +116,11 @@ struct Buffers {
     count: Buffer,
     start: Buffer,
     partial: Buffer,
-    place: Buffer,
+    cursor: Buffer,
     sorted: Buffer,
-    fixed_lo: Buffer,
-    fixed_hi: Buffer,
+    /// Per A vertex 8 words: the low words of the x, y, z fixed-point totals, one unused, the
+    /// high words, one unused.
+    fixed: Buffer,
     force_a: Buffer,
     force_b: Buffer,
 }
@@ -155,10 +151,9 @@ impl Buffers {
                 4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
                 storage,
             ),
-            place: make("voxcollide place", 8 * a, storage),
+            cursor: make("voxcollide cursor", 4 * u64::from(scan_slots(slots)), storage),
             sorted: make("voxcollide sorted", VEC4 * a, storage),
-            fixed_lo: make("voxcollide fixed_lo", 12 * a, storage),
-            fixed_hi: make("voxcollide fixed_hi", 12 * a, storage),
+            fixed: make("voxcollide fixed", 32 * a, storage),
             force_a: make("voxcollide force_a", VEC4 * a, storage),
             force_b: make("voxcollide force_b", VEC4 * b, storage),
         }
@@ -364,11 +359,11 @@ impl GpuCollision {
                 b: b.clone(),
                 bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
                 frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
-                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.count, &bufs.place]),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.count]),
                 scan: k.scan.bind(&device, &[&bufs.params, &bufs.count, &bufs.start, &bufs.partial]),
                 scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial]),
-                scan_add: k.scan_add.bind(&device, &[&bufs.params, &bufs.start, &bufs.partial]),
-                sort: k.sort.bind(&device, &[&bufs.params, a, &bufs.place, &bufs.start, &bufs.sorted]),
+                scan_add: k.scan_add.bind(&device, &[&bufs.params, &bufs.start, &bufs.partial, &bufs.cursor]),
+                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.cursor, &bufs.sorted]),
                 probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
                     probe.bind(
                         &device,
@@ -379,16 +374,12 @@ impl GpuCollision {
                             b,
                             &bufs.start,
                             &bufs.sorted,
-                            &bufs.fixed_lo,
-                            &bufs.fixed_hi,
+                            &bufs.fixed,
                             &bufs.force_b,
                         ],
                     )
                 }),
-                resolve: k.resolve.bind(
-                    &device,
-                    &[&bufs.params, &bufs.state, &bufs.fixed_lo, &bufs.fixed_hi, &bufs.force_a],
-                ),
+                resolve: k.resolve.bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &bufs.force_a]),
             })?;
             self.bound = Some(bound);
             self.bind_group_builds += 1;
@@ -398,8 +389,7 @@ impl GpuCollision {
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         encoder.clear_buffer(&bufs.count, 0, Some(4 * u64::from(scan_slots(slots))));
-        encoder.clear_buffer(&bufs.fixed_lo, 0, Some(12 * u64::from(n_a)));
-        encoder.clear_buffer(&bufs.fixed_hi, 0, Some(12 * u64::from(n_a)));
+        encoder.clear_buffer(&bufs.fixed, 0, Some(32 * u64::from(n_a)));
         {
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("voxcollide step"),
@@ -572,8 +562,10 @@ impl GpuCollision {
         let staging = self.staging(8)?;
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("a step was recorded") };
         let mut encoder = device.create_command_encoder(&Default::default());
-        encoder.copy_buffer_to_buffer(&bufs.fixed_lo, 4 * u64::from(code), &staging, 0, 4);
-        encoder.copy_buffer_to_buffer(&bufs.fixed_hi, 4 * u64::from(code), &staging, 4, 4);
+        // Vertex i's low words are at 8i.., its high words at 8i + 4.. (see `Buffers::fixed`).
+        let low = 4 * u64::from(8 * (code / 3) + code % 3);
+        encoder.copy_buffer_to_buffer(&bufs.fixed, low, &staging, 0, 4);
+        encoder.copy_buffer_to_buffer(&bufs.fixed, low + 16, &staging, 4, 4);
         self.ctx.queue().submit([encoder.finish()]);
         let bytes = map_read(&self.ctx, &staging, 8)?;
         let lo: u32 = bytemuck::pod_read_unaligned(&bytes[0..4]);
