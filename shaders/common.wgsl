@@ -3,8 +3,9 @@
 // Keep Params and State in sync with src/gpu/layout.rs (GpuParams, GpuState).
 
 const WORKGROUP_SIZE: u32 = 64u;
-// Slots per block of the prefix sum (4 per invocation).
-const SCAN_BLOCK: u32 = 4u * WORKGROUP_SIZE;
+// Slots per invocation and per workgroup (block) of the prefix sum.
+const SCAN_PER_INVOCATION: u32 = 16u;
+const SCAN_BLOCK: u32 = SCAN_PER_INVOCATION * WORKGROUP_SIZE;
 
 const SEARCH_VOXEL: u32 = 0u;
 const SEARCH_NEIGHBOURS: u32 = 1u;

@@ -1,5 +1,6 @@
 // Pass 2b: exclusive prefix sums of the slot counts within blocks of SCAN_BLOCK slots (each
-// invocation owns 4 consecutive slots), and each block's total for pass 2c.
+// invocation owns SCAN_PER_INVOCATION consecutive slots, read as vec4s), and each block's total
+// for pass 2c.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read> count: array<vec4<u32>>;
@@ -16,17 +17,26 @@ fn main(
 ) {
     let block = wid.x + wid.y * nwg.x;
     let live = block < scan_blocks();
-    let q = block * WORKGROUP_SIZE + lid;
-    var c = vec4<u32>(0u);
+    let quads = SCAN_PER_INVOCATION / 4u;
+    let q = (block * WORKGROUP_SIZE + lid) * quads;
+    var c: array<vec4<u32>, SCAN_PER_INVOCATION / 4u>;
+    var total = 0u;
     if live {
-        c = count[q];
+        for (var k = 0u; k < quads; k++) {
+            c[k] = count[q + k];
+            total += c[k].x + c[k].y + c[k].z + c[k].w;
+        }
     }
-    let total = c.x + c.y + c.z + c.w;
     let before = workgroup_exclusive_scan(lid, total);
     if live {
-        start[q] = before + vec4<u32>(0u, c.x, c.x + c.y, c.x + c.y + c.z);
+        var sum = before;
+        for (var k = 0u; k < quads; k++) {
+            let x = c[k];
+            start[q + k] = sum + vec4<u32>(0u, x.x, x.x + x.y, x.x + x.y + x.z);
+            sum += x.x + x.y + x.z + x.w;
+        }
         if lid == WORKGROUP_SIZE - 1u {
-            partial[block] = before + total;
+            partial[block] = sum;
         }
     }
 }

@@ -10,8 +10,8 @@
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let q = item_index(gid, nwg);
-    if q < scan_blocks() * WORKGROUP_SIZE {
-        let s = start[q] + vec4<u32>(partial[q / WORKGROUP_SIZE]);
+    if q < scan_blocks() * (SCAN_BLOCK / 4u) {
+        let s = start[q] + vec4<u32>(partial[q / (SCAN_BLOCK / 4u)]);
         start[q] = s;
         cursor[q] = s;
     }

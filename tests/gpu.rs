@@ -79,6 +79,23 @@ fn candidates_at_the_radius_are_never_pruned() {
 }
 
 #[test]
+fn the_benchmark_workloads_match_the_cpu() {
+    // DESIGN §7's lattice and paper at 300k: over 256 scan blocks, so the block totals are
+    // summed in more than one round; the parallel backend equals the reference (tests/parallel.rs).
+    let Some(ctx) = gpu() else { return };
+    for w in [workload::lattice(300_000, 2013).unwrap(), workload::paper(300_000, 2013).unwrap()] {
+        let cpu = ParallelCpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
+        let mut backend = GpuCollision::new(&ctx, w.grid, w.params).unwrap();
+        let gpu = backend.step(&w.a, &w.b).unwrap();
+        let voxels = w.grid.dims().element_product();
+        assert!(voxels > 300_000, "{voxels} voxels");
+        assert_eq!(backend.dense_table(), Some(true));
+        assert!(cpu.colliding_b.len() > 250_000, "{}", cpu.colliding_b.len());
+        compare(&format!("{:?}", w.params.search), &cpu, &gpu, 0.0);
+    }
+}
+
+#[test]
 fn tiny_hashed_tables_whose_rows_wrap_match_the_cpu() {
     // Five A vertices in a 1024³ grid: 8 hash slots, so most block rows (3 slots) wrap past the
     // last slot to the first; the plane normal needs three candidates from such rows.

@@ -177,15 +177,19 @@ struct Bound {
     resolve: wgpu::BindGroup,
 }
 
-/// Blocks of the slot prefix sum: `slots` and the end mark after them, `SCAN_BLOCK` (4 per
-/// invocation) a block. Keep in sync with `scan_blocks` in `shaders/common.wgsl`.
+/// Slots per workgroup (block) of the slot prefix sum: 16 per invocation. Keep in sync with
+/// `SCAN_BLOCK` in `shaders/common.wgsl`.
+const SCAN_BLOCK: u32 = 16 * WORKGROUP_SIZE;
+
+/// Blocks of the slot prefix sum: `slots` and the end mark after them. Keep in sync with
+/// `scan_blocks` in `shaders/common.wgsl`.
 fn scan_blocks(slots: u32) -> u32 {
-    (slots + 1).div_ceil(4 * WORKGROUP_SIZE)
+    (slots + 1).div_ceil(SCAN_BLOCK)
 }
 
 /// Slots of the count and start buffers: whole scan blocks.
 fn scan_slots(slots: u32) -> u32 {
-    scan_blocks(slots) * 4 * WORKGROUP_SIZE
+    scan_blocks(slots) * SCAN_BLOCK
 }
 
 /// The GPU collision backend.
@@ -401,10 +405,10 @@ impl GpuCollision {
             }
             k.frame.dispatch_one(&mut pass, &bound.frame);
             k.bin.dispatch(&mut pass, &bound.bin, n_a, self.max_per_dim);
-            let quads = scan_blocks(slots) * WORKGROUP_SIZE;
-            k.scan.dispatch(&mut pass, &bound.scan, quads, self.max_per_dim);
+            // One workgroup per scan block, then one invocation per 4 slots.
+            k.scan.dispatch(&mut pass, &bound.scan, scan_blocks(slots) * WORKGROUP_SIZE, self.max_per_dim);
             k.scan_carry.dispatch_one(&mut pass, &bound.scan_carry);
-            k.scan_add.dispatch(&mut pass, &bound.scan_add, quads, self.max_per_dim);
+            k.scan_add.dispatch(&mut pass, &bound.scan_add, scan_slots(slots) / 4, self.max_per_dim);
             k.sort.dispatch(&mut pass, &bound.sort, n_a, self.max_per_dim);
             let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
             probe.dispatch(&mut pass, &bound.probe[usize::from(dense)], n_b, self.max_per_dim);
