@@ -57,15 +57,17 @@ fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
     (*t).n = min(n + 1u, 3u);
 }
 
-// Adds count `c` to the 64-bit accumulator of vertex `i`, `axis` (low word: u32, high word:
-// two's complement). The sum is exact and independent of order: the carries out of the low word
-// add up to the same total whatever the order.
+// Adds count `c` to the 64-bit accumulator of vertex `i`, `axis`. It holds the total T biased
+// by 2^31, S = T + 2^31 = high * 2^32 + low, so that a total within i32 never carries into the
+// high word (one atomic per count, not two); the low word is stored as low ^ 2^31 (= T's own low
+// word), so that zeroed memory is T = 0. The sum is exact and independent of order: the carries
+// out of the low word add up to the same total whatever the order.
 fn add_fixed(i: u32, axis: u32, c: i32) {
     if c == 0 {
         return;
     }
     let u = bitcast<u32>(c);
-    let old = atomicAdd(&fixed[8u * i + axis], u);
+    let old = atomicAdd(&fixed[8u * i + axis], u) ^ 0x80000000u;
     let carry = select(0u, 1u, old + u < old);
     let delta = carry + select(0u, 0xffffffffu, c < 0);
     if delta != 0u {

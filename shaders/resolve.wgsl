@@ -15,14 +15,12 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     }
     var f = vec3<f32>(0.0);
     let low = fixed[2u * i].xyz;
-    let high = bitcast<vec3<i32>>(fixed[2u * i + 1u].xyz);
+    let high = fixed[2u * i + 1u].xyz;
     for (var k = 0u; k < 3u; k++) {
-        let lo = low[k];
-        let hi = high[k];
-        // The 64-bit total hi:lo fits i32 iff hi is the sign extension of lo.
-        let fits = (hi == 0 && lo < 0x80000000u) || (hi == -1 && lo >= 0x80000000u);
-        if fits {
-            f[k] = f32(bitcast<i32>(lo)) * params.unit;
+        // The total T = high * 2^32 + (low ^ 2^31) - 2^31 (see add_fixed in probe.wgsl) fits
+        // i32 iff the high word is 0; T is then the low word as i32.
+        if high[k] == 0u {
+            f[k] = f32(bitcast<i32>(low[k])) * params.unit;
         } else {
             atomicMax(&state.overflow, ~(3u * i + k));
         }

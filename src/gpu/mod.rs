@@ -119,7 +119,7 @@ struct Buffers {
     cursor: Buffer,
     sorted: Buffer,
     /// Per A vertex 8 words: the low words of the x, y, z fixed-point totals, one unused, the
-    /// high words, one unused.
+    /// high words, one unused (biased by 2^31: see `add_fixed` in `shaders/probe.wgsl`).
     fixed: Buffer,
     force_a: Buffer,
     force_b: Buffer,
@@ -572,9 +572,10 @@ impl GpuCollision {
         encoder.copy_buffer_to_buffer(&bufs.fixed, low + 16, &staging, 4, 4);
         self.ctx.queue().submit([encoder.finish()]);
         let bytes = map_read(&self.ctx, &staging, 8)?;
+        // The total biased by 2^31 (see add_fixed in shaders/probe.wgsl).
         let lo: u32 = bytemuck::pod_read_unaligned(&bytes[0..4]);
         let hi: i32 = bytemuck::pod_read_unaligned(&bytes[4..8]);
-        Ok((i64::from(hi) << 32) | i64::from(lo))
+        Ok((i64::from(hi) << 32) + i64::from(lo ^ 0x8000_0000) - (1 << 31))
     }
 
     /// Uploads `points` as `vec4<f32>` into the step's own position buffer for `body`.
