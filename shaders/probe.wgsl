@@ -117,6 +117,41 @@ fn main(
     }
 }
 
+// Walks the vertices of voxel `v` (one slot's range; hashed, other voxels' vertices in the slot
+// are skipped), keeping the nearest by (d2, index) as `best`'s first entry. False when a driver's
+// loop cap cut the walk short.
+fn walk_own_voxel(p: vec3<f32>, v: vec3<u32>, best: ptr<function, Nearest>) -> bool {
+    var s: u32;
+    if DENSE {
+        s = v.x + params.dims.x * (v.y + params.dims.y * v.z);
+    } else {
+        s = voxel_hash(v) & params.slot_mask;
+    }
+    var k = start[s];
+    let end = start[s + 1u];
+    let origin_v = state.origin.xyz;
+    let inv = params.inv;
+    let vf = vec3<f32>(v);
+    loop {
+        if k >= end {
+            return true;
+        }
+        let entry = sorted[k];
+        k++;
+        let a = bitcast<vec3<f32>>(entry.xyz);
+        if !DENSE && any(floor((a - origin_v) * inv) != vf) {
+            continue;
+        }
+        let d2 = dist2(p, a);
+        if (*best).n == 0u || before(d2, entry.w, (*best).d.x, (*best).i.x) {
+            (*best).d.x = d2;
+            (*best).i.x = entry.w;
+            (*best).n = 1u;
+        }
+    }
+    return false;
+}
+
 fn probe(j: u32) -> bool {
     let p = pos_b[j].xyz;
     let origin = state.origin.xyz;
@@ -138,133 +173,138 @@ fn probe(j: u32) -> bool {
         lo = max(vb.xyz, vec3<u32>(1u)) - vec3<u32>(1u);
         hi = min(vb.xyz + vec3<u32>(1u), params.dims.xyz - vec3<u32>(1u));
     }
-    // A block row's voxels (x = lo.x ..= hi.x) are consecutive slots, so their vertices are one
-    // range of the sorted array (hashed: a row whose slots wrap past the last one is two). The
-    // ranges are read first, so that the walk's loop reads nothing but vertices: llvmpipe runs
-    // every load in a loop body on every iteration, masked, even in a branch no lane takes.
-    let ext = hi - lo + vec3<u32>(1u);
-    let rows = ext.y * ext.z;
-    let slots = params.slot_mask + 1u;
-    // Loop-invariant values in locals: llvmpipe reloads a uniform read inside a loop, lane by lane.
-    let origin_v = state.origin.xyz;
-    let inv = params.inv;
-    let r2 = params.r2;
-    var range_start: array<u32, 18>;
-    var range_end: array<u32, 18>;
-    var range_y: array<u32, 18>;
-    var range_z: array<u32, 18>;
-    var ranges = 0u;
-    // Under the neighbour search a row (or one end voxel of it) that the sphere of the radius
-    // around p cannot reach is left out. Generous for the f32 rounding of positions, faces and
-    // d2 (as ParallelCpuCollision): a few ulps of the largest magnitude and 1e-3 of the radius.
-    let neighbours = SEARCH == SEARCH_NEIGHBOURS;
-    let vs = 1.0 / inv;
-    let radius = sqrt(r2);
-    let margins = 1e-3 * radius
-        + 16.0 * 1.1920929e-7 * (abs(p) + abs(origin_v) + vs * vec3<f32>(params.dims.xyz));
-    let margin = max(margins.x, max(margins.y, margins.z));
-    let reach2 = (radius + margin) * (radius + margin);
-    // How far p is from the faces of its voxel below and above, along x.
-    let below_x = p.x - (origin_v.x + f32(vb.x) * vs);
-    let above_x = (origin_v.x + f32(vb.x + 1u) * vs) - p.x;
-    // No division anywhere in the walk: a vector integer division is eight scalar ones on a
-    // CPU adapter.
-    var y = lo.y;
-    var z = lo.z;
-    for (var r = 0u; r < rows; r++) {
-        var x0 = lo.x;
-        var x1 = hi.x;
-        var reached = true;
-        if neighbours {
-            // The distances from p to the row's slab in y and in z, less the margin.
-            let gy = max(max(p.y - (origin_v.y + f32(y + 1u) * vs), (origin_v.y + f32(y) * vs) - p.y) - margin, 0.0);
-            let gz = max(max(p.z - (origin_v.z + f32(z + 1u) * vs), (origin_v.z + f32(z) * vs) - p.z) - margin, 0.0);
-            let rest = reach2 - gy * gy - gz * gz;
-            reached = rest >= 0.0;
-            let half = sqrt(max(rest, 0.0)) + margin;
-            x0 = select(x0, vb.x, below_x > half);
-            x1 = select(x1, vb.x, above_x > half);
-        }
-        let len = x1 - x0 + 1u;
-        var first: u32;
-        var k1: u32;
-        if DENSE {
-            first = x0 + params.dims.x * (y + params.dims.y * z);
-            k1 = start[first + len];
-        } else {
-            first = (row_hash(y, z) + x0) & params.slot_mask;
-            k1 = start[min(first + len, slots)];
-        }
-        let k0 = start[first];
-        if reached && k1 > k0 {
-            range_start[ranges] = k0;
-            range_end[ranges] = k1;
-            range_y[ranges] = y;
-            range_z[ranges] = z;
-            ranges++;
-        }
-        if !DENSE && first + len > slots {
-            // The wrapped part: slots 0 .. first + len - slots (start[0] is 0).
-            let k2 = start[first + len - slots];
-            if reached && k2 > 0u {
-                range_start[ranges] = 0u;
-                range_end[ranges] = k2;
+    var done = false;
+    if voxel_only && !plane {
+        // The paper's rule with a pairwise partner: b's own voxel, one range, the best (d2, index).
+        done = walk_own_voxel(p, vb.xyz, &block);
+    } else {
+        // A block row's voxels (x = lo.x ..= hi.x) are consecutive slots, so their vertices are one
+        // range of the sorted array (hashed: a row whose slots wrap past the last one is two). The
+        // ranges are read first, so that the walk's loop reads nothing but vertices: llvmpipe runs
+        // every load in a loop body on every iteration, masked, even in a branch no lane takes.
+        let ext = hi - lo + vec3<u32>(1u);
+        let rows = ext.y * ext.z;
+        let slots = params.slot_mask + 1u;
+        // Loop-invariant values in locals: llvmpipe reloads a uniform read inside a loop, lane by lane.
+        let origin_v = state.origin.xyz;
+        let inv = params.inv;
+        let r2 = params.r2;
+        var range_start: array<u32, 18>;
+        var range_end: array<u32, 18>;
+        var range_y: array<u32, 18>;
+        var range_z: array<u32, 18>;
+        var ranges = 0u;
+        // Under the neighbour search a row (or one end voxel of it) that the sphere of the radius
+        // around p cannot reach is left out. Generous for the f32 rounding of positions, faces and
+        // d2 (as ParallelCpuCollision): a few ulps of the largest magnitude and 1e-3 of the radius.
+        let neighbours = SEARCH == SEARCH_NEIGHBOURS;
+        let vs = 1.0 / inv;
+        let radius = sqrt(r2);
+        let margins = 1e-3 * radius
+            + 16.0 * 1.1920929e-7 * (abs(p) + abs(origin_v) + vs * vec3<f32>(params.dims.xyz));
+        let margin = max(margins.x, max(margins.y, margins.z));
+        let reach2 = (radius + margin) * (radius + margin);
+        // How far p is from the faces of its voxel below and above, along x.
+        let below_x = p.x - (origin_v.x + f32(vb.x) * vs);
+        let above_x = (origin_v.x + f32(vb.x + 1u) * vs) - p.x;
+        // No division anywhere in the walk: a vector integer division is eight scalar ones on a
+        // CPU adapter.
+        var y = lo.y;
+        var z = lo.z;
+        for (var r = 0u; r < rows; r++) {
+            var x0 = lo.x;
+            var x1 = hi.x;
+            var reached = true;
+            if neighbours {
+                // The distances from p to the row's slab in y and in z, less the margin.
+                let gy = max(max(p.y - (origin_v.y + f32(y + 1u) * vs), (origin_v.y + f32(y) * vs) - p.y) - margin, 0.0);
+                let gz = max(max(p.z - (origin_v.z + f32(z + 1u) * vs), (origin_v.z + f32(z) * vs) - p.z) - margin, 0.0);
+                let rest = reach2 - gy * gy - gz * gz;
+                reached = rest >= 0.0;
+                let half = sqrt(max(rest, 0.0)) + margin;
+                x0 = select(x0, vb.x, below_x > half);
+                x1 = select(x1, vb.x, above_x > half);
+            }
+            let len = x1 - x0 + 1u;
+            var first: u32;
+            var k1: u32;
+            if DENSE {
+                first = x0 + params.dims.x * (y + params.dims.y * z);
+                k1 = start[first + len];
+            } else {
+                first = (row_hash(y, z) + x0) & params.slot_mask;
+                k1 = start[min(first + len, slots)];
+            }
+            let k0 = start[first];
+            if reached && k1 > k0 {
+                range_start[ranges] = k0;
+                range_end[ranges] = k1;
                 range_y[ranges] = y;
                 range_z[ranges] = z;
                 ranges++;
             }
-        }
-        y++;
-        if y > hi.y {
-            y = lo.y;
-            z++;
-        }
-    }
-    // One loop over the ranges' vertices, one iteration each, so that a driver's loop cap
-    // (llvmpipe: 65535) is reached as late as possible and, if it is reached, seen: the loop
-    // then ends before the last range is done.
-    var next_range = 0u;
-    var k = 0u;
-    var end = 0u;
-    var done = false;
-    loop {
-        if k >= end {
-            if next_range >= ranges {
-                done = true;
-                break;
+            if !DENSE && first + len > slots {
+                // The wrapped part: slots 0 .. first + len - slots (start[0] is 0).
+                let k2 = start[first + len - slots];
+                if reached && k2 > 0u {
+                    range_start[ranges] = 0u;
+                    range_end[ranges] = k2;
+                    range_y[ranges] = y;
+                    range_z[ranges] = z;
+                    ranges++;
+                }
             }
-            k = range_start[next_range];
-            end = range_end[next_range];
-            y = range_y[next_range];
-            z = range_z[next_range];
-            next_range++;
-        }
-        let entry = sorted[k];
-        k++;
-        let a = bitcast<vec3<f32>>(entry.xyz);
-        let i = entry.w;
-        // The voxel is computed as the bin pass computed it, so it is the same one.
-        let q = floor((a - origin_v) * inv);
-        // Hashed: only vertices whose own voxel is in this row belong to it (aliasing).
-        if !DENSE && (q.y != f32(y) || q.z != f32(z) || q.x < f32(lo.x) || q.x > f32(hi.x)) {
-            continue;
-        }
-        let d2 = dist2(p, a);
-        if !plane {
-            // Pairwise needs only the partner: keep the best (d2, index) as block's first entry
-            // (under the voxel search only b's own voxel is walked).
-            if (voxel_only || d2 < r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
-                block.d.x = d2;
-                block.i.x = i;
-                block.n = 1u;
+            y++;
+            if y > hi.y {
+                y = lo.y;
+                z++;
             }
-        } else if voxel_only {
-            if all(vec3<f32>(q.x, f32(y), f32(z)) == vec3<f32>(vb.xyz)) {
-                insert(&own, d2, i);
+        }
+        // One loop over the ranges' vertices, one iteration each, so that a driver's loop cap
+        // (llvmpipe: 65535) is reached as late as possible and, if it is reached, seen: the loop
+        // then ends before the last range is done.
+        var next_range = 0u;
+        var k = 0u;
+        var end = 0u;
+        loop {
+            if k >= end {
+                if next_range >= ranges {
+                    done = true;
+                    break;
+                }
+                k = range_start[next_range];
+                end = range_end[next_range];
+                y = range_y[next_range];
+                z = range_z[next_range];
+                next_range++;
             }
-            insert(&block, d2, i);
-        } else if d2 < r2 {
-            insert(&block, d2, i);
+            let entry = sorted[k];
+            k++;
+            let a = bitcast<vec3<f32>>(entry.xyz);
+            let i = entry.w;
+            // The voxel is computed as the bin pass computed it, so it is the same one.
+            let q = floor((a - origin_v) * inv);
+            // Hashed: only vertices whose own voxel is in this row belong to it (aliasing).
+            if !DENSE && (q.y != f32(y) || q.z != f32(z) || q.x < f32(lo.x) || q.x > f32(hi.x)) {
+                continue;
+            }
+            let d2 = dist2(p, a);
+            if !plane {
+                // Pairwise needs only the partner: keep the best (d2, index) as block's first entry
+                // (under the voxel search only b's own voxel is walked).
+                if (voxel_only || d2 < r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
+                    block.d.x = d2;
+                    block.i.x = i;
+                    block.n = 1u;
+                }
+            } else if voxel_only {
+                if all(vec3<f32>(q.x, f32(y), f32(z)) == vec3<f32>(vb.xyz)) {
+                    insert(&own, d2, i);
+                }
+                insert(&block, d2, i);
+            } else if d2 < r2 {
+                insert(&block, d2, i);
+            }
         }
     }
     if !done {
