@@ -286,7 +286,11 @@ fn a_walk_the_driver_cuts_short_is_an_error_not_a_missed_contact() {
                 compare("70000 in one voxel", &cpu, &gpu, 1e-5);
             }
             Err(err) => {
-                assert!(ctx.adapter_name().contains("llvmpipe"), "unexpected on {}: {err}", ctx.adapter_name());
+                assert!(
+                    ctx.adapter_name().contains("llvmpipe"),
+                    "unexpected on {}: {err}",
+                    ctx.adapter_name()
+                );
                 assert_eq!(err, Error::WalkTruncated { b: 0 }, "{params:?}");
                 assert!(err.to_string().contains("65535"), "{err}");
             }
