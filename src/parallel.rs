@@ -325,12 +325,11 @@ impl Probe<'_> {
             // ulps of the largest magnitude involved, and 1e-3 of the radius.
             let margin = 1e-3 * r + 16.0 * f32::EPSILON * (p.abs() + origin.abs() + vs * dim as f32);
             let reach = r + margin;
-            if lo < q && p - (origin + q as f32 * vs) > reach {
-                lo = q;
-            }
-            if hi > q && (origin + (q + 1) as f32 * vs) - p > reach {
-                hi = q;
-            }
+            // Selects, not branches: which faces are out of reach is data, not a pattern.
+            let below = p - (origin + q as f32 * vs) > reach;
+            let above = (origin + (q + 1) as f32 * vs) - p > reach;
+            lo = if below { q } else { lo };
+            hi = if above { q } else { hi };
         }
         (lo, hi)
     }
@@ -415,9 +414,10 @@ impl Probe<'_> {
                     // Only the partner is needed: keep the best, no top-3 bookkeeping.
                     let (mut best_d, mut best_i) = (r2, u32::MAX);
                     self.walk(p, lo, hi, q, |d, i, _| {
-                        if d < best_d || (d == best_d && d < r2 && i < best_i) {
-                            (best_d, best_i) = (d, i);
-                        }
+                        // Without branches: whether a candidate wins is data, not a pattern.
+                        let better = (d < best_d) | ((d == best_d) & (d < r2) & (i < best_i));
+                        best_d = if better { d } else { best_d };
+                        best_i = if better { i } else { best_i };
                     });
                     if best_i != u32::MAX {
                         block = Nearest { d: [best_d, 0.0, 0.0], i: [best_i, 0, 0], n: 1 };
