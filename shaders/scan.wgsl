@@ -7,8 +7,6 @@
 @group(0) @binding(2) var<storage, read_write> start: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> partial: array<u32>;
 
-var<workgroup> sums: array<u32, WORKGROUP_SIZE>;
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -39,21 +37,4 @@ fn main(
             partial[block] = sum;
         }
     }
-}
-
-// The sum of `x` over the invocations before `lid` (Hillis–Steele over the workgroup). Must be
-// reached by the whole workgroup.
-fn workgroup_exclusive_scan(lid: u32, x: u32) -> u32 {
-    sums[lid] = x;
-    workgroupBarrier();
-    for (var d = 1u; d < WORKGROUP_SIZE; d = d * 2u) {
-        var y = 0u;
-        if lid >= d {
-            y = sums[lid - d];
-        }
-        workgroupBarrier();
-        sums[lid] += y;
-        workgroupBarrier();
-    }
-    return sums[lid] - x;
 }

@@ -4,8 +4,6 @@
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> partial: array<vec4<u32>>;
 
-var<workgroup> sums: array<u32, WORKGROUP_SIZE>;
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(local_invocation_index) lid: u32) {
     let quads = (scan_blocks() + 3u) / 4u;
@@ -18,18 +16,7 @@ fn main(@builtin(local_invocation_index) lid: u32) {
             c = partial[q];
         }
         let total = c.x + c.y + c.z + c.w;
-        sums[lid] = total;
-        workgroupBarrier();
-        for (var d = 1u; d < WORKGROUP_SIZE; d = d * 2u) {
-            var y = 0u;
-            if lid >= d {
-                y = sums[lid - d];
-            }
-            workgroupBarrier();
-            sums[lid] += y;
-            workgroupBarrier();
-        }
-        let before = carry + sums[lid] - total;
+        let before = carry + workgroup_exclusive_scan(lid, total);
         if q < quads {
             partial[q] = before + vec4<u32>(0u, c.x, c.x + c.y, c.x + c.y + c.z);
         }

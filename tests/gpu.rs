@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{all_params, bodies, compare, gpu, radius_shell};
+use common::{all_params, bodies, compare, gpu, radius_shell_cases};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use voxcollide::glam::{UVec3, Vec3};
@@ -55,26 +55,13 @@ fn candidates_at_the_radius_are_never_pruned() {
     // The probe leaves out rows and end voxels the radius cannot reach; candidates within
     // rounding of the radius, in every direction, must still be found exactly as on the CPU.
     let Some(ctx) = gpu() else { return };
-    for (seed, voxel, spacing, dense) in
-        [(1u64, 1.0f32, 1.0f32, true), (2, 0.5, 3.0, false), (3, 2.0, 1.0, true)]
-    {
-        for radius in [0.9 * voxel, voxel, 0.31 * voxel] {
-            let (a, b, grid) = radius_shell(seed, 30_000, voxel, radius, spacing);
-            for direction in [Direction::Pairwise, Direction::PlaneNormal] {
-                let params = ContactParams {
-                    magnitude: 1.0,
-                    search: Search::Neighbours { radius },
-                    direction,
-                    anchor: Anchor::Fixed,
-                };
-                let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
-                let mut backend = GpuCollision::new(&ctx, grid, params).unwrap();
-                let gpu = backend.step(&a, &b).unwrap();
-                assert_eq!(backend.dense_table(), Some(dense), "seed {seed}");
-                assert!(cpu.colliding_b.len() > 10_000, "seed {seed}: {}", cpu.colliding_b.len());
-                compare(&format!("seed {seed} radius {radius} {direction:?}"), &cpu, &gpu, 1e-5);
-            }
-        }
+    for case in radius_shell_cases() {
+        let cpu = CpuCollision::new(case.grid, case.params).unwrap().step(&case.a, &case.b).unwrap();
+        let mut backend = GpuCollision::new(&ctx, case.grid, case.params).unwrap();
+        let gpu = backend.step(&case.a, &case.b).unwrap();
+        assert_eq!(backend.dense_table(), Some(case.dense), "{}", case.what);
+        assert!(cpu.colliding_b.len() > 10_000, "{}: {}", case.what, cpu.colliding_b.len());
+        compare(&case.what, &cpu, &gpu, 1e-5);
     }
 }
 

@@ -3,30 +3,19 @@
 
 mod common;
 
-use common::{all_params, bodies, radius_shell};
+use common::{all_params, bodies, radius_shell_cases};
 use voxcollide::*;
 
 #[test]
 fn candidates_at_the_radius_are_never_pruned() {
     // The parallel walk leaves out voxels the radius cannot reach; candidates within rounding of
     // the radius, in every direction, must still be found exactly as by the reference.
-    for (seed, voxel, spacing) in [(1u64, 1.0f32, 1.0f32), (2, 0.5, 3.0), (3, 2.0, 1.0)] {
-        for radius in [0.9 * voxel, voxel, 0.31 * voxel] {
-            let (a, b, grid) = radius_shell(seed, 30_000, voxel, radius, spacing);
-            for direction in [Direction::Pairwise, Direction::PlaneNormal] {
-                let params = ContactParams {
-                    magnitude: 1.0,
-                    search: Search::Neighbours { radius },
-                    direction,
-                    anchor: Anchor::Fixed,
-                };
-                let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
-                let actual = ParallelCpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
-                assert!(expected.colliding_b.len() > 10_000, "seed {seed}");
-                let what = format!("seed {seed} radius {radius} {direction:?}");
-                assert_eq!(common::compare(&what, &expected, &actual, 0.0), 0, "{what}");
-            }
-        }
+    for case in radius_shell_cases() {
+        let expected = CpuCollision::new(case.grid, case.params).unwrap().step(&case.a, &case.b).unwrap();
+        let actual =
+            ParallelCpuCollision::new(case.grid, case.params).unwrap().step(&case.a, &case.b).unwrap();
+        assert!(expected.colliding_b.len() > 10_000, "{}", case.what);
+        assert_eq!(common::compare(&case.what, &expected, &actual, 0.0), 0, "{}", case.what);
     }
 }
 

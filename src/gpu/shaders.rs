@@ -1,4 +1,5 @@
-//! The WGSL of each pass, composed without a preprocessor: `common.wgsl` followed by the pass.
+//! The WGSL of each pass, composed without a preprocessor: `common.wgsl` followed by the pass
+//! (the two prefix-sum passes also share `scan_common.wgsl`).
 
 /// `(name, composed source)` of every pass, in the order a step runs them.
 pub const SHADERS: [(&str, &str); 9] = [
@@ -23,11 +24,17 @@ pub const FRAME: &str =
 pub const BIN: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/bin.wgsl"));
 /// Pass 2b: prefix sums of the slot counts within blocks.
-pub const SCAN: &str =
-    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan.wgsl"));
+pub const SCAN: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/scan_common.wgsl"),
+    include_str!("../../shaders/scan.wgsl")
+);
 /// Pass 2c: prefix sums of the block totals.
-pub const SCAN_CARRY: &str =
-    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan_carry.wgsl"));
+pub const SCAN_CARRY: &str = concat!(
+    include_str!("../../shaders/common.wgsl"),
+    include_str!("../../shaders/scan_common.wgsl"),
+    include_str!("../../shaders/scan_carry.wgsl")
+);
 /// Pass 2d: the slots' starts.
 pub const SCAN_ADD: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/scan_add.wgsl"));

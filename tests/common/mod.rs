@@ -131,3 +131,39 @@ pub fn radius_shell(
     let grid = Initializer::new(voxel).margin(1).build(&a).unwrap();
     (a, b, grid)
 }
+
+/// One case of [`radius_shell_cases`].
+pub struct ShellCase {
+    pub what: String,
+    pub a: Vec<Vec3>,
+    pub b: Vec<Vec3>,
+    pub grid: VoxelGrid,
+    pub params: ContactParams,
+    /// Whether the grid has at most 4 voxels per A vertex (a dense voxel table).
+    pub dense: bool,
+}
+
+/// [`radius_shell`] pairs (30k) under the neighbour search for three voxel sizes, dense and
+/// hashed tables, radii of 0.9, 1 and 0.31 voxel, both directions: the cases that catch a
+/// candidate lost to pruning.
+pub fn radius_shell_cases() -> Vec<ShellCase> {
+    let mut out = Vec::new();
+    for (seed, voxel, spacing, dense) in
+        [(1u64, 1.0f32, 1.0f32, true), (2, 0.5, 3.0, false), (3, 2.0, 1.0, true)]
+    {
+        for radius in [0.9 * voxel, voxel, 0.31 * voxel] {
+            let (a, b, grid) = radius_shell(seed, 30_000, voxel, radius, spacing);
+            for direction in [Direction::Pairwise, Direction::PlaneNormal] {
+                let params = ContactParams {
+                    magnitude: 1.0,
+                    search: Search::Neighbours { radius },
+                    direction,
+                    anchor: Anchor::Fixed,
+                };
+                let what = format!("seed {seed} radius {radius} {direction:?}");
+                out.push(ShellCase { what, a: a.clone(), b: b.clone(), grid, params, dense });
+            }
+        }
+    }
+    out
+}
