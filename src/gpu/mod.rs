@@ -316,7 +316,9 @@ impl GpuCollision {
     ///
     /// Parameters that change with the sizes are written with `queue.write_buffer`, which takes
     /// effect at the app's next submit. Buffers grow when sizes grow; while the sizes and the two
-    /// position buffers stay the same, a step allocates nothing and reuses its bind groups.
+    /// position buffers stay the same, a step creates no device buffer, reuses its bind groups
+    /// and allocates no memory of its own — only what wgpu allocates to record its commands
+    /// (tests/gpu_alloc.rs).
     ///
     /// # Errors
     /// [`Error::EmptyBody`] for a zero count, [`Error::DeviceLimit`] beyond
