@@ -43,6 +43,19 @@ pub struct BenchRow {
     /// Colliding B vertices found (the same for every backend; the baseline's may differ only
     /// on exact ties at the radius).
     pub colliding: usize,
+    /// `gpu_resident` with [`BenchConfig::passes`]: each pass's median (timestamp queries), in
+    /// the order they run; empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub passes: Vec<PassTime>,
+}
+
+/// One GPU pass's median time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PassTime {
+    /// The pass, as in [`crate::gpu::PASSES`].
+    pub pass: String,
+    /// Median milliseconds per step.
+    pub median_ms: f64,
 }
 
 /// What to measure.
@@ -56,6 +69,9 @@ pub struct BenchConfig {
     pub gpu: bool,
     /// Whether to measure the single-threaded reference (slow at 1M).
     pub reference: bool,
+    /// Whether to time each GPU pass of the resident step too (timestamp queries, where the
+    /// adapter has them), in extra steps after the whole-step timing.
+    pub passes: bool,
 }
 
 fn median(mut xs: Vec<f64>) -> f64 {
@@ -104,6 +120,7 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
             let w = make(size, crate::workload::DEFAULT_SEED)?;
             let n = w.a.len();
             let mut measured: Vec<(String, f64, String, usize, usize)> = Vec::new();
+            let mut passes = Vec::new();
             // The baseline: the same answer as lattice(N) (nearest A within the radius).
             let radius = match lattice(1, 0)?.params.search {
                 Search::Neighbours { radius } => radius,
@@ -160,9 +177,29 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     Ok(0)
                 })?;
                 measured.push(("gpu_resident".into(), ms, ctx.adapter_name(), 0, c));
+                // Per pass, in steps of their own: profiling splits the step into timed passes.
+                if config.passes && gpu.set_profiling(true).is_ok() {
+                    let mut times: Vec<Vec<f64>> = vec![Vec::new(); crate::gpu::PASSES.len()];
+                    time(config.samples, || {
+                        let mut encoder = device.create_command_encoder(&Default::default());
+                        gpu.record(&mut encoder, &ba, n as u32, &bb, w.b.len() as u32)?;
+                        queue.submit([encoder.finish()]);
+                        for (k, (_, ms)) in gpu.pass_times()?.into_iter().enumerate() {
+                            times[k].push(ms);
+                        }
+                        Ok(0)
+                    })?;
+                    gpu.set_profiling(false)?;
+                    passes = crate::gpu::PASSES
+                        .iter()
+                        .zip(times)
+                        .map(|(pass, ms)| PassTime { pass: (*pass).into(), median_ms: median(ms) })
+                        .collect();
+                }
             }
             let baseline = measured[0].1;
             for (backend, ms, device, threads, colliding) in measured {
+                let backend_is_resident = backend == "gpu_resident";
                 let row = BenchRow {
                     workload: name.into(),
                     size,
@@ -175,6 +212,7 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     device,
                     threads,
                     colliding,
+                    passes: if backend_is_resident { std::mem::take(&mut passes) } else { Vec::new() },
                 };
                 note(&row);
                 rows.push(row);
@@ -204,6 +242,11 @@ pub fn table(rows: &[BenchRow]) -> String {
             threads,
             r.device
         );
+        if !r.passes.is_empty() {
+            let each: Vec<String> =
+                r.passes.iter().map(|p| format!("{} {:.2}", p.pass, p.median_ms)).collect();
+            out += &format!("{:>19} passes, ms: {}\n", "", each.join(", "));
+        }
     }
     out
 }

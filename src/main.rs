@@ -38,6 +38,10 @@ struct BenchArgs {
     /// Skip the single-threaded CPU reference (slow at 1M).
     #[arg(long)]
     no_reference: bool,
+    /// Also time each GPU pass of the resident step (timestamp queries, where the adapter has
+    /// them), in extra steps after the whole-step timing.
+    #[arg(long)]
+    passes: bool,
     /// Where to write the table as JSON.
     #[arg(long, default_value = "out/bench.json")]
     json: PathBuf,
@@ -200,6 +204,7 @@ fn bench(args: &BenchArgs) -> ExitCode {
         samples: args.samples,
         gpu: !args.no_gpu,
         reference: !args.no_reference,
+        passes: args.passes,
     };
     println!("{}", voxcollide::bench::table(&[]).trim_end());
     let result = voxcollide::bench::run(&config, &mut |row| {
@@ -207,9 +212,9 @@ fn bench(args: &BenchArgs) -> ExitCode {
             "{}",
             voxcollide::bench::table(std::slice::from_ref(row))
                 .lines()
-                .nth(1)
+                .skip(1)
                 .map(|l| format!("{l}\n"))
-                .unwrap_or_default()
+                .collect::<String>()
         )
     });
     match result {

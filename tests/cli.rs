@@ -1,5 +1,7 @@
 //! The `voxcollide` command as a user runs it.
 
+mod common;
+
 use std::process::Command;
 
 fn voxcollide() -> Command {
@@ -94,4 +96,36 @@ fn bench_prints_every_backend_and_writes_json() {
     let output = voxcollide().args(["bench", "--sizes", "0"]).output().unwrap();
     assert!(!output.status.success());
     assert!(String::from_utf8_lossy(&output.stderr).contains("is not a size"));
+}
+
+#[test]
+fn bench_times_every_gpu_pass_when_asked() {
+    // Where the adapter has timestamp queries (lavapipe does): a line of pass times under each
+    // gpu_resident row, and the same in the JSON; nothing of it without --passes.
+    let Some(ctx) = common::gpu() else { return };
+    if !ctx.device().features().contains(voxcollide::wgpu::Features::TIMESTAMP_QUERY) {
+        return;
+    }
+    let json = std::env::temp_dir().join(format!("voxcollide-passes-{}.json", std::process::id()));
+    let output = voxcollide()
+        .args(["bench", "--sizes", "20k", "--samples", "2", "--no-reference", "--passes", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(stdout.matches("passes, ms: bounds").count(), 2, "{stdout}");
+    let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for row in rows.as_array().unwrap() {
+        let passes = row.get("passes");
+        if row["backend"] == "gpu_resident" {
+            let passes = passes.and_then(|p| p.as_array()).expect("passes on gpu_resident");
+            let names: Vec<&str> = passes.iter().map(|p| p["pass"].as_str().unwrap()).collect();
+            assert_eq!(names, voxcollide::gpu::PASSES);
+            let probe = passes.iter().find(|p| p["pass"] == "probe").unwrap()["median_ms"].as_f64().unwrap();
+            assert!(probe > 0.0 && probe < row["median_ms"].as_f64().unwrap() * 10.0, "{row}");
+        } else {
+            assert!(passes.is_none(), "{row}");
+        }
+    }
 }

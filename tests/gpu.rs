@@ -83,6 +83,40 @@ fn the_benchmark_workloads_match_the_cpu() {
 }
 
 #[test]
+fn profiling_times_every_pass_and_changes_no_result() {
+    let Some(ctx) = gpu() else { return };
+    let w = workload::lattice(50_000, 4).unwrap();
+    let mut backend = GpuCollision::new(&ctx, w.grid, w.params).unwrap();
+    if !ctx.device().features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+        assert!(matches!(backend.set_profiling(true), Err(Error::Gpu { .. })));
+        return;
+    }
+    assert!(matches!(backend.pass_times(), Err(Error::Gpu { .. })), "profiling is off");
+    backend.set_profiling(true).unwrap();
+    assert!(matches!(backend.pass_times(), Err(Error::Gpu { .. })), "nothing recorded yet");
+    for anchor in [Anchor::Fixed, Anchor::FollowA] {
+        let params = ContactParams { anchor, ..w.params };
+        let mut backend = GpuCollision::new(&ctx, w.grid, params).unwrap();
+        backend.set_profiling(true).unwrap();
+        let cpu = CpuCollision::new(w.grid, params).unwrap().step(&w.a, &w.b).unwrap();
+        let gpu = backend.step(&w.a, &w.b).unwrap();
+        compare(&format!("{anchor:?} profiled"), &cpu, &gpu, 0.0);
+        let times = backend.pass_times().unwrap();
+        let names: Vec<&str> = times.iter().map(|(name, _)| *name).collect();
+        assert_eq!(names, gpu::PASSES);
+        assert!(times.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0), "{times:?}");
+        let ms = |name: &str| times.iter().find(|(n, _)| *n == name).unwrap().1;
+        assert!(ms("probe") > 0.0 && ms("bin") > 0.0, "{times:?}");
+        if anchor == Anchor::Fixed {
+            assert!(ms("bounds") < ms("bin"), "no bounds pass under Fixed: {times:?}");
+        }
+        backend.set_profiling(false).unwrap();
+        assert!(matches!(backend.pass_times(), Err(Error::Gpu { .. })));
+        compare(&format!("{anchor:?} after profiling"), &cpu, &backend.step(&w.a, &w.b).unwrap(), 0.0);
+    }
+}
+
+#[test]
 fn tiny_hashed_tables_whose_rows_wrap_match_the_cpu() {
     // Five A vertices in a 1024³ grid: 8 hash slots, so most block rows (3 slots) wrap past the
     // last slot to the first; the plane normal needs three candidates from such rows.

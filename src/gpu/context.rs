@@ -24,7 +24,8 @@ impl GpuContext {
     /// accepted. wgpu's environment overrides are honoured: `WGPU_BACKEND` (e.g. `vulkan`, `gl`)
     /// limits the backends searched, and `WGPU_ADAPTER_NAME` picks the first adapter whose name
     /// contains it (case-insensitive). The device gets the adapter's own limits, not wgpu's
-    /// defaults, and no optional feature.
+    /// defaults, and no optional feature but timestamp queries where the adapter has them (for
+    /// [`GpuCollision::set_profiling`](crate::GpuCollision::set_profiling)).
     ///
     /// # Errors
     /// [`Error::NoAdapter`] when no adapter with compute shaders is found (or none matches
@@ -76,7 +77,8 @@ impl GpuContext {
         let info = chosen.get_info();
         let (device, queue) = pollster::block_on(chosen.request_device(&wgpu::DeviceDescriptor {
             label: Some("voxcollide"),
-            required_features: wgpu::Features::empty(),
+            // Timestamp queries where the adapter has them, for GpuCollision::set_profiling.
+            required_features: chosen.features() & wgpu::Features::TIMESTAMP_QUERY,
             required_limits: chosen.limits(),
             ..Default::default()
         }))

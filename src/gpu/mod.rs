@@ -177,6 +177,23 @@ struct Bound {
     resolve: wgpu::BindGroup,
 }
 
+/// The passes of a step, in the order they run (`bounds` runs under `Anchor::FollowA` only), as
+/// [`GpuCollision::pass_times`] names them.
+pub const PASSES: [&str; 9] =
+    ["bounds", "frame", "bin", "scan", "scan_carry", "scan_add", "sort", "probe", "resolve"];
+
+/// Timestamp queries around each pass, and where they are resolved and read back.
+#[derive(Debug)]
+struct Profile {
+    queries: wgpu::QuerySet,
+    resolved: Buffer,
+    readback: Buffer,
+    /// Nanoseconds per timestamp tick.
+    period: f32,
+    /// Whether a step has been recorded since profiling was turned on.
+    recorded: bool,
+}
+
 /// Slots per workgroup (block) of the slot prefix sum: 16 per invocation. Keep in sync with
 /// `SCAN_BLOCK` in `shaders/common.wgsl`.
 const SCAN_BLOCK: u32 = 16 * WORKGROUP_SIZE;
@@ -226,6 +243,7 @@ pub struct GpuCollision {
     recorded: Option<(u32, u32)>,
     dense: Option<bool>,
     bind_group_builds: u32,
+    profile: Option<Profile>,
     // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
     upload: Option<(Buffer, Buffer)>,
     staging: Option<Buffer>,
@@ -261,6 +279,7 @@ impl GpuCollision {
             recorded: None,
             dense: None,
             bind_group_builds: 0,
+            profile: None,
             upload: None,
             staging: None,
             scratch: Vec::new(),
@@ -396,29 +415,142 @@ impl GpuCollision {
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         encoder.clear_buffer(&bufs.count, 0, Some(4 * u64::from(scan_slots(slots))));
         encoder.clear_buffer(&bufs.fixed, 0, Some(32 * u64::from(n_a)));
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("voxcollide step"),
-                timestamp_writes: None,
-            });
-            let k = &self.kernels;
-            if self.params.anchor == Anchor::FollowA {
-                k.bounds.dispatch(&mut pass, &bound.bounds, n_a, self.max_per_dim);
-            }
-            k.frame.dispatch_one(&mut pass, &bound.frame);
-            k.bin.dispatch(&mut pass, &bound.bin, n_a, self.max_per_dim);
+        let k = &self.kernels;
+        let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
+        let follow = self.params.anchor == Anchor::FollowA;
+        // The step's dispatches in order (one invocation per item, or one workgroup): a fixed
+        // array, so that recording allocates nothing of its own.
+        let passes: [(&Kernel, &wgpu::BindGroup, Option<u32>); PASSES.len()] = [
+            (&k.bounds, &bound.bounds, Some(if follow { n_a } else { 0 })),
+            (&k.frame, &bound.frame, None),
+            (&k.bin, &bound.bin, Some(n_a)),
             // One workgroup per scan block, then one invocation per 4 slots.
-            k.scan.dispatch(&mut pass, &bound.scan, scan_blocks(slots) * WORKGROUP_SIZE, self.max_per_dim);
-            k.scan_carry.dispatch_one(&mut pass, &bound.scan_carry);
-            k.scan_add.dispatch(&mut pass, &bound.scan_add, scan_slots(slots) / 4, self.max_per_dim);
-            k.sort.dispatch(&mut pass, &bound.sort, n_a, self.max_per_dim);
-            let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
-            probe.dispatch(&mut pass, &bound.probe[usize::from(dense)], n_b, self.max_per_dim);
-            k.resolve.dispatch(&mut pass, &bound.resolve, n_a, self.max_per_dim);
+            (&k.scan, &bound.scan, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
+            (&k.scan_carry, &bound.scan_carry, None),
+            (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
+            (&k.sort, &bound.sort, Some(n_a)),
+            (probe, &bound.probe[usize::from(dense)], Some(n_b)),
+            (&k.resolve, &bound.resolve, Some(n_a)),
+        ];
+        let dispatch =
+            |pass: &mut wgpu::ComputePass<'_>,
+             (kernel, group, items): (&Kernel, &wgpu::BindGroup, Option<u32>)| {
+                match items {
+                    Some(items) => kernel.dispatch(pass, group, items, self.max_per_dim),
+                    None => kernel.dispatch_one(pass, group),
+                }
+            };
+        match &self.profile {
+            None => {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("voxcollide step"),
+                    timestamp_writes: None,
+                });
+                for step in passes {
+                    dispatch(&mut pass, step);
+                }
+            }
+            Some(profile) => {
+                // One compute pass per dispatch, timed at its beginning and end.
+                for (t, step) in passes.into_iter().enumerate() {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some(PASSES[t]),
+                        timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                            query_set: &profile.queries,
+                            beginning_of_pass_write_index: Some(2 * t as u32),
+                            end_of_pass_write_index: Some(2 * t as u32 + 1),
+                        }),
+                    });
+                    dispatch(&mut pass, step);
+                }
+                let n = 2 * PASSES.len() as u32;
+                encoder.resolve_query_set(&profile.queries, 0..n, &profile.resolved, 0);
+                encoder.copy_buffer_to_buffer(&profile.resolved, 0, &profile.readback, 0, 8 * u64::from(n));
+            }
         }
         self.recorded = Some((n_a, n_b));
         self.dense = Some(dense);
+        if let Some(profile) = self.profile.as_mut() {
+            profile.recorded = true;
+        }
         Ok(())
+    }
+
+    /// Times every pass of the steps recorded from now on (`true`) or stops (`false`). Each pass
+    /// then gets a compute pass of its own with timestamp queries, and [`record`](Self::record)
+    /// also records their readback; read the times with [`pass_times`](Self::pass_times).
+    /// Profiling changes what a step records, so time whole steps with it off.
+    ///
+    /// # Errors
+    /// [`Error::Gpu`] when the device was opened without [`wgpu::Features::TIMESTAMP_QUERY`]
+    /// ([`GpuContext::new`] asks for it wherever the adapter has it).
+    pub fn set_profiling(&mut self, on: bool) -> Result<(), Error> {
+        if !on {
+            self.profile = None;
+            return Ok(());
+        }
+        if self.profile.is_some() {
+            return Ok(());
+        }
+        let device = self.ctx.device();
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return Err(Error::Gpu {
+                message: "profiling needs timestamp queries (wgpu::Features::TIMESTAMP_QUERY), which \
+                          this device was not opened with"
+                    .into(),
+            });
+        }
+        let count = 2 * PASSES.len() as u32;
+        let bytes = 8 * u64::from(count);
+        let profile = scoped(device, || Profile {
+            queries: device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("voxcollide pass times"),
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            }),
+            resolved: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("voxcollide pass times"),
+                size: bytes,
+                usage: BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            }),
+            readback: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("voxcollide pass times readback"),
+                size: bytes,
+                usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            period: self.ctx.queue().get_timestamp_period(),
+            recorded: false,
+        })?;
+        self.profile = Some(profile);
+        Ok(())
+    }
+
+    /// The time of each pass of the last step recorded with profiling on, in milliseconds, in
+    /// the order of [`PASSES`] (`bounds` is 0 under `Anchor::Fixed`), after the app has
+    /// submitted it. Blocks until the device is done.
+    ///
+    /// # Errors
+    /// [`Error::Gpu`] when profiling is off or no step was recorded with it, or the device
+    /// fails.
+    pub fn pass_times(&mut self) -> Result<[(&'static str, f64); PASSES.len()], Error> {
+        let Some(profile) = self.profile.as_ref() else {
+            return Err(Error::Gpu { message: "pass_times() with profiling off (see set_profiling)".into() });
+        };
+        if !profile.recorded {
+            return Err(Error::Gpu {
+                message: "pass_times() before a step was recorded with profiling on".into(),
+            });
+        }
+        let bytes = map_read(&self.ctx, &profile.readback, profile.readback.size())?;
+        let tick = |k: usize| -> u64 { bytemuck::pod_read_unaligned(&bytes[8 * k..8 * k + 8]) };
+        let mut out = [("", 0.0); PASSES.len()];
+        for (t, name) in PASSES.iter().enumerate() {
+            let (start, end) = (tick(2 * t), tick(2 * t + 1));
+            out[t] = (*name, end.saturating_sub(start) as f64 * f64::from(profile.period) / 1e6);
+        }
+        Ok(out)
     }
 
     /// The forces on A after a recorded step: `n_a` `vec4<f32>` (w = 0).
