@@ -169,7 +169,11 @@ fn main() -> ExitCode {
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let result = run(&config, &mut |done| bar.set_position(done), &mut |line| bar.println(line));
+    // indicatif drops println when the bar is hidden (stderr not a terminal): notes go to
+    // stderr directly then, so a log still says why the run fell back to the CPU.
+    let result = run(&config, &mut |done| bar.set_position(done), &mut |line| {
+        if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
+    });
     bar.finish_and_clear();
     match result {
         Ok(s) => {

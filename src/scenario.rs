@@ -156,13 +156,16 @@ pub fn run(
     }
     let scene = Scene::new(config.scene)?;
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
+    // Why no adapter is used, when none is.
+    let mut without = String::from("no adapter used: --backend cpu, no pictures");
     let ctx = match config.backend {
         Backend::Cpu if config.image.is_none() => None,
         Backend::Gpu => Some(GpuContext::new()?),
         _ => match GpuContext::new() {
             Ok(ctx) => Some(ctx),
             Err(e) => {
-                note(&format!("no GPU adapter ({e}); running on the CPU and writing no pictures"));
+                note(&format!("{e}; running on the CPU and writing no pictures"));
+                without = e.to_string();
                 None
             }
         },
@@ -171,7 +174,7 @@ pub fn run(
         (Backend::Cpu, _) | (Backend::Auto, None) => (
             Sim::Cpu(Box::new(CpuSim::new(scene.clone())?)),
             "cpu",
-            ctx.as_ref().map_or("none".into(), |c| c.adapter_name()),
+            ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
         ),
         (_, Some(ctx)) => (Sim::Gpu(Box::new(GpuSim::new(ctx, scene.clone())?)), "gpu", ctx.adapter_name()),
         (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),

@@ -40,6 +40,29 @@ fn run_implant_prints_a_table_and_writes_its_files() {
 }
 
 #[test]
+fn without_an_adapter_the_main_job_runs_on_the_cpu_and_says_why() {
+    // No adapter matches the name asked for: `--backend auto` (the default) falls back to the
+    // CPU, says so while running, and names the reason in the table and in summary.json.
+    let out = std::env::temp_dir().join(format!("voxcollide-noadapter-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let output = voxcollide()
+        .args(["run", "implant", "--resolution", "8", "--steps", "30", "--frames", "1", "--out"])
+        .arg(&out)
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("cpu (no GPU adapter: ") && stdout.contains("no-such-adapter"), "{stdout}");
+    assert!(format!("{stdout}{stderr}").contains("running on the CPU"), "{stdout}\n{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["adapter"].as_str().unwrap().contains("no-such-adapter"), "{summary}");
+    assert!(!out.join("implant_0000.png").exists());
+}
+
+#[test]
 fn bad_arguments_fail_with_a_clear_message() {
     let output = voxcollide().args(["run", "implant", "--image", "big"]).output().unwrap();
     assert!(!output.status.success());
