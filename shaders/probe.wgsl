@@ -185,7 +185,7 @@ fn probe(j: u32) -> bool {
         let ext = hi - lo + vec3<u32>(1u);
         let rows = ext.y * ext.z;
         let slots = params.slot_mask + 1u;
-        // Loop-invariant values in locals: llvmpipe reloads a uniform read inside a loop, lane by lane.
+        // Loop-invariant values in locals: llvmpipe reloads a uniform inside a loop, lane by lane.
         let origin_v = state.origin.xyz;
         let inv = params.inv;
         let r2 = params.r2;
@@ -217,8 +217,11 @@ fn probe(j: u32) -> bool {
             var reached = true;
             if neighbours {
                 // The distances from p to the row's slab in y and in z, less the margin.
-                let gy = max(max(p.y - (origin_v.y + f32(y + 1u) * vs), (origin_v.y + f32(y) * vs) - p.y) - margin, 0.0);
-                let gz = max(max(p.z - (origin_v.z + f32(z + 1u) * vs), (origin_v.z + f32(z) * vs) - p.z) - margin, 0.0);
+                let below = vec2<f32>(origin_v.y + f32(y) * vs, origin_v.z + f32(z) * vs);
+                let above = vec2<f32>(origin_v.y + f32(y + 1u) * vs, origin_v.z + f32(z + 1u) * vs);
+                let g = max(max(p.yz - above, below - p.yz) - margin, vec2<f32>(0.0));
+                let gy = g.x;
+                let gz = g.y;
                 let rest = reach2 - gy * gy - gz * gz;
                 reached = rest >= 0.0;
                 let half = sqrt(max(rest, 0.0)) + margin;
@@ -290,9 +293,9 @@ fn probe(j: u32) -> bool {
             }
             let d2 = dist2(p, a);
             if !plane {
-                // Pairwise needs only the partner: keep the best (d2, index) as block's first entry
-                // (under the voxel search only b's own voxel is walked).
-                if (voxel_only || d2 < r2) && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
+                // The neighbour search with a pairwise partner (the voxel search's is walked by
+                // walk_own_voxel): keep the best (d2, index) within the radius as block's first.
+                if d2 < r2 && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
                     block.d.x = d2;
                     block.i.x = i;
                     block.n = 1u;
