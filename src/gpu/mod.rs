@@ -660,9 +660,27 @@ impl GpuCollision {
 
     /// Maps `staging` (already filled by a submitted copy) and turns it into a report.
     fn finish_report(&mut self, staging: &Buffer, n_a: u32, n_b: u32) -> Result<ContactReport, Error> {
-        let bytes = map_read(&self.ctx, staging, readback_size(n_a, n_b))?;
         let (a_end, b_end) = (VEC4 as usize * n_a as usize, VEC4 as usize * (n_a + n_b) as usize);
-        let state: GpuState = bytemuck::pod_read_unaligned(&bytes[b_end..b_end + GpuState::SIZE as usize]);
+        // Straight from the mapped bytes into the report's vectors: no intermediate copies.
+        let (state, report) = map_read_with(&self.ctx, staging, readback_size(n_a, n_b), |bytes| {
+            let state: GpuState =
+                bytemuck::pod_read_unaligned(&bytes[b_end..b_end + GpuState::SIZE as usize]);
+            if state.status & GpuState::NON_FINITE_CENTER != 0 || state.truncated != 0 || state.overflow != 0
+            {
+                return (state, None);
+            }
+            let forces_a = vec4s(&bytes[..a_end]);
+            let forces_b = vec4s(&bytes[a_end..b_end]);
+            let report = ContactReport {
+                force_a: forces_a.iter().map(|f| Vec3::new(f[0], f[1], f[2])).collect(),
+                force_b: forces_b.iter().map(|f| Vec3::new(f[0], f[1], f[2])).collect(),
+                colliding_b: (0..n_b).filter(|&j| forces_b[j as usize][3] == 1.0).collect(),
+                binned_a: state.binned,
+                discarded_a: n_a - state.binned,
+                grid_center: Vec3::from_slice(&state.center[..3]),
+            };
+            (state, Some(report))
+        })?;
         let center = Vec3::from_slice(&state.center[..3]);
         if state.status & GpuState::NON_FINITE_CENTER != 0 {
             return Err(Error::NonFiniteCenter { center });
@@ -673,19 +691,7 @@ impl GpuCollision {
         if state.overflow != 0 {
             return Err(self.overflow_error(!state.overflow));
         }
-        let vec4s =
-            |range: std::ops::Range<usize>| -> Vec<Vec4> { bytemuck::pod_collect_to_vec(&bytes[range]) };
-        let force_a: Vec<Vec3> = vec4s(0..a_end).into_iter().map(|f| f.truncate()).collect();
-        let b4 = vec4s(a_end..b_end);
-        let colliding_b: Vec<u32> = (0..n_b).filter(|&j| b4[j as usize].w == 1.0).collect();
-        Ok(ContactReport {
-            force_a,
-            force_b: b4.into_iter().map(|f| f.truncate()).collect(),
-            colliding_b,
-            binned_a: state.binned,
-            discarded_a: n_a - state.binned,
-            grid_center: center,
-        })
+        report.ok_or_else(|| Error::Gpu { message: "the step's state and report disagree".into() })
     }
 
     /// The `ForceOverflow` error for accumulator `code = 3 * vertex + axis`, with its exact total.
@@ -772,6 +778,15 @@ impl Collision for GpuCollision {
     }
 }
 
+/// `bytes` as `[f32; 4]`s: borrowed where they are aligned for it (a mapped buffer is), copied
+/// otherwise.
+fn vec4s(bytes: &[u8]) -> std::borrow::Cow<'_, [[f32; 4]]> {
+    match bytemuck::try_cast_slice(bytes) {
+        Ok(v) => std::borrow::Cow::Borrowed(v),
+        Err(_) => std::borrow::Cow::Owned(bytemuck::pod_collect_to_vec(bytes)),
+    }
+}
+
 fn readback_size(n_a: u32, n_b: u32) -> u64 {
     VEC4 * (u64::from(n_a) + u64::from(n_b)) + GpuState::SIZE
 }
@@ -815,6 +830,17 @@ pub(crate) fn read_buffers(ctx: &GpuContext, parts: &[(&Buffer, u64)]) -> Result
 
 /// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
 pub(crate) fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<Vec<u8>, Error> {
+    map_read_with(ctx, buffer, size, <[u8]>::to_vec)
+}
+
+/// Maps the first `size` bytes of `buffer` (already filled by a submitted copy), waits for the
+/// device, and hands them to `f` in place, without copying them first.
+pub(crate) fn map_read_with<T>(
+    ctx: &GpuContext,
+    buffer: &Buffer,
+    size: u64,
+    f: impl FnOnce(&[u8]) -> T,
+) -> Result<T, Error> {
     let slice = buffer.slice(..size);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -831,12 +857,12 @@ pub(crate) fn map_read(ctx: &GpuContext, buffer: &Buffer, size: u64) -> Result<V
         Ok(Err(e)) => return Err(lost(format!("reading the results back: {e}"))),
         Err(_) => return Err(lost("reading the results back: the map callback never ran".into())),
     }
-    let bytes = {
+    let out = {
         let view = slice.get_mapped_range().map_err(|e| lost(format!("reading the results back: {e}")))?;
-        view.to_vec()
+        f(&view)
     };
     buffer.unmap();
-    Ok(bytes)
+    Ok(out)
 }
 
 /// Runs `f` inside validation and out-of-memory error scopes, turning a captured error into
