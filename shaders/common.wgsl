@@ -101,9 +101,15 @@ fn scan_blocks() -> u32 {
     return (params.slot_mask + 2u + SCAN_BLOCK - 1u) / SCAN_BLOCK;
 }
 
-// The slot of voxel `v`: its linear index when the table is dense, else its hash, masked.
+// The slot of voxel `v` in this step's table (params.dense).
 fn slot_of(v: vec3<u32>) -> u32 {
-    if params.dense != 0u {
+    return slot_in(v, params.dense != 0u);
+}
+
+// The slot of voxel `v`: its linear index in a dense table, else its hash, masked. The probe
+// passes its pipeline constant, so that the compiler keeps one of the two.
+fn slot_in(v: vec3<u32>, dense: bool) -> u32 {
+    if dense {
         return v.x + params.dims.x * (v.y + params.dims.y * v.z);
     }
     return voxel_hash(v) & params.slot_mask;
@@ -112,10 +118,6 @@ fn slot_of(v: vec3<u32>) -> u32 {
 // Keep in sync with voxel_hash in src/voxel_data.rs: a scrambled hash of the row (y, z) plus x,
 // so that a row's voxels sit in consecutive slots.
 fn voxel_hash(v: vec3<u32>) -> u32 {
-    return row_hash(v.y, v.z) + v.x;
-}
-
-fn row_hash(y: u32, z: u32) -> u32 {
-    let h = (y * 0x9e3779b1u) ^ (z * 0x85ebca77u);
-    return h ^ (h >> 16u);
+    let h = (v.y * 0x9e3779b1u) ^ (v.z * 0x85ebca77u);
+    return (h ^ (h >> 16u)) + v.x;
 }

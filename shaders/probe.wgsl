@@ -121,12 +121,7 @@ fn main(
 // are skipped), keeping the nearest by (d2, index) as `best`'s first entry. False when a driver's
 // loop cap cut the walk short.
 fn walk_own_voxel(p: vec3<f32>, v: vec3<u32>, best: ptr<function, Nearest>) -> bool {
-    var s: u32;
-    if DENSE {
-        s = v.x + params.dims.x * (v.y + params.dims.y * v.z);
-    } else {
-        s = voxel_hash(v) & params.slot_mask;
-    }
+    let s = slot_in(v, DENSE);
     var k = start[s];
     let end = start[s + 1u];
     let origin_v = state.origin.xyz;
@@ -229,15 +224,9 @@ fn probe(j: u32) -> bool {
                 x1 = select(x1, vb.x, above_x > half);
             }
             let len = x1 - x0 + 1u;
-            var first: u32;
-            var k1: u32;
-            if DENSE {
-                first = x0 + params.dims.x * (y + params.dims.y * z);
-                k1 = start[first + len];
-            } else {
-                first = (row_hash(y, z) + x0) & params.slot_mask;
-                k1 = start[min(first + len, slots)];
-            }
+            // The row's first slot; dense rows never run past the table's end, hashed ones may.
+            let first = slot_in(vec3<u32>(x0, y, z), DENSE);
+            let k1 = start[min(first + len, slots)];
             let k0 = start[first];
             if reached && k1 > k0 {
                 range_start[ranges] = k0;

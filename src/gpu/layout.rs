@@ -89,4 +89,10 @@ impl GpuState {
     pub const SIZE: u64 = 96;
     /// `status` bit: the FollowA center was not finite.
     pub const NON_FINITE_CENTER: u32 = 1;
+
+    /// Whether the step ended in an error (a non-finite center, a cut-short walk or a force
+    /// overflow), so that its forces are not a report.
+    pub fn failed(&self) -> bool {
+        self.status & Self::NON_FINITE_CENTER != 0 || self.truncated != 0 || self.overflow != 0
+    }
 }

@@ -665,8 +665,7 @@ impl GpuCollision {
         let (state, report) = map_read_with(&self.ctx, staging, readback_size(n_a, n_b), |bytes| {
             let state: GpuState =
                 bytemuck::pod_read_unaligned(&bytes[b_end..b_end + GpuState::SIZE as usize]);
-            if state.status & GpuState::NON_FINITE_CENTER != 0 || state.truncated != 0 || state.overflow != 0
-            {
+            if state.failed() {
                 return (state, None);
             }
             let forces_a = vec4s(&bytes[..a_end]);
