@@ -98,6 +98,41 @@ fn time(samples: usize, mut f: impl FnMut() -> Result<usize, Error>) -> Result<(
     Ok((median(ms), colliding))
 }
 
+/// Bytes a benchmark case holds per vertex of each body, generously: the two bodies and the
+/// k-d tree's copies, the reference's lists, the parallel backend's sorted copies, slots and
+/// accumulators, the reports and the GPU upload's scratch.
+const BYTES_PER_VERTEX: u64 = 320;
+
+/// Refuses a size beyond a body's vertex limit or beyond this machine's available memory, before
+/// anything is allocated.
+fn check_size(size: usize) -> Result<(), Error> {
+    let invalid = |rule: String| Error::Invalid { what: "bench size", value: size.to_string(), rule };
+    if size > crate::cpu::MAX_VERTICES {
+        return Err(invalid(format!("a body has at most {} vertices", crate::cpu::MAX_VERTICES)));
+    }
+    let needed = (size as u64).saturating_mul(BYTES_PER_VERTEX);
+    if let Some(available) = available_memory()
+        && needed > available
+    {
+        let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
+        return Err(invalid(format!(
+            "needs about {:.1} GiB and this machine has {:.1} GiB available",
+            gib(needed),
+            gib(available)
+        )));
+    }
+    Ok(())
+}
+
+/// The memory available to a new allocation (Linux: `MemAvailable` of /proc/meminfo), or `None`
+/// where it cannot be told.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
 /// Runs the benchmark, calling `note` with each row as it is measured.
 ///
 /// # Errors
@@ -109,6 +144,9 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
             value: format!("{:?} / {}", config.sizes, config.samples),
             rule: "needs at least one size, every size and the samples above 0".into(),
         });
+    }
+    for &size in &config.sizes {
+        check_size(size)?;
     }
     let ctx = if config.gpu { GpuContext::new().ok() } else { None };
     let threads = rayon::current_num_threads();
@@ -176,6 +214,8 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                         .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
                     Ok(0)
                 })?;
+                // The resident step's own contacts, read back after the timing.
+                let c = gpu.read_report()?.colliding_b.len();
                 measured.push(("gpu_resident".into(), ms, ctx.adapter_name(), 0, c));
                 // Per pass, in steps of their own: profiling splits the step into timed passes.
                 if config.passes && gpu.set_profiling(true).is_ok() {

@@ -168,8 +168,9 @@ pub enum Error {
 
     /// A body has more vertices than one storage binding of the device can hold.
     #[error(
-        "body {body} has {len} vertices; this device allows at most {max} \
-         ({limit} = {bytes} bytes of vec4<f32> positions)"
+        "body {body} has {len} vertices; this device allows at most {max} for it \
+         ({limit} = {bytes} bytes, and body {body} takes {per_vertex} bytes a vertex in its \
+         largest buffer)"
     )]
     DeviceLimit {
         /// The body that is too large.
@@ -180,8 +181,11 @@ pub enum Error {
         max: usize,
         /// The device limit that sets `max`.
         limit: &'static str,
-        /// `max` in bytes.
+        /// The device limit's value in bytes.
         bytes: u64,
+        /// Bytes a vertex of this body takes in its largest device buffer (16 for B's
+        /// positions, 32 for A's fixed-point force accumulators).
+        per_vertex: u64,
     },
 
     /// An app's position buffer is smaller than the vertex count it was given with.

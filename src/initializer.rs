@@ -101,11 +101,26 @@ impl Initializer {
 
 /// Per-axis min and max over the finite vertices (all three components finite), or `None`
 /// when there is none.
+///
+/// In the order of [`f32::total_cmp`], where `-0.0 < +0.0`: a body with both zeros on an axis
+/// has `lo = -0.0` and `hi = +0.0` there, as the GPU's bounds pass orders them (integer keys of
+/// the bits), so the grid center's sign of zero is the same on every backend. (`f32::min`
+/// may return either zero.)
 pub(crate) fn finite_bounds(points: &[Vec3]) -> Option<(Vec3, Vec3)> {
-    points.iter().filter(|p| p.is_finite()).fold(None, |acc, &p| match acc {
-        None => Some((p, p)),
-        Some((lo, hi)) => Some((lo.min(p), hi.max(p))),
-    })
+    let mut finite = points.iter().filter(|p| p.is_finite());
+    let first = *finite.next()?;
+    let (mut lo, mut hi) = (first, first);
+    for p in finite {
+        for k in 0..3 {
+            if p[k].total_cmp(&lo[k]).is_lt() {
+                lo[k] = p[k];
+            }
+            if p[k].total_cmp(&hi[k]).is_gt() {
+                hi[k] = p[k];
+            }
+        }
+    }
+    Some((lo, hi))
 }
 
 /// The axis of the largest `|v_i|`; ties go to the earlier axis.

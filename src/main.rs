@@ -60,7 +60,7 @@ fn parse_sizes(s: &str) -> Result<Sizes, String> {
                 _ => (part, 1),
             };
             match digits.parse::<usize>() {
-                Ok(n) if n > 0 => Ok(n * mul),
+                Ok(n) if n > 0 => n.checked_mul(mul).ok_or_else(|| format!("{part:?} is too large a size")),
                 _ => Err(format!("{part:?} is not a size such as 10k, 100000 or 1M")),
             }
         })

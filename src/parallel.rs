@@ -24,7 +24,7 @@ use crate::grid::VoxelGrid;
 use crate::math::dist2;
 use crate::params::{ContactParams, Direction, Search};
 use crate::report::ContactReport;
-use crate::voxel_data::voxel_hash;
+use crate::voxel_data::{dense_slots, hashed_slots, voxel_hash};
 
 /// The most B vertices per parallel task: large enough to amortise scheduling.
 const CHUNK: usize = 4096;
@@ -251,12 +251,9 @@ impl ParallelCpuCollision {
         // no aliasing, and a row is one run of A's vertices in spatial order. Otherwise four
         // hash slots a vertex keep aliasing rare (benches/NOTES.md). Either way memory is O(|A|).
         let d = grid.dims();
-        let voxels = u64::from(d.x) * u64::from(d.y) * u64::from(d.z);
-        bins.dense = (voxels <= 4 * a.len() as u64).then_some([d.x, d.y]);
-        let slots = match bins.dense {
-            Some(_) => voxels as usize,
-            None => (4 * a.len()).next_power_of_two(),
-        };
+        let dense = dense_slots(d, a.len());
+        bins.dense = dense.map(|_| [d.x, d.y]);
+        let slots = dense.unwrap_or_else(|| hashed_slots(a.len(), 4)) as usize;
         bins.mask = (slots - 1) as u32;
         let (mask, dense) = (bins.mask, bins.dense);
         bins.voxel_of_a.clear();

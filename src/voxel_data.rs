@@ -26,6 +26,39 @@ pub fn voxel_hash(v: UVec3) -> u32 {
     (h ^ (h >> 16)).wrapping_add(v.x)
 }
 
+/// The voxels of a grid of `dims`, exactly: up to `2^72` for dims of `2^24`, so the product is
+/// taken in `u128` (in `u64` a grid of `2^22` per axis has `2^66` voxels, which wraps to 0).
+#[must_use]
+pub fn voxel_count(dims: UVec3) -> u128 {
+    u128::from(dims.x) * u128::from(dims.y) * u128::from(dims.z)
+}
+
+/// Largest number of slots a voxel table may have: a slot is a `u32`, and the table's prefix
+/// sum needs one entry more than the slots.
+pub const MAX_SLOTS: u32 = 1 << 31;
+
+/// The slots of a dense voxel table — one slot per voxel, at its linear index
+/// `x + dims.x * (y + dims.y * z)` — for `dims` and `n_a` vertices of A, when the parallel and
+/// GPU backends use one: while the grid has at most 4 voxels per A vertex, so memory stays
+/// `O(|A|)`, and the linear index fits a slot. `None`: the table is hashed.
+///
+/// One decision for both backends, made in exact arithmetic: no product of dims wraps.
+#[must_use]
+pub fn dense_slots(dims: UVec3, n_a: usize) -> Option<u32> {
+    let voxels = voxel_count(dims);
+    (voxels <= 4 * n_a as u128 && voxels <= u128::from(MAX_SLOTS)).then_some(voxels as u32)
+}
+
+/// The slots of a hashed voxel table for `n_a` vertices of A: `per_vertex * n_a` rounded up to
+/// a power of two, at least 4 (a block row, 3 slots, then never meets itself when it wraps
+/// around the table's end) and at most [`MAX_SLOTS`] (the hash is masked to it; aliasing only
+/// lengthens a walk).
+#[must_use]
+pub fn hashed_slots(n_a: usize, per_vertex: usize) -> u32 {
+    let wanted = n_a.saturating_mul(per_vertex).clamp(4, MAX_SLOTS as usize);
+    wanted.next_power_of_two() as u32
+}
+
 /// Per-voxel lists of body-A vertices in a sparse hash, rebuilt by [`bin`](Self::bin) every step.
 #[derive(Clone, Debug, Default)]
 pub struct VoxelData {

@@ -87,13 +87,18 @@ fn bench_prints_every_backend_and_writes_json() {
     let output = voxcollide()
         .args(["bench", "--sizes", "2k", "--samples", "1", "--json"])
         .arg(&json)
-        .env("VOXCOLLIDE_REQUIRE_GPU", "0")
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
     for backend in ["kdtree_kiddo", "cpu_reference", "parallel_cpu"] {
         assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
+    }
+    // Where a GPU is required (CI), its rows are there too, and counted with the others below.
+    if common::gpu_required() {
+        for backend in ["gpu_step", "gpu_resident"] {
+            assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
+        }
     }
     let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();
@@ -122,6 +127,22 @@ fn bench_prints_every_backend_and_writes_json() {
 }
 
 #[test]
+fn bench_sizes_beyond_the_machine_are_clear_errors_before_allocating() {
+    for (sizes, says) in [
+        ("99999999999999M", "too large a size"),
+        ("5000M", "at most 4294967294 vertices"),
+        ("1000M", "GiB available"),
+        ("10k,1000M", "GiB available"),
+    ] {
+        let output = voxcollide().args(["bench", "--sizes", sizes, "--samples", "1"]).output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(if says == "too large a size" { 2 } else { 1 }), "{sizes}: {stderr}");
+        assert!(stderr.contains(says), "{sizes}: {stderr}");
+        assert!(!stderr.contains("panicked") && !stderr.contains("memory allocation"), "{sizes}: {stderr}");
+    }
+}
+
+#[test]
 fn bench_times_every_gpu_pass_when_asked() {
     // Where the adapter has timestamp queries (lavapipe does): a line of pass times under each
     // gpu_resident row, and the same in the JSON; nothing of it without --passes.
@@ -146,7 +167,7 @@ fn bench_times_every_gpu_pass_when_asked() {
             let names: Vec<&str> = passes.iter().map(|p| p["pass"].as_str().unwrap()).collect();
             assert_eq!(names, voxcollide::gpu::PASSES);
             let probe = passes.iter().find(|p| p["pass"] == "probe").unwrap()["median_ms"].as_f64().unwrap();
-            assert!(probe > 0.0 && probe < row["median_ms"].as_f64().unwrap() * 10.0, "{row}");
+            assert!(probe > 0.0, "the probe was not timed: {row}");
         } else {
             assert!(passes.is_none(), "{row}");
         }

@@ -10,6 +10,18 @@ use rand_chacha::ChaCha8Rng;
 use voxcollide::glam::{UVec3, Vec3};
 use voxcollide::*;
 
+/// Whether the adapter's `sqrt` is correctly rounded, so that the GPU's forces equal the
+/// reference's bit for bit (DESIGN §2): Mesa's llvmpipe, on Vulkan and on GL.
+fn exact_adapter(ctx: &GpuContext) -> bool {
+    ctx.adapter_name().contains("llvmpipe")
+}
+
+/// Whether the adapter caps a shader's loop nest at 65535 iterations: Mesa's llvmpipe on Vulkan
+/// (lavapipe). The same llvmpipe under GL runs the same walks to their end.
+fn caps_loops(ctx: &GpuContext) -> bool {
+    exact_adapter(ctx) && ctx.adapter_info().is_some_and(|i| i.backend == wgpu::Backend::Vulkan)
+}
+
 #[test]
 fn gpu_matches_cpu_for_all_combinations() {
     let Some(ctx) = gpu() else { return };
@@ -28,6 +40,11 @@ fn gpu_matches_cpu_for_all_combinations() {
     }
     eprintln!("{contacts} contacts compared; {inexact} force components not bit-identical");
     assert!(contacts > 100_000, "only {contacts} contacts");
+    // DESIGN §2: exactly equal where the device's sqrt is correctly rounded, as on Mesa's
+    // llvmpipe (lavapipe on Vulkan, and on GL); within 1e-5 * m elsewhere (checked above).
+    if exact_adapter(&ctx) {
+        assert_eq!(inexact, 0, "{}: force components differ in their bits", ctx.adapter_name());
+    }
 }
 
 #[test]
@@ -104,12 +121,10 @@ fn profiling_times_every_pass_and_changes_no_result() {
         let times = backend.pass_times().unwrap();
         let names: Vec<&str> = times.iter().map(|(name, _)| *name).collect();
         assert_eq!(names, gpu::PASSES);
-        assert!(times.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0), "{times:?}");
+        // Timestamps were written and resolved around the passes that do work (a pass that
+        // was not timed reads 0). How long each takes is the benchmark's business.
         let ms = |name: &str| times.iter().find(|(n, _)| *n == name).unwrap().1;
         assert!(ms("probe") > 0.0 && ms("bin") > 0.0, "{times:?}");
-        if anchor == Anchor::Fixed {
-            assert!(ms("bounds") < ms("bin"), "no bounds pass under Fixed: {times:?}");
-        }
         backend.set_profiling(false).unwrap();
         assert!(matches!(backend.pass_times(), Err(Error::Gpu { .. })));
         compare(&format!("{anchor:?} after profiling"), &cpu, &backend.step(&w.a, &w.b).unwrap(), 0.0);
@@ -198,8 +213,8 @@ fn every_one_of_eight_million_b_vertices_is_probed() {
         anchor: Anchor::Fixed,
     };
     let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
-    let n = gpu.max_vertices().min(8 << 20) as usize;
-    assert!(n >= 8 << 20 || !ctx.adapter_name().contains("llvmpipe"), "lavapipe allows {n}");
+    let n = gpu.max_vertices_of(Body::B).min(8 << 20) as usize;
+    assert!(n >= 8 << 20 || !exact_adapter(&ctx), "llvmpipe allows B only {n}");
     let hit = |j: usize| j.is_multiple_of(4099) || j == n - 1;
     let b: Vec<Vec3> = (0..n)
         .map(|j| if hit(j) { a[j % 1000] + Vec3::new(0.0, 0.0, 0.25) } else { Vec3::splat(100.0) })
@@ -213,19 +228,45 @@ fn every_one_of_eight_million_b_vertices_is_probed() {
 }
 
 #[test]
-fn more_vertices_than_the_device_binds_is_an_error() {
+fn more_vertices_than_the_device_binds_is_an_error_and_the_limit_itself_works() {
+    // A's largest buffer takes 32 bytes a vertex (its fixed-point accumulators), B's 16: each
+    // body's limit is its own, a body at its limit steps, one vertex more is DeviceLimit —
+    // before anything is recorded, never a validation error.
     let Some(ctx) = gpu() else { return };
     let a = [Vec3::ZERO];
     let grid = Initializer::new(1.0).build(&a).unwrap();
-    let mut gpu = GpuCollision::new(&ctx, grid, all_params(1.0, 1.0)[0]).unwrap();
-    let max = gpu.max_vertices() as usize;
-    let b = vec![Vec3::ZERO; max + 1];
-    let err = gpu.step(&a, &b).unwrap_err();
-    assert!(
-        matches!(err, Error::DeviceLimit { body: Body::B, len, max: m, .. } if len == max + 1 && m == max),
-        "{err:?}"
+    let params = all_params(1.0, 1.0)[0];
+    let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
+    let (max_a, max_b) = (gpu.max_vertices_of(Body::A) as usize, gpu.max_vertices_of(Body::B) as usize);
+    let limits = ctx.device().limits();
+    eprintln!(
+        "{}: A {max_a}, B {max_b} vertices (binding {} bytes, buffer {} bytes)",
+        ctx.adapter_name(),
+        limits.max_storage_buffer_binding_size,
+        limits.max_buffer_size
     );
-    assert!(err.to_string().contains("max_storage_buffer_binding_size"), "{err}");
+    assert_eq!(gpu.max_vertices() as usize, max_a.min(max_b));
+    assert!(max_a <= max_b);
+    let far = Vec3::splat(100.0); // outside the grid: no contact, no force to sum
+    for (body, max) in [(Body::A, max_a), (Body::B, max_b)] {
+        let big = vec![far; max + 1];
+        let err = match body {
+            Body::A => gpu.step(&big, &a),
+            Body::B => gpu.step(&a, &big),
+        }
+        .unwrap_err();
+        assert!(
+            matches!(err, Error::DeviceLimit { body: b, len, max: m, .. } if b == body && len == max + 1 && m == max),
+            "{err:?}"
+        );
+        assert!(err.to_string().contains("max_storage_buffer_binding_size"), "{err}");
+    }
+    // Body A at its limit (4M on lavapipe) with one contact: it works.
+    let mut big_a = vec![far; max_a.min(16 << 20)];
+    big_a[max_a.min(16 << 20) - 1] = Vec3::ZERO;
+    let report = gpu.step(&big_a, &[Vec3::new(0.25, 0.0, 0.0)]).unwrap();
+    assert_eq!(report.colliding_b, vec![0]);
+    assert_eq!(report.force_a[big_a.len() - 1], -Vec3::X);
 }
 
 #[test]
@@ -289,8 +330,10 @@ fn bodies_that_grow_and_shrink_between_steps_stay_correct() {
 
 #[test]
 fn a_walk_the_driver_cuts_short_is_an_error_not_a_missed_contact() {
-    // 70000 A vertices in one voxel: llvmpipe caps a shader's loop nest at 65535 iterations, so
-    // there the walk cannot finish and the step must fail; elsewhere it must match the CPU.
+    // 70000 A vertices in one voxel: lavapipe (llvmpipe on Vulkan) caps a shader's loop nest at
+    // 65535 iterations, so there the walk cannot finish and the step must fail with
+    // WalkTruncated; llvmpipe on GL, and every other adapter seen, walks them all, and then the
+    // step must match the CPU. Either way, never a missed contact.
     let Some(ctx) = gpu() else { return };
     let a: Vec<Vec3> = (0..70_000)
         .map(|i| Vec3::new(0.1 + (i % 97) as f32 * 0.008, 0.5, 0.1 + (i / 97) as f32 * 0.0001))
@@ -303,15 +346,11 @@ fn a_walk_the_driver_cuts_short_is_an_error_not_a_missed_contact() {
         let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
         match GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &b) {
             Ok(gpu) => {
-                assert!(!ctx.adapter_name().contains("llvmpipe"), "{params:?}: llvmpipe walked 70000");
-                compare("70000 in one voxel", &cpu, &gpu, 1e-5);
+                assert!(!caps_loops(&ctx), "{params:?}: lavapipe walked 70000");
+                assert_eq!(compare("70000 in one voxel", &cpu, &gpu, 1e-5), 0);
             }
             Err(err) => {
-                assert!(
-                    ctx.adapter_name().contains("llvmpipe"),
-                    "unexpected on {}: {err}",
-                    ctx.adapter_name()
-                );
+                assert!(caps_loops(&ctx), "unexpected on {}: {err}", ctx.adapter_name());
                 assert_eq!(err, Error::WalkTruncated { b: 0 }, "{params:?}");
                 assert!(err.to_string().contains("65535"), "{err}");
             }

@@ -23,6 +23,8 @@ fn readme_states_two_commands_and_ci_runs_the_test_one() {
     let ci_lines: Vec<&str> = CI.lines().map(str::trim).collect();
     assert!(ci_lines.contains(&commands[1]), ".ci/run does not run `{}`", commands[1]);
     assert!(CI.contains("export VOXCOLLIDE_REQUIRE_GPU=1"));
+    // Both software adapters: lavapipe (Vulkan) above, llvmpipe on GL for the GPU tests.
+    assert!(ci_lines.iter().any(|l| l.starts_with("WGPU_BACKEND=gl cargo test --release --test gpu ")));
 }
 
 #[test]

@@ -30,7 +30,6 @@ fn small(kind: Kind, backend: Backend, name: &str) -> RunConfig {
 
 /// The bar, frame by frame after contact is established (the first 10 % of the run).
 fn assert_quality(s: &Summary) {
-    let tissue = s.vertices_b as f32;
     for f in s.frames.iter().filter(|f| f.step > s.steps / 10) {
         assert!(
             f.max_penetration <= s.voxel_size,
@@ -48,7 +47,6 @@ fn assert_quality(s: &Summary) {
             100.0 * f.penetrating_fraction
         );
         assert!(f.max_tissue_displacement.is_finite() && f.max_foreign_displacement.is_finite());
-        assert!(f.penetrating_fraction * tissue <= 0.01 * tissue);
     }
     assert!(
         s.max_tissue_displacement >= 0.2 * s.layer_thickness,
@@ -164,6 +162,10 @@ fn a_run_writes_pictures_paraview_files_and_a_summary() {
     }
     assert_eq!(json["frames"].as_array().unwrap().len(), 3);
     assert_eq!(json["frames"][2]["step"], 60);
+    // Pictures need an adapter; where one is required (CI), the run must have used it.
+    if common::gpu_required() {
+        assert_eq!(s.backend, "gpu", "VOXCOLLIDE_REQUIRE_GPU=1 but the run fell back to the CPU");
+    }
     if s.backend == "gpu" {
         let png = std::fs::File::open(dir.join("implant_0002.png")).unwrap();
         let reader = png::Decoder::new(std::io::BufReader::new(png)).read_info().unwrap();

@@ -1,7 +1,7 @@
 //! `GpuContext`: the device and queue the GPU backend runs on — found here, or the app's own.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 
 use wgpu::{Adapter, AdapterInfo, Backend, DeviceType};
 
@@ -16,6 +16,8 @@ pub struct GpuContext {
     queue: wgpu::Queue,
     adapter: Option<AdapterInfo>,
     lost: Option<Arc<AtomicBool>>,
+    /// The pipelines built on this device, shared by every `GpuCollision` made on it.
+    kernels: Arc<Mutex<super::KernelCache>>,
 }
 
 impl GpuContext {
@@ -88,13 +90,13 @@ impl GpuContext {
         let lost = Arc::new(AtomicBool::new(false));
         let flag = lost.clone();
         device.set_device_lost_callback(move |_, _| flag.store(true, Ordering::SeqCst));
-        Ok(GpuContext { device, queue, adapter: Some(info), lost: Some(lost) })
+        Ok(GpuContext { device, queue, adapter: Some(info), lost: Some(lost), kernels: Arc::default() })
     }
 
     /// Wraps an app's own device and queue (the app keeps its error and device-lost handlers).
     #[must_use]
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
-        GpuContext { device, queue, adapter: None, lost: None }
+        GpuContext { device, queue, adapter: None, lost: None, kernels: Arc::default() }
     }
 
     /// The device.
@@ -120,6 +122,28 @@ impl GpuContext {
     #[must_use]
     pub fn adapter_name(&self) -> String {
         self.adapter.as_ref().map_or_else(|| "app-provided device".to_string(), describe)
+    }
+
+    /// The kernels of `key` on this device: built by `build` the first time, shared after (a
+    /// pipeline takes milliseconds to build; a collision on a warm context takes none).
+    pub(super) fn kernels<K, E>(
+        &self,
+        key: K,
+        build: impl FnOnce() -> Result<Arc<super::Kernels>, E>,
+    ) -> Result<Arc<super::Kernels>, E>
+    where
+        K: Into<super::KernelKey>,
+    {
+        let key = key.into();
+        // A poisoned lock only means another thread panicked while building: the cache holds
+        // whole entries either way.
+        let mut cache = self.kernels.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some((_, k)) = cache.iter().find(|(k, _)| *k == key) {
+            return Ok(k.clone());
+        }
+        let kernels = build()?;
+        cache.push((key, kernels.clone()));
+        Ok(kernels)
     }
 
     /// Whether the device was reported lost (only known for contexts made by [`new`](Self::new)).

@@ -24,6 +24,7 @@ use crate::error::{Body, Error};
 use crate::grid::VoxelGrid;
 use crate::params::{Anchor, ContactParams};
 use crate::report::ContactReport;
+use crate::voxel_data::{dense_slots, hashed_slots};
 
 /// Invocations per workgroup in every pass but `frame` (64, 128 and 256 measured alike on
 /// lavapipe: benches/NOTES.md). Keep in sync with `WORKGROUP_SIZE` in
@@ -32,9 +33,15 @@ pub const WORKGROUP_SIZE: u32 = 64;
 /// Bytes per vertex position and per force: `vec4<f32>`.
 const VEC4: u64 = 16;
 
+/// What the kernels of a step are specialised to: the search and the direction.
+pub(crate) type KernelKey = (u32, u32);
+
+/// The kernels built on one device, by [`KernelKey`].
+pub(crate) type KernelCache = Vec<(KernelKey, std::sync::Arc<Kernels>)>;
+
 /// The kernels of a step.
 #[derive(Debug)]
-struct Kernels {
+pub(crate) struct Kernels {
     bounds: Kernel,
     frame: Kernel,
     bin: Kernel,
@@ -233,9 +240,10 @@ pub struct GpuCollision {
     grid: VoxelGrid,
     params: ContactParams,
     base: GpuParams,
-    kernels: Kernels,
+    kernels: std::sync::Arc<Kernels>,
     max_per_dim: u32,
-    max_vertices: u32,
+    /// Per body (A, B).
+    max_vertices: [u32; 2],
     max_binding: u64,
     buffers: Option<Buffers>,
     bound: Option<Bound>,
@@ -262,7 +270,9 @@ impl GpuCollision {
         let device = ctx.device();
         let limits = device.limits();
         let base = GpuParams::new(&grid, &params);
-        let kernels = scoped(device, || Kernels::new(device, &base))?;
+        let kernels = ctx.kernels((base.search, base.direction), || {
+            scoped(device, || Kernels::new(device, &base)).map(std::sync::Arc::new)
+        })?;
         let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         Ok(GpuCollision {
             ctx: ctx.clone(),
@@ -271,7 +281,9 @@ impl GpuCollision {
             base,
             kernels,
             max_per_dim: limits.max_compute_workgroups_per_dimension,
-            max_vertices: (binding / VEC4).min(u64::from(crate::cpu::MAX_VERTICES as u32)) as u32,
+            max_vertices: [Body::A, Body::B].map(|body| {
+                (binding / bytes_per_vertex(body)).min(crate::cpu::MAX_VERTICES as u64) as u32
+            }),
             max_binding: binding,
             buffers: None,
             bound: None,
@@ -286,11 +298,21 @@ impl GpuCollision {
         })
     }
 
-    /// The most vertices a body may have on this device: its storage-binding size over 16 bytes
-    /// (8M on lavapipe's 128 MiB).
+    /// The most vertices either body may have on this device: the smaller of
+    /// [`max_vertices_of`](Self::max_vertices_of) `(Body::A)` and `(Body::B)` (A's, 4M on
+    /// lavapipe's 128 MiB storage bindings).
     #[must_use]
     pub fn max_vertices(&self) -> u32 {
-        self.max_vertices
+        self.max_vertices[0].min(self.max_vertices[1])
+    }
+
+    /// The most vertices `body` may have on this device: the storage-binding size over the
+    /// bytes a vertex takes in the body's largest buffer — 32 for A (its fixed-point force
+    /// accumulators: 2M vertices a 64 MiB binding), 16 for B (its positions and forces). More
+    /// is [`Error::DeviceLimit`], before anything is recorded.
+    #[must_use]
+    pub fn max_vertices_of(&self, body: Body) -> u32 {
+        self.max_vertices[body as usize]
     }
 
     /// How many times the bind groups have been built: once, then again only when the device
@@ -603,15 +625,10 @@ impl GpuCollision {
     /// fits a storage binding; hashed otherwise, with `n_a` rounded up to a power of two slots
     /// (at least 4).
     fn slots(&self, n_a: u32) -> (u32, bool) {
-        let dims = self.grid.dims();
-        let voxels = u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z);
-        let fits = voxels <= 4 * u64::from(n_a)
-            && 4 * u64::from(scan_slots(voxels.min(u64::from(u32::MAX / 2)) as u32)) <= self.max_binding;
-        if fits {
-            (voxels as u32, true)
-        } else {
-            // At least 4 slots, so that a block row (3 slots) never meets itself when it wraps.
-            (n_a.next_power_of_two().max(4), false)
+        // The same decision as the parallel backend's, in exact arithmetic (voxel_data).
+        match dense_slots(self.grid.dims(), n_a as usize) {
+            Some(voxels) if 4 * u64::from(scan_slots(voxels)) <= self.max_binding => (voxels, true),
+            _ => (hashed_slots(n_a as usize, 1), false),
         }
     }
 
@@ -619,7 +636,7 @@ impl GpuCollision {
         if n == 0 {
             return Err(Error::EmptyBody { body });
         }
-        if n > self.max_vertices {
+        if n > self.max_vertices_of(body) {
             return Err(self.limit_error(body, n as usize));
         }
         if !buffer.usage().contains(BufferUsages::STORAGE) {
@@ -636,9 +653,10 @@ impl GpuCollision {
         Error::DeviceLimit {
             body,
             len,
-            max: self.max_vertices as usize,
+            max: self.max_vertices_of(body) as usize,
             limit: "max_storage_buffer_binding_size",
-            bytes: u64::from(self.max_vertices) * VEC4,
+            bytes: self.max_binding,
+            per_vertex: bytes_per_vertex(body),
         }
     }
 
@@ -751,7 +769,7 @@ impl Collision for GpuCollision {
         check_body(Body::A, a)?;
         check_body(Body::B, b)?;
         for (body, len) in [(Body::A, a.len()), (Body::B, b.len())] {
-            if len > self.max_vertices as usize {
+            if len > self.max_vertices_of(body) as usize {
                 return Err(self.limit_error(body, len));
             }
         }
@@ -774,6 +792,16 @@ impl Collision for GpuCollision {
             return Err(Error::Gpu { message: e.to_string() });
         }
         self.finish_report(&staging, n_a, n_b)
+    }
+}
+
+/// Bytes a vertex of `body` takes in the body's largest device buffer: A's fixed-point
+/// accumulators hold 8 words a vertex (see `Buffers::fixed`), B's positions and forces a
+/// `vec4<f32>`.
+fn bytes_per_vertex(body: Body) -> u64 {
+    match body {
+        Body::A => 32,
+        Body::B => VEC4,
     }
 }
 

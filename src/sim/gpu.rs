@@ -194,8 +194,15 @@ impl GpuSim {
     /// tissue) → forces → integration. Nothing is read back.
     ///
     /// # Errors
-    /// The collision's recording errors.
+    /// The collision's recording errors, and [`Error::Gpu`] for a validation or out-of-memory
+    /// error while recording or submitting (the whole step runs inside error scopes, so such an
+    /// error becomes this value instead of reaching wgpu's default handler).
     pub fn step(&mut self) -> Result<(), Error> {
+        let device = self.ctx.device().clone();
+        scoped(&device, || self.record_and_submit())?
+    }
+
+    fn record_and_submit(&mut self) -> Result<(), Error> {
         let device = self.ctx.device().clone();
         let queue = self.ctx.queue();
         let (in_t, in_f) = self.scene.inputs(self.step);

@@ -11,7 +11,7 @@ use voxcollide::*;
 pub fn gpu() -> Option<GpuContext> {
     match GpuContext::new() {
         Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() == Ok("1") => {
+        Err(e) if gpu_required() => {
             panic!("VOXCOLLIDE_REQUIRE_GPU=1 but there is no adapter: {e}")
         }
         Err(e) => {
@@ -19,6 +19,11 @@ pub fn gpu() -> Option<GpuContext> {
             None
         }
     }
+}
+
+/// Whether GPU checks must run (`VOXCOLLIDE_REQUIRE_GPU=1`, as CI sets it) rather than skip.
+pub fn gpu_required() -> bool {
+    std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() == Ok("1")
 }
 
 /// All eight search × direction × anchor combinations.
