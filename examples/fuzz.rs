@@ -52,7 +52,10 @@ fn main() {
     };
     let adapter = gpu.as_ref().map_or_else(|| "none".to_string(), GpuContext::adapter_name);
     let backends = Backends::new(gpu);
-    println!("{cases} cases from seed {first}; GPU: {adapter} (forces compared bit for bit: {})", backends.gpu_exact);
+    println!(
+        "{cases} cases from seed {first}; GPU: {adapter} (forces compared bit for bit: {})",
+        backends.gpu_exact
+    );
 
     // The watchdog: a case that runs for over a minute is a hang.
     let current = Arc::new(AtomicU64::new(u64::MAX));

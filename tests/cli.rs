@@ -136,7 +136,11 @@ fn bench_sizes_beyond_the_machine_are_clear_errors_before_allocating() {
     ] {
         let output = voxcollide().args(["bench", "--sizes", sizes, "--samples", "1"]).output().unwrap();
         let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(if says == "too large a size" { 2 } else { 1 }), "{sizes}: {stderr}");
+        assert_eq!(
+            output.status.code(),
+            Some(if says == "too large a size" { 2 } else { 1 }),
+            "{sizes}: {stderr}"
+        );
         assert!(stderr.contains(says), "{sizes}: {stderr}");
         assert!(!stderr.contains("panicked") && !stderr.contains("memory allocation"), "{sizes}: {stderr}");
     }

@@ -109,7 +109,8 @@ fn every_case_the_harness_found_stays_fixed() {
 /// and the first seed) on the reference, the parallel backend and the GPU.
 #[test]
 fn twenty_thousand_hostile_cases_agree_on_every_backend() {
-    let env = |name: &str, default: u64| std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default);
+    let env =
+        |name: &str, default: u64| std::env::var(name).ok().and_then(|s| s.parse().ok()).unwrap_or(default);
     let cases = env("VOXCOLLIDE_FUZZ_CASES", 20_000);
     let first = env("VOXCOLLIDE_FUZZ_SEED", 1 << 32);
     let backends = backends();
@@ -136,7 +137,12 @@ fn twenty_thousand_hostile_cases_agree_on_every_backend() {
         backends.gpu.as_ref().map_or_else(|| "no GPU".to_string(), GpuContext::adapter_name),
         failures.len()
     );
-    assert!(failures.is_empty(), "{} of {cases} cases failed:\n{}", failures.len(), failures[..failures.len().min(20)].join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {cases} cases failed:\n{}",
+        failures.len(),
+        failures[..failures.len().min(20)].join("\n")
+    );
     // The generator reaches what it is for: reports with contacts and errors of many kinds.
     assert!(contacts as u64 > cases / 4, "only {contacts} cases with contacts");
     assert!(errors.len() >= 6, "only the errors {errors:?}");

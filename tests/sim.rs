@@ -7,7 +7,8 @@ use voxcollide::glam::Vec3;
 use voxcollide::sim::*;
 
 fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
-    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
 }
 
 fn max_diff(a: &[Vec3], b: &[Vec3]) -> f32 {

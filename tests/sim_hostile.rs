@@ -32,7 +32,10 @@ fn assert_named_or_finite(what: &str, result: Result<(), Error>, scene: &Scene) 
         Err(e) => panic!("{what}: not a simulation error: {e:?}"),
         Ok(()) => {
             for body in [&scene.tissue, &scene.foreign] {
-                assert!(body.pos.iter().chain(&body.vel).all(|v| v.is_finite()), "{what}: a NaN was handed on");
+                assert!(
+                    body.pos.iter().chain(&body.vel).all(|v| v.is_finite()),
+                    "{what}: a NaN was handed on"
+                );
             }
         }
     }
@@ -120,9 +123,16 @@ fn bodies_without_volume_are_errors_or_finite_runs() {
     let disc = bodies::ellipsoid_shell(center, Vec3::new(extent.x, extent.y, 0.0), 6, 12, 0.6, 4.0, material);
     assert!(matches!(&disc, Err(Error::Invalid { what: "spring rest/k", .. })), "{disc:?}");
     // Flattened to 1e-5 of its width, it has (almost) no volume, and runs.
-    let disc =
-        bodies::ellipsoid_shell(center, Vec3::new(extent.x, extent.y, 1e-5 * extent.x), 6, 12, 0.6, 4.0, material)
-            .unwrap();
+    let disc = bodies::ellipsoid_shell(
+        center,
+        Vec3::new(extent.x, extent.y, 1e-5 * extent.x),
+        6,
+        12,
+        0.6,
+        4.0,
+        material,
+    )
+    .unwrap();
     let mut scene = base.clone();
     scene.foreign = disc;
     let mut cpu = CpuSim::new(scene.clone()).unwrap();

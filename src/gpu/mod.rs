@@ -281,9 +281,8 @@ impl GpuCollision {
             base,
             kernels,
             max_per_dim: limits.max_compute_workgroups_per_dimension,
-            max_vertices: [Body::A, Body::B].map(|body| {
-                (binding / bytes_per_vertex(body)).min(crate::cpu::MAX_VERTICES as u64) as u32
-            }),
+            max_vertices: [Body::A, Body::B]
+                .map(|body| (binding / bytes_per_vertex(body)).min(crate::cpu::MAX_VERTICES as u64) as u32),
             max_binding: binding,
             buffers: None,
             bound: None,

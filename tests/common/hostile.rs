@@ -240,7 +240,9 @@ pub fn generate(seed: u64) -> Case {
     let shift = unit * r.pick(&[0.0f32, 0.1, 0.3, 0.5, 0.999, 1.0, 1.5]);
     let mut b = match r.below(3) {
         // A's shape, shifted (coincident at shift 0).
-        0 if !a.is_empty() => (0..nb).map(|j| a[j % a.len()] + Vec3::new(shift, 0.7 * shift, 0.4 * shift)).collect(),
+        0 if !a.is_empty() => {
+            (0..nb).map(|j| a[j % a.len()] + Vec3::new(shift, 0.7 * shift, 0.4 * shift)).collect()
+        }
         1 => body(r, nb, base + Vec3::splat(shift), unit),
         _ => {
             let size = unit * r.range(1, 16) as f32;
@@ -372,13 +374,16 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
         Err(e) => return Ok(Outcome { result: variant(&e), grid_error: true, ..Outcome::default() }),
     };
     let (a, b, params) = (&case.a, &case.b, case.params);
-    let reference = guarded("CpuCollision", || CpuCollision::new(grid, params).and_then(|mut c| c.step(a, b)))?;
-    let parallel =
-        guarded("ParallelCpuCollision", || ParallelCpuCollision::new(grid, params).and_then(|mut c| c.step(a, b)))?;
+    let reference =
+        guarded("CpuCollision", || CpuCollision::new(grid, params).and_then(|mut c| c.step(a, b)))?;
+    let parallel = guarded("ParallelCpuCollision", || {
+        ParallelCpuCollision::new(grid, params).and_then(|mut c| c.step(a, b))
+    })?;
     agree("ParallelCpuCollision", &reference, &parallel, params.magnitude, true)?;
     let mut outcome = Outcome::default();
     if let Some(ctx) = &backends.gpu {
-        let gpu = guarded("GpuCollision", || GpuCollision::new(ctx, grid, params).and_then(|mut g| g.step(a, b)))?;
+        let gpu =
+            guarded("GpuCollision", || GpuCollision::new(ctx, grid, params).and_then(|mut g| g.step(a, b)))?;
         agree("GpuCollision", &reference, &gpu, params.magnitude, backends.gpu_exact)?;
         outcome.gpu_ran = true;
     }
@@ -413,9 +418,10 @@ fn agree(
             Ok(())
         }
         (Ok(_), Err(g)) => Err(format!("{who}: error {g:?} where the reference reports")),
-        (Err(e), Ok(r)) => {
-            Err(format!("{who}: a report ({} contacts) where the reference fails with {e:?}", r.colliding_b.len()))
-        }
+        (Err(e), Ok(r)) => Err(format!(
+            "{who}: a report ({} contacts) where the reference fails with {e:?}",
+            r.colliding_b.len()
+        )),
         (Ok(e), Ok(g)) => {
             if e.colliding_b != g.colliding_b {
                 let first = e.colliding_b.iter().zip(&g.colliding_b).position(|(x, y)| x != y);
@@ -433,11 +439,18 @@ fn agree(
                 ));
             }
             if e.grid_center.to_array().map(f32::to_bits) != g.grid_center.to_array().map(f32::to_bits) {
-                return Err(format!("{who}: grid center {}, the reference's {}", g.grid_center, e.grid_center));
+                return Err(format!(
+                    "{who}: grid center {}, the reference's {}",
+                    g.grid_center, e.grid_center
+                ));
             }
             for (name, fe, fg) in [("force_a", &e.force_a, &g.force_a), ("force_b", &e.force_b, &g.force_b)] {
                 if fe.len() != fg.len() {
-                    return Err(format!("{who}: {name} has {} entries, the reference's {}", fg.len(), fe.len()));
+                    return Err(format!(
+                        "{who}: {name} has {} entries, the reference's {}",
+                        fg.len(),
+                        fe.len()
+                    ));
                 }
                 for (i, (x, y)) in fe.iter().zip(fg).enumerate() {
                     let same = if exact {
@@ -446,7 +459,9 @@ fn agree(
                         (*x - *y).abs().max_element() <= 1e-5 * m
                     };
                     if !same {
-                        return Err(format!("{who}: {name}[{i}] = {y}, the reference's {x} (exact: {exact})"));
+                        return Err(format!(
+                            "{who}: {name}[{i}] = {y}, the reference's {x} (exact: {exact})"
+                        ));
                     }
                 }
             }
@@ -458,7 +473,13 @@ fn agree(
 /// The invariants of DESIGN §2 that a report keeps whatever its inputs.
 pub fn invariants(r: &ContactReport, a: &[Vec3], b: &[Vec3], m: f32) -> Result<(), String> {
     if r.force_a.len() != a.len() || r.force_b.len() != b.len() {
-        return Err(format!("lengths {} / {} for bodies of {} / {}", r.force_a.len(), r.force_b.len(), a.len(), b.len()));
+        return Err(format!(
+            "lengths {} / {} for bodies of {} / {}",
+            r.force_a.len(),
+            r.force_b.len(),
+            a.len(),
+            b.len()
+        ));
     }
     if r.binned_a as usize + r.discarded_a as usize != a.len() {
         return Err(format!("binned {} + discarded {} != |A| {}", r.binned_a, r.discarded_a, a.len()));
