@@ -376,14 +376,27 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
     let (a, b, params) = (&case.a, &case.b, case.params);
     let reference =
         guarded("CpuCollision", || CpuCollision::new(grid, params).and_then(|mut c| c.step(a, b)))?;
+    // Each fast backend steps twice: a warm step reuses its buffers (the parallel one its
+    // report's vectors too) and must give the same report again.
     let parallel = guarded("ParallelCpuCollision", || {
-        ParallelCpuCollision::new(grid, params).and_then(|mut c| c.step(a, b))
+        ParallelCpuCollision::new(grid, params).map(|mut c| {
+            let first = c.step(a, b);
+            let mut again = first.clone().unwrap_or_default();
+            let second = c.step_into(a, b, &mut again).map(|()| again);
+            (first, second)
+        })
     })?;
+    let parallel = warm("ParallelCpuCollision", parallel, params.magnitude)?;
     agree("ParallelCpuCollision", &reference, &parallel, params.magnitude, true)?;
     let mut outcome = Outcome::default();
     if let Some(ctx) = &backends.gpu {
-        let gpu =
-            guarded("GpuCollision", || GpuCollision::new(ctx, grid, params).and_then(|mut g| g.step(a, b)))?;
+        let gpu = guarded("GpuCollision", || {
+            GpuCollision::new(ctx, grid, params).map(|mut g| {
+                let first = g.step(a, b);
+                (first, g.step(a, b))
+            })
+        })?;
+        let gpu = warm("GpuCollision", gpu, params.magnitude)?;
         agree("GpuCollision", &reference, &gpu, params.magnitude, backends.gpu_exact)?;
         outcome.gpu_ran = true;
     }
@@ -396,6 +409,19 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
         Err(e) => outcome.result = variant(e),
     }
     Ok(outcome)
+}
+
+type Two = (Result<ContactReport, Error>, Result<ContactReport, Error>);
+
+/// A backend's first step, after checking that its warm second step gave the same bits.
+fn warm(who: &str, steps: Result<Two, Error>, m: f32) -> Result<Result<ContactReport, Error>, String> {
+    match steps {
+        Ok((first, second)) => {
+            agree(&format!("{who} (warm step)"), &first, &second, m, true)?;
+            Ok(first)
+        }
+        Err(e) => Ok(Err(e)),
+    }
 }
 
 /// `actual` agrees with the reference: the same error variant (and for a force overflow the same
