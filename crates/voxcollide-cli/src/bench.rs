@@ -1,0 +1,292 @@
+//! `voxcollide bench`: every backend on DESIGN §7's workloads, against a k-d tree baseline
+//! (`kiddo`: build over A, then each B vertex's nearest A vertex within the radius, on the same
+//! threads), as medians of repeated steps.
+
+use std::time::Instant;
+
+use glam::Vec4;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use serde::Serialize;
+
+use voxcollide::collision::Collision;
+use voxcollide::cpu::CpuCollision;
+use voxcollide::error::Error;
+use voxcollide::gpu::{GpuCollision, GpuContext};
+use voxcollide::parallel::ParallelCpuCollision;
+use voxcollide::params::Search;
+use voxcollide::workload::{Workload, lattice, paper};
+
+/// One measured case.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BenchRow {
+    /// `lattice` or `paper`.
+    pub workload: String,
+    /// The size asked for (vertices per body, about).
+    pub size: usize,
+    /// Vertices per body.
+    pub vertices: usize,
+    /// `cpu_reference`, `parallel_cpu`, `gpu_resident`, `gpu_step` or `kdtree_kiddo`.
+    pub backend: String,
+    /// Median milliseconds per step.
+    pub median_ms: f64,
+    /// Vertices of both bodies per second at the median.
+    pub vertices_per_second: f64,
+    /// The baseline's median over this one's, on the same workload and size: above 1 is faster
+    /// than the k-d tree.
+    pub speedup_vs_kdtree: Option<f64>,
+    /// Steps timed.
+    pub samples: usize,
+    /// The adapter (GPU rows) or `cpu`.
+    pub device: String,
+    /// Threads used by the CPU rows (1 for the reference).
+    pub threads: usize,
+    /// Colliding B vertices found (the same for every backend; the baseline's may differ only
+    /// on exact ties at the radius).
+    pub colliding: usize,
+    /// `gpu_resident` with [`BenchConfig::passes`]: each pass's median (timestamp queries), in
+    /// the order they run; empty otherwise.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub passes: Vec<PassTime>,
+}
+
+/// One GPU pass's median time.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct PassTime {
+    /// The pass, as in [`voxcollide::gpu::PASSES`].
+    pub pass: String,
+    /// Median milliseconds per step.
+    pub median_ms: f64,
+}
+
+/// What to measure.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchConfig {
+    /// Vertices per body.
+    pub sizes: Vec<usize>,
+    /// Timed steps per case (after one warm-up step); the median is reported.
+    pub samples: usize,
+    /// Whether to measure the GPU too (when there is an adapter).
+    pub gpu: bool,
+    /// Whether to measure the single-threaded reference (slow at 1M).
+    pub reference: bool,
+    /// Whether to time each GPU pass of the resident step too (timestamp queries, where the
+    /// adapter has them), in extra steps after the whole-step timing.
+    pub passes: bool,
+}
+
+fn median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    let n = xs.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        xs[n / 2]
+    } else {
+        0.5 * (xs[n / 2 - 1] + xs[n / 2])
+    }
+}
+
+/// Times `f` once to warm up, then `samples` times; returns the median in milliseconds.
+fn time(samples: usize, mut f: impl FnMut() -> Result<usize, Error>) -> Result<(f64, usize), Error> {
+    let colliding = f()?;
+    let mut ms = Vec::with_capacity(samples);
+    for _ in 0..samples {
+        let t = Instant::now();
+        f()?;
+        ms.push(t.elapsed().as_secs_f64() * 1e3);
+    }
+    Ok((median(ms), colliding))
+}
+
+/// Bytes a benchmark case holds per vertex of each body, generously: the two bodies and the
+/// k-d tree's copies, the reference's lists, the parallel backend's sorted copies, slots and
+/// accumulators, the reports and the GPU upload's scratch.
+const BYTES_PER_VERTEX: u64 = 320;
+
+/// Refuses a size beyond a body's vertex limit or beyond this machine's available memory, before
+/// anything is allocated.
+fn check_size(size: usize) -> Result<(), Error> {
+    let invalid = |rule: String| Error::Invalid { what: "bench size", value: size.to_string(), rule };
+    if size > voxcollide::cpu::MAX_VERTICES {
+        return Err(invalid(format!("a body has at most {} vertices", voxcollide::cpu::MAX_VERTICES)));
+    }
+    let needed = (size as u64).saturating_mul(BYTES_PER_VERTEX);
+    if let Some(available) = available_memory()
+        && needed > available
+    {
+        let gib = |b: u64| b as f64 / f64::from(1u32 << 30);
+        return Err(invalid(format!(
+            "needs about {:.1} GiB and this machine has {:.1} GiB available",
+            gib(needed),
+            gib(available)
+        )));
+    }
+    Ok(())
+}
+
+/// The memory available to a new allocation (Linux: `MemAvailable` of /proc/meminfo), or `None`
+/// where it cannot be told.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Runs the benchmark, calling `note` with each row as it is measured.
+///
+/// # Errors
+/// [`Error::Invalid`] for no sizes, a size of 0 or zero samples; errors of the backends.
+pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<BenchRow>, Error> {
+    if config.sizes.is_empty() || config.sizes.contains(&0) || config.samples == 0 {
+        return Err(Error::Invalid {
+            what: "bench sizes/samples",
+            value: format!("{:?} / {}", config.sizes, config.samples),
+            rule: "needs at least one size, every size and the samples above 0".into(),
+        });
+    }
+    for &size in &config.sizes {
+        check_size(size)?;
+    }
+    let ctx = if config.gpu { GpuContext::new().ok() } else { None };
+    let threads = rayon::current_num_threads();
+    let mut rows = Vec::new();
+    for &size in &config.sizes {
+        for (name, make) in
+            [("lattice", lattice as fn(usize, u64) -> Result<Workload, Error>), ("paper", paper)]
+        {
+            let w = make(size, voxcollide::workload::DEFAULT_SEED)?;
+            let n = w.a.len();
+            let mut measured: Vec<(String, f64, String, usize, usize)> = Vec::new();
+            let mut passes = Vec::new();
+            // The baseline: the same answer as lattice(N) (nearest A within the radius).
+            let radius = match lattice(1, 0)?.params.search {
+                Search::Neighbours { radius } => radius,
+                Search::Voxel => 0.9,
+            };
+            let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
+            let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
+            let (ms, colliding) = time(config.samples, || {
+                let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
+                    what: "k-d tree",
+                    value: format!("{e:?}"),
+                    rule: "kiddo could not build it".into(),
+                })?;
+                let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
+                Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
+            })?;
+            measured.push(("kdtree_kiddo".into(), ms, "cpu".into(), threads, colliding));
+            if config.reference {
+                let mut cpu = CpuCollision::new(w.grid, w.params)?;
+                let (ms, c) = time(config.samples, || Ok(cpu.step(&w.a, &w.b)?.colliding_b.len()))?;
+                measured.push(("cpu_reference".into(), ms, "cpu".into(), 1, c));
+            }
+            let mut par = ParallelCpuCollision::new(w.grid, w.params)?;
+            let mut report = Default::default();
+            let (ms, c) = time(config.samples, || {
+                par.step_into(&w.a, &w.b, &mut report)?;
+                Ok(report.colliding_b.len())
+            })?;
+            measured.push(("parallel_cpu".into(), ms, "cpu".into(), threads, c));
+            if let Some(ctx) = &ctx {
+                let mut gpu = GpuCollision::new(ctx, w.grid, w.params)?;
+                let (ms, c) = time(config.samples, || Ok(gpu.step(&w.a, &w.b)?.colliding_b.len()))?;
+                measured.push(("gpu_step".into(), ms, ctx.adapter_name(), 0, c));
+                let (device, queue) = (ctx.device(), ctx.queue());
+                let upload = |points: &[glam::Vec3]| {
+                    let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
+                    wgpu::util::DeviceExt::create_buffer_init(
+                        device,
+                        &wgpu::util::BufferInitDescriptor {
+                            label: Some("bench positions"),
+                            contents: bytemuck::cast_slice(&data),
+                            usage: wgpu::BufferUsages::STORAGE,
+                        },
+                    )
+                };
+                let (ba, bb) = (upload(&w.a), upload(&w.b));
+                let (ms, _) = time(config.samples, || {
+                    let mut encoder = device.create_command_encoder(&Default::default());
+                    gpu.record(&mut encoder, &ba, n as u32, &bb, w.b.len() as u32)?;
+                    queue.submit([encoder.finish()]);
+                    device
+                        .poll(wgpu::PollType::wait_indefinitely())
+                        .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
+                    Ok(0)
+                })?;
+                // The resident step's own contacts, read back after the timing.
+                let c = gpu.read_report()?.colliding_b.len();
+                measured.push(("gpu_resident".into(), ms, ctx.adapter_name(), 0, c));
+                // Per pass, in steps of their own: profiling splits the step into timed passes.
+                if config.passes && gpu.set_profiling(true).is_ok() {
+                    let mut times: Vec<Vec<f64>> = vec![Vec::new(); voxcollide::gpu::PASSES.len()];
+                    time(config.samples, || {
+                        let mut encoder = device.create_command_encoder(&Default::default());
+                        gpu.record(&mut encoder, &ba, n as u32, &bb, w.b.len() as u32)?;
+                        queue.submit([encoder.finish()]);
+                        for (k, (_, ms)) in gpu.pass_times()?.into_iter().enumerate() {
+                            times[k].push(ms);
+                        }
+                        Ok(0)
+                    })?;
+                    gpu.set_profiling(false)?;
+                    passes = voxcollide::gpu::PASSES
+                        .iter()
+                        .zip(times)
+                        .map(|(pass, ms)| PassTime { pass: (*pass).into(), median_ms: median(ms) })
+                        .collect();
+                }
+            }
+            let baseline = measured[0].1;
+            for (backend, ms, device, threads, colliding) in measured {
+                let backend_is_resident = backend == "gpu_resident";
+                let row = BenchRow {
+                    workload: name.into(),
+                    size,
+                    vertices: n,
+                    speedup_vs_kdtree: Some(baseline / ms),
+                    vertices_per_second: (2 * n) as f64 / (ms / 1e3),
+                    median_ms: ms,
+                    backend,
+                    samples: config.samples,
+                    device,
+                    threads,
+                    colliding,
+                    passes: if backend_is_resident { std::mem::take(&mut passes) } else { Vec::new() },
+                };
+                note(&row);
+                rows.push(row);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The rows as a plain-text table.
+#[must_use]
+pub fn table(rows: &[BenchRow]) -> String {
+    let mut out = format!(
+        "{:<8} {:>9} {:<14} {:>11} {:>12} {:>9} {:>8}  {}\n",
+        "workload", "vertices", "backend", "median ms", "vertices/s", "vs kd-tree", "threads", "device"
+    );
+    for r in rows {
+        let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };
+        out += &format!(
+            "{:<8} {:>9} {:<14} {:>11.3} {:>12.3e} {:>9.2}x {:>8}  {}\n",
+            r.workload,
+            r.vertices,
+            r.backend,
+            r.median_ms,
+            r.vertices_per_second,
+            r.speedup_vs_kdtree.unwrap_or(f64::NAN),
+            threads,
+            r.device
+        );
+        if !r.passes.is_empty() {
+            let each: Vec<String> =
+                r.passes.iter().map(|p| format!("{} {:.2}", p.pass, p.median_ms)).collect();
+            out += &format!("{:>19} passes, ms: {}\n", "", each.join(", "));
+        }
+    }
+    out
+}

@@ -1,0 +1,10 @@
+//! The `voxcollide` command's library: the paper's scenes run end to end, with progress,
+//! offscreen pictures, ParaView files and a summary; and the benchmark of every collision backend
+//! against a k-d tree. The binary (`src/main.rs`) is its command line.
+#![doc = include_str!("../README.md")]
+#![deny(missing_docs)]
+
+pub mod bench; //    `voxcollide bench`: every backend against a k-d tree baseline
+pub mod output; //   VTK / ParaView files of the bodies
+pub mod render; //   offscreen PNG pictures with wgpu
+pub mod scenario; // a scene run end to end: backend, frames, files, summary

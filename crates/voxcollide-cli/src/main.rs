@@ -1,0 +1,267 @@
+//! The `voxcollide` command: runs the paper's scenarios and writes what they did.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use voxcollide_cli::scenario::{Backend, RunConfig, run};
+use voxcollide_sim::{Kind, SceneConfig};
+
+/// Collision between soft tissue and foreign bodies with a modified voxel model (Nikolaev, 2013).
+#[derive(Parser, Debug)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run one of the paper's scenarios: pictures (PNG), ParaView files (VTK) and summary.json.
+    Run(RunArgs),
+    /// Time every backend on DESIGN §7's lattice(N) and paper(N) against a k-d tree (kiddo).
+    Bench(BenchArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct BenchArgs {
+    /// Vertices per body, comma-separated; k and M suffixes allowed.
+    #[arg(long, default_value = "10k,100k,1M", value_parser = parse_sizes)]
+    sizes: Sizes,
+    /// Timed steps per case (after a warm-up step); medians are reported.
+    #[arg(long, default_value_t = 5)]
+    samples: usize,
+    /// Skip the GPU even when there is an adapter.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Skip the single-threaded CPU reference (slow at 1M).
+    #[arg(long)]
+    no_reference: bool,
+    /// Also time each GPU pass of the resident step (timestamp queries, where the adapter has
+    /// them), in extra steps after the whole-step timing.
+    #[arg(long)]
+    passes: bool,
+    /// Where to write the table as JSON.
+    #[arg(long, default_value = "out/bench.json")]
+    json: PathBuf,
+}
+
+#[derive(Clone, Debug)]
+struct Sizes(Vec<usize>);
+
+fn parse_sizes(s: &str) -> Result<Sizes, String> {
+    s.split(',')
+        .map(|part| {
+            let part = part.trim();
+            let (digits, mul) = match part.chars().last() {
+                Some('k' | 'K') => (&part[..part.len() - 1], 1_000),
+                Some('m' | 'M') => (&part[..part.len() - 1], 1_000_000),
+                _ => (part, 1),
+            };
+            match digits.parse::<usize>() {
+                Ok(n) if n > 0 => n.checked_mul(mul).ok_or_else(|| format!("{part:?} is too large a size")),
+                _ => Err(format!("{part:?} is not a size such as 10k, 100000 or 1M")),
+            }
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(Sizes)
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum Scenario {
+    /// A stiff cylinder pressed into a tissue layer whose base is held (the paper's Fig. 5).
+    Cylinder,
+    /// An implant inflating on the chest wall under a tissue layer held at its rim (Fig. 6).
+    Implant,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
+enum BackendArg {
+    /// The GPU if there is an adapter (software ones included), else the CPU.
+    Auto,
+    /// The GPU; fails without an adapter.
+    Gpu,
+    /// The CPU reference path.
+    Cpu,
+}
+
+#[derive(clap::Args, Debug)]
+struct RunArgs {
+    /// Which scenario.
+    scenario: Scenario,
+    /// Where to run.
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+    /// Time steps.
+    #[arg(long, default_value_t = 1200)]
+    steps: u64,
+    /// Output directory.
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+    /// Frames written after the initial one (pictures, VTK files, measurements).
+    #[arg(long, default_value_t = 12)]
+    frames: u32,
+    /// Tissue lattice cells across the layer (the simulation's resolution).
+    #[arg(long, default_value_t = 24)]
+    resolution: u32,
+    /// Picture size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "960x600", value_parser = parse_size)]
+    image: (u32, u32),
+    /// Write no pictures.
+    #[arg(long)]
+    no_images: bool,
+    /// Write no VTK files.
+    #[arg(long)]
+    no_vtk: bool,
+    /// Penalty force per contact [default: 4 × stiffness × lattice spacing].
+    #[arg(long)]
+    magnitude: Option<f32>,
+    /// Voxel size, a power of two [default: the coarser lattice spacing, rounded up to one].
+    #[arg(long)]
+    voxel_size: Option<f32>,
+    /// Tissue spring stiffness (the foreign body's is 4× as stiff).
+    #[arg(long, default_value_t = 40.0)]
+    stiffness: f32,
+    /// Final internal pressure of the implant.
+    #[arg(long, default_value_t = 80.0)]
+    pressure: f32,
+}
+
+fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s.split_once('x').ok_or_else(|| format!("{s:?} is not WIDTHxHEIGHT, e.g. 960x600"))?;
+    let parse = |v: &str| v.trim().parse::<u32>().map_err(|e| format!("{v:?} in {s:?}: {e}"));
+    Ok((parse(w)?, parse(h)?))
+}
+
+/// On a machine without a display, Mesa's Vulkan device-select layer (an implicit layer the
+/// loader adds to every instance) tries to connect to a Wayland compositor while the adapters
+/// are enumerated, and libwayland prints `error: XDG_RUNTIME_DIR is invalid or not set` to stderr
+/// on a run that works. The layer only orders adapters by the display they drive, which means
+/// nothing offscreen: with no display, turn it off (its own switch, `NODEVICE_SELECT=1`) before
+/// any adapter is looked for. A value the user set is kept.
+fn keep_offscreen_work_away_from_the_display() {
+    let display = ["WAYLAND_DISPLAY", "DISPLAY"].iter().any(|v| std::env::var_os(v).is_some());
+    if !display && std::env::var_os("NODEVICE_SELECT").is_none() {
+        // SAFETY: called first thing in main, before any other thread exists (nothing reads
+        // the environment concurrently).
+        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
+    }
+}
+
+fn main() -> ExitCode {
+    keep_offscreen_work_away_from_the_display();
+    let args = match Cli::parse().command {
+        Command::Run(args) => args,
+        Command::Bench(args) => return bench(&args),
+    };
+    let kind = match args.scenario {
+        Scenario::Cylinder => Kind::Cylinder,
+        Scenario::Implant => Kind::Implant,
+    };
+    let config = RunConfig {
+        scene: SceneConfig {
+            kind,
+            resolution: args.resolution,
+            steps: args.steps,
+            stiffness: args.stiffness,
+            magnitude: args.magnitude,
+            voxel_size: args.voxel_size,
+            pressure: args.pressure,
+        },
+        backend: match args.backend {
+            BackendArg::Auto => Backend::Auto,
+            BackendArg::Gpu => Backend::Gpu,
+            BackendArg::Cpu => Backend::Cpu,
+        },
+        out: args.out.clone(),
+        frames: args.frames,
+        image: (!args.no_images).then_some(args.image),
+        vtk: !args.no_vtk,
+    };
+    let bar = ProgressBar::new(args.steps);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{bar:40}] {pos}/{len} steps  {per_sec}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    // indicatif drops println when the bar is hidden (stderr not a terminal): notes go to
+    // stderr directly then, so a log still says why the run fell back to the CPU.
+    let result = run(&config, &mut |done| bar.set_position(done), &mut |line| {
+        if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
+    });
+    bar.finish_and_clear();
+    match result {
+        Ok(s) => {
+            let last = s.frames.last().cloned().unwrap_or_default();
+            println!("{:<28} {}", "scenario", s.scenario);
+            println!("{:<28} {} ({})", "backend", s.backend, s.adapter);
+            println!("{:<28} {} tissue (B), {} {} (A)", "vertices", s.vertices_b, s.vertices_a, s.scenario);
+            println!("{:<28} {} × dt {:.2e}, {:.0} steps/s", "steps", s.steps, s.dt, s.steps_per_second);
+            println!("{:<28} {:.3} (voxel size {})", "max penetration", s.max_penetration, s.voxel_size);
+            println!("{:<28} {:.2} %", "penetrating tissue", 100.0 * s.penetrating_fraction);
+            println!(
+                "{:<28} {:.3} ({:.0} % of the layer's {:.3})",
+                "max tissue displacement",
+                s.max_tissue_displacement,
+                100.0 * s.max_tissue_displacement / s.layer_thickness,
+                s.layer_thickness
+            );
+            println!("{:<28} {}", "contacts at the end", last.colliding);
+            println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn bench(args: &BenchArgs) -> ExitCode {
+    let config = voxcollide_cli::bench::BenchConfig {
+        sizes: args.sizes.0.clone(),
+        samples: args.samples,
+        gpu: !args.no_gpu,
+        reference: !args.no_reference,
+        passes: args.passes,
+    };
+    println!("{}", voxcollide_cli::bench::table(&[]).trim_end());
+    let result = voxcollide_cli::bench::run(&config, &mut |row| {
+        print!(
+            "{}",
+            voxcollide_cli::bench::table(std::slice::from_ref(row))
+                .lines()
+                .skip(1)
+                .map(|l| format!("{l}\n"))
+                .collect::<String>()
+        )
+    });
+    match result {
+        Ok(rows) => {
+            let written = args
+                .json
+                .parent()
+                .map_or(Ok(()), |dir| {
+                    if dir.as_os_str().is_empty() { Ok(()) } else { std::fs::create_dir_all(dir) }
+                })
+                .and_then(|()| {
+                    std::fs::write(&args.json, serde_json::to_string_pretty(&rows).unwrap_or_default() + "\n")
+                });
+            match written {
+                Ok(()) => {
+                    println!("written: {}", args.json.display());
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("error: {}: {e}", args.json.display());
+                    ExitCode::FAILURE
+                }
+            }
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,180 @@
+//! The `voxcollide` command as a user runs it.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::process::Command;
+
+fn voxcollide() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+}
+
+#[test]
+fn run_implant_prints_a_table_and_writes_its_files() {
+    let out = std::env::temp_dir().join(format!("voxcollide-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let output = voxcollide()
+        .args([
+            "run",
+            "implant",
+            "--backend",
+            "cpu",
+            "--resolution",
+            "8",
+            "--steps",
+            "40",
+            "--frames",
+            "2",
+            "--no-images",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    for line in ["scenario", "backend", "max penetration", "penetrating tissue", "max tissue displacement"] {
+        assert!(stdout.contains(line), "no {line:?} in:\n{stdout}");
+    }
+    assert!(stdout.contains("implant") && stdout.contains("cpu"));
+    assert!(out.join("summary.json").is_file() && out.join("tissue.pvd").is_file());
+}
+
+#[test]
+fn without_an_adapter_the_main_job_runs_on_the_cpu_and_says_why() {
+    // No adapter matches the name asked for: `--backend auto` (the default) falls back to the
+    // CPU, says so while running, and names the reason in the table and in summary.json.
+    let out = std::env::temp_dir().join(format!("voxcollide-noadapter-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let output = voxcollide()
+        .args(["run", "implant", "--resolution", "8", "--steps", "30", "--frames", "1", "--out"])
+        .arg(&out)
+        .env("WGPU_ADAPTER_NAME", "no-such-adapter")
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("cpu (no GPU adapter: ") && stdout.contains("no-such-adapter"), "{stdout}");
+    assert!(format!("{stdout}{stderr}").contains("running on the CPU"), "{stdout}\n{stderr}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert!(summary["adapter"].as_str().unwrap().contains("no-such-adapter"), "{summary}");
+    assert!(!out.join("implant_0000.png").exists());
+}
+
+#[test]
+fn bad_arguments_fail_with_a_clear_message() {
+    let output = voxcollide().args(["run", "implant", "--image", "big"]).output().unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("WIDTHxHEIGHT"));
+
+    let output = voxcollide()
+        .args(["run", "implant", "--backend", "cpu", "--resolution", "1", "--no-images"])
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(stderr.contains("resolution = 1 is invalid"), "{stderr}");
+
+    let output = voxcollide().args(["run", "kidney"]).output().unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("cylinder"));
+}
+
+#[test]
+fn bench_prints_every_backend_and_writes_json() {
+    let json = std::env::temp_dir().join(format!("voxcollide-bench-{}.json", std::process::id()));
+    let output = voxcollide()
+        .args(["bench", "--sizes", "2k", "--samples", "1", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    for backend in ["kdtree_kiddo", "cpu_reference", "parallel_cpu"] {
+        assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
+    }
+    // Where a GPU is required (CI), its rows are there too, and counted with the others below.
+    if common::gpu_required() {
+        for backend in ["gpu_step", "gpu_resident"] {
+            assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
+        }
+    }
+    let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert!(rows.len() >= 6, "{rows:?}");
+    // Every backend finds the same contacts as the reference on the same workload.
+    for workload in ["lattice", "paper"] {
+        let counts: Vec<u64> = rows
+            .iter()
+            .filter(|r| r["workload"] == workload && r["backend"] != "kdtree_kiddo")
+            .map(|r| r["colliding"].as_u64().unwrap())
+            .collect();
+        assert!(counts.windows(2).all(|w| w[0] == w[1]) && counts[0] > 1000, "{workload}: {counts:?}");
+    }
+    let lattice_kdtree =
+        rows.iter().find(|r| r["workload"] == "lattice" && r["backend"] == "kdtree_kiddo").unwrap();
+    let lattice_ref =
+        rows.iter().find(|r| r["workload"] == "lattice" && r["backend"] == "cpu_reference").unwrap();
+    assert_eq!(
+        lattice_kdtree["colliding"], lattice_ref["colliding"],
+        "the baseline answers the same question"
+    );
+
+    let output = voxcollide().args(["bench", "--sizes", "0"]).output().unwrap();
+    assert!(!output.status.success());
+    assert!(String::from_utf8_lossy(&output.stderr).contains("is not a size"));
+}
+
+#[test]
+fn bench_sizes_beyond_the_machine_are_clear_errors_before_allocating() {
+    for (sizes, says) in [
+        ("99999999999999M", "too large a size"),
+        ("5000M", "at most 4294967294 vertices"),
+        ("1000M", "GiB available"),
+        ("10k,1000M", "GiB available"),
+    ] {
+        let output = voxcollide().args(["bench", "--sizes", sizes, "--samples", "1"]).output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(
+            output.status.code(),
+            Some(if says == "too large a size" { 2 } else { 1 }),
+            "{sizes}: {stderr}"
+        );
+        assert!(stderr.contains(says), "{sizes}: {stderr}");
+        assert!(!stderr.contains("panicked") && !stderr.contains("memory allocation"), "{sizes}: {stderr}");
+    }
+}
+
+#[test]
+fn bench_times_every_gpu_pass_when_asked() {
+    // Where the adapter has timestamp queries (lavapipe does): a line of pass times under each
+    // gpu_resident row, and the same in the JSON; nothing of it without --passes.
+    let Some(ctx) = common::gpu() else { return };
+    if !ctx.device().features().contains(voxcollide::wgpu::Features::TIMESTAMP_QUERY) {
+        return;
+    }
+    let json = std::env::temp_dir().join(format!("voxcollide-passes-{}.json", std::process::id()));
+    let output = voxcollide()
+        .args(["bench", "--sizes", "20k", "--samples", "2", "--no-reference", "--passes", "--json"])
+        .arg(&json)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    assert_eq!(stdout.matches("passes, ms: bounds").count(), 2, "{stdout}");
+    let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    for row in rows.as_array().unwrap() {
+        let passes = row.get("passes");
+        if row["backend"] == "gpu_resident" {
+            let passes = passes.and_then(|p| p.as_array()).expect("passes on gpu_resident");
+            let names: Vec<&str> = passes.iter().map(|p| p["pass"].as_str().unwrap()).collect();
+            assert_eq!(names, voxcollide::gpu::PASSES);
+            let probe = passes.iter().find(|p| p["pass"] == "probe").unwrap()["median_ms"].as_f64().unwrap();
+            assert!(probe > 0.0, "the probe was not timed: {row}");
+        } else {
+            assert!(passes.is_none(), "{row}");
+        }
+    }
+}

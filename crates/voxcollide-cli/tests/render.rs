@@ -1,0 +1,457 @@
+//! The offscreen renderer on real meshes: a colour-mapped, shaded sphere, cut-aways, a dented
+//! tissue slab under a cylinder written as PNG, and bad inputs as typed errors.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::path::PathBuf;
+
+use voxcollide::Error;
+use voxcollide::glam::Vec3;
+use voxcollide_cli::render::{Renderer, SHADER, Scene, SceneMesh, write_png};
+
+/// The background, sRGB-encoded: linear 0.8.
+const BACKGROUND: u8 = 231;
+
+/// A closed triangle mesh with a scalar per vertex, built so that every triangle is
+/// counter-clockwise seen from outside.
+#[derive(Default)]
+struct Body {
+    positions: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    scalars: Vec<f32>,
+}
+
+impl Body {
+    fn vertex(&mut self, p: Vec3, s: f32) -> u32 {
+        self.positions.push(p);
+        self.scalars.push(s);
+        (self.positions.len() - 1) as u32
+    }
+
+    /// Adds the triangle wound so that its normal points along `outward`; drops it if it has no
+    /// area (the poles of a UV sphere).
+    fn triangle(&mut self, t: [u32; 3], outward: Vec3) {
+        let [a, b, c] = t.map(|i| self.positions[i as usize]);
+        let n = (b - a).cross(c - a);
+        if n.length() < 1e-9 {
+            return;
+        }
+        self.triangles.push(if n.dot(outward) >= 0.0 { t } else { [t[0], t[2], t[1]] });
+    }
+
+    fn mesh(&self, scalars: bool, base_color: [f32; 3]) -> SceneMesh<'_> {
+        SceneMesh {
+            positions: &self.positions,
+            triangles: &self.triangles,
+            scalars: scalars.then_some(&self.scalars[..]),
+            base_color,
+        }
+    }
+}
+
+/// A UV sphere; the scalar is the x coordinate relative to the centre.
+fn sphere(centre: Vec3, radius: f32, stacks: u32, slices: u32) -> Body {
+    let mut body = Body::default();
+    let mut ring = Vec::new();
+    for i in 0..=stacks {
+        let theta = std::f32::consts::PI * i as f32 / stacks as f32;
+        let row: Vec<u32> = (0..slices)
+            .map(|j| {
+                let phi = std::f32::consts::TAU * j as f32 / slices as f32;
+                let d = Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+                body.vertex(centre + radius * d, d.x * radius)
+            })
+            .collect();
+        ring.push(row);
+    }
+    for i in 0..stacks as usize {
+        for j in 0..slices as usize {
+            let k = (j + 1) % slices as usize;
+            let (a, b, c, d) = (ring[i][j], ring[i][k], ring[i + 1][k], ring[i + 1][j]);
+            for t in [[a, b, c], [a, c, d]] {
+                let mid = t.iter().map(|&v| body.positions[v as usize]).sum::<Vec3>() / 3.0;
+                body.triangle(t, mid - centre);
+            }
+        }
+    }
+    body
+}
+
+/// The depth of the dent a cylinder of radius 0.6 presses into the slab, at (x, z).
+fn dent(x: f32, z: f32) -> f32 {
+    0.35 * (-(x * x + z * z) / 0.45).exp()
+}
+
+/// A tissue slab over [-2, 2]² (top at y = 0, bottom at y = -0.8), its top dented; the scalar
+/// is the displacement (0 off the top surface).
+fn slab(n: usize) -> Body {
+    let mut body = Body::default();
+    let coord = |i: usize| -2.0 + 4.0 * i as f32 / (n - 1) as f32;
+    let mut top = vec![vec![0; n]; n];
+    let mut bottom = vec![vec![0; n]; n];
+    for i in 0..n {
+        for k in 0..n {
+            let (x, z) = (coord(i), coord(k));
+            top[i][k] = body.vertex(Vec3::new(x, -dent(x, z), z), dent(x, z));
+            bottom[i][k] = body.vertex(Vec3::new(x, -0.8, z), 0.0);
+        }
+    }
+    for i in 0..n - 1 {
+        for k in 0..n - 1 {
+            for (grid, up) in [(&top, Vec3::Y), (&bottom, Vec3::NEG_Y)] {
+                let (a, b, c, d) = (grid[i][k], grid[i + 1][k], grid[i + 1][k + 1], grid[i][k + 1]);
+                body.triangle([a, b, c], up);
+                body.triangle([a, c, d], up);
+            }
+        }
+    }
+    // The four sides: walk the boundary of the grid.
+    let mut ring: Vec<(usize, usize)> = (0..n).map(|i| (i, 0)).collect();
+    ring.extend((1..n).map(|k| (n - 1, k)));
+    ring.extend((0..n - 1).rev().map(|i| (i, n - 1)));
+    ring.extend((0..n - 1).rev().map(|k| (0, k)));
+    for w in ring.windows(2) {
+        let ((i0, k0), (i1, k1)) = (w[0], w[1]);
+        let (a, b, c, d) = (top[i0][k0], top[i1][k1], bottom[i1][k1], bottom[i0][k0]);
+        let mid = (body.positions[a as usize] + body.positions[c as usize]) / 2.0;
+        let out = Vec3::new(mid.x, 0.0, mid.z);
+        body.triangle([a, b, c], out);
+        body.triangle([a, c, d], out);
+    }
+    body
+}
+
+/// A closed cylinder along y with its bottom cap at `bottom`.
+fn cylinder(bottom: Vec3, radius: f32, height: f32, slices: u32) -> Body {
+    let mut body = Body::default();
+    let lo_c = body.vertex(bottom, 0.0);
+    let hi_c = body.vertex(bottom + Vec3::Y * height, 0.0);
+    let rim = |body: &mut Body, y: f32| -> Vec<u32> {
+        (0..slices)
+            .map(|j| {
+                let phi = std::f32::consts::TAU * j as f32 / slices as f32;
+                body.vertex(bottom + Vec3::new(radius * phi.cos(), y, radius * phi.sin()), 0.0)
+            })
+            .collect()
+    };
+    let (lo, hi) = (rim(&mut body, 0.0), rim(&mut body, height));
+    for j in 0..slices as usize {
+        let k = (j + 1) % slices as usize;
+        let mid = (body.positions[lo[j] as usize] + body.positions[hi[k] as usize]) / 2.0 - bottom;
+        let out = Vec3::new(mid.x, 0.0, mid.z);
+        body.triangle([lo[j], lo[k], hi[k]], out);
+        body.triangle([lo[j], hi[k], hi[j]], out);
+        body.triangle([lo_c, lo[k], lo[j]], Vec3::NEG_Y);
+        body.triangle([hi_c, hi[j], hi[k]], Vec3::Y);
+    }
+    body
+}
+
+/// A scene of `meshes` seen along `view_dir` with y up, scalars over `range`.
+fn scene<'a>(meshes: Vec<SceneMesh<'a>>, range: (f32, f32), view_dir: Vec3) -> Scene<'a> {
+    Scene { meshes, scalar_range: range, clip: None, view_dir, up: Vec3::Y }
+}
+
+/// The RGBA pixel at column `x`, row `y` (top row 0).
+fn pixel(rgba: &[u8], width: u32, x: u32, y: u32) -> [u8; 4] {
+    let i = 4 * (y * width + x) as usize;
+    [rgba[i], rgba[i + 1], rgba[i + 2], rgba[i + 3]]
+}
+
+fn is_background(p: [u8; 4]) -> bool {
+    p[..3].iter().all(|&c| c.abs_diff(BACKGROUND) <= 1) && p[3] == 255
+}
+
+fn brightness(p: [u8; 4]) -> u32 {
+    p[..3].iter().map(|&c| u32::from(c)).sum()
+}
+
+fn temp_png(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("voxcollide_render_{name}.png"))
+}
+
+/// Decodes a PNG written by `write_png`: (width, height, RGBA bytes).
+fn decode(path: &PathBuf) -> (u32, u32, Vec<u8>) {
+    let file = std::io::BufReader::new(std::fs::File::open(path).unwrap());
+    let mut reader = png::Decoder::new(file).read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!((info.color_type, info.bit_depth), (png::ColorType::Rgba, png::BitDepth::Eight));
+    buf.truncate(info.buffer_size());
+    (info.width, info.height, buf)
+}
+
+#[test]
+fn the_shader_parses_and_validates_with_default_capabilities() {
+    let module = naga::front::wgsl::parse_str(SHADER)
+        .unwrap_or_else(|e| panic!("render.wgsl: {}", e.emit_to_string(SHADER)));
+    let mut validator = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    );
+    if let Err(e) = validator.validate(&module) {
+        panic!("render.wgsl does not validate: {}", e.emit_to_string(SHADER));
+    }
+    let names: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert_eq!(names, ["vs_main", "fs_main"]);
+}
+
+#[test]
+fn write_png_round_trips_and_rejects_bad_input() {
+    let (w, h) = (7, 5);
+    let rgba: Vec<u8> = (0..w * h * 4).map(|i| (i * 37 % 256) as u8).collect();
+    let path = temp_png("round_trip");
+    write_png(&path, w, h, &rgba).unwrap();
+    assert_eq!(decode(&path), (w, h, rgba.clone()));
+
+    let short = write_png(&path, w, h, &rgba[4..]);
+    assert!(matches!(short, Err(Error::Invalid { what: "rgba length", .. })), "{short:?}");
+    let empty = write_png(&path, 0, h, &[]);
+    assert!(matches!(empty, Err(Error::Invalid { what: "width", .. })), "{empty:?}");
+    let dir = std::env::temp_dir().join("voxcollide_render_no_such_dir").join("x.png");
+    let io = write_png(&dir, w, h, &rgba);
+    assert!(
+        matches!(&io, Err(Error::Io { path, .. }) if path.contains("voxcollide_render_no_such_dir")),
+        "{io:?}"
+    );
+}
+
+#[test]
+fn a_sphere_with_a_gradient_is_shaded_and_colour_mapped() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (240, 200);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    assert_eq!(renderer.size(), (w, h));
+    let ball = sphere(Vec3::new(3.0, -1.0, 2.0), 1.0, 32, 64);
+    let rgba = renderer.render(&scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), Vec3::NEG_Z)).unwrap();
+    assert_eq!(rgba.len(), (w * h * 4) as usize);
+    write_png(&temp_png("sphere_gradient"), w, h, &rgba).unwrap();
+
+    let corner = pixel(&rgba, w, 0, 0);
+    let centre = pixel(&rgba, w, w / 2, h / 2);
+    assert!(is_background(corner), "corner {corner:?} is not the background");
+    assert!(!is_background(centre), "centre {centre:?} shows no sphere");
+    assert!(rgba.chunks(4).all(|p| p[3] == 255), "the picture is opaque");
+    let drawn = rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count();
+    // A sphere framed with a small margin covers about pi/4 of the picture's height squared.
+    let share = drawn as f64 / f64::from(h * h);
+    assert!((0.55..0.85).contains(&share), "the sphere covers {share} of h²");
+
+    // The scalar is x: low (viridis violet-blue) on the left, high (green-yellow) on the right.
+    let left = pixel(&rgba, w, w / 2 - h / 5, h / 2);
+    let right = pixel(&rgba, w, w / 2 + h / 5, h / 2);
+    assert!(left[2] > left[1] + 20, "left {left:?} is not the map's low end");
+    assert!(right[1] > right[2] + 40, "right {right:?} is not the map's high end");
+    assert!(right[1] > left[1] && left[2] > right[2], "left {left:?} right {right:?}");
+    // Along the middle row the map runs from low to high: blue over green turns to green over
+    // blue, in the mean of each quarter of the sphere's width.
+    let row: Vec<i32> = (0..w)
+        .map(|x| pixel(&rgba, w, x, h / 2))
+        .filter(|&p| !is_background(p))
+        .map(|p| i32::from(p[2]) - i32::from(p[1]))
+        .collect();
+    assert!(row.len() > 100, "the middle row crosses {} sphere pixels", row.len());
+    let quarter = row.len() / 4;
+    let mean = |s: &[i32]| s.iter().sum::<i32>() / s.len() as i32;
+    let (first, last) = (mean(&row[..quarter]), mean(&row[row.len() - quarter..]));
+    assert!(first > last + 60, "blue minus green: {first} in the left quarter, {last} in the right");
+}
+
+#[test]
+fn a_plain_sphere_is_lit_by_a_headlight() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (160, 160);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 24, 48);
+    let grey = [0.7, 0.7, 0.7];
+    let rgba = renderer.render(&scene(vec![ball.mesh(false, grey)], (0.0, 1.0), Vec3::NEG_Z)).unwrap();
+    let centre = pixel(&rgba, w, w / 2, h / 2);
+    let limb = pixel(&rgba, w, w / 2 + 2 * w / 5, h / 2);
+    assert!(!is_background(limb), "{limb:?} should be near the right edge of the sphere");
+    assert!(brightness(centre) > brightness(limb) + 60, "centre {centre:?} limb {limb:?}: not Lambert-lit");
+    // Without scalars every pixel is the base colour, shaded: a grey.
+    for p in rgba.chunks(4) {
+        let spread = p[..3].iter().max().unwrap() - p[..3].iter().min().unwrap();
+        assert!(spread <= 2, "pixel {p:?} is not grey");
+    }
+    // Deterministic: the same scene gives the same bytes.
+    let again = renderer.render(&scene(vec![ball.mesh(false, grey)], (0.0, 1.0), Vec3::NEG_Z)).unwrap();
+    assert!(rgba == again, "a second render differs");
+}
+
+#[test]
+fn a_clip_facing_the_camera_shows_the_inside() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (160, 120);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 24, 48);
+    let mut s = scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), Vec3::NEG_Z);
+    let whole = renderer.render(&s).unwrap();
+    // Keep z <= 0, the far half: the near half, the front face the camera saw, is cut away.
+    s.clip = Some((Vec3::ZERO, Vec3::NEG_Z));
+    let cut = renderer.render(&s).unwrap();
+    write_png(&temp_png("sphere_front_cut"), w, h, &cut).unwrap();
+
+    let (before, after) = (pixel(&whole, w, w / 2, h / 2), pixel(&cut, w, w / 2, h / 2));
+    assert!(!is_background(after), "the inside {after:?} should show through the cut");
+    // The inside is drawn darker and greyer than the outside, so it reads as inside.
+    let spread = |p: [u8; 4]| p[..3].iter().max().unwrap() - p[..3].iter().min().unwrap();
+    assert!(
+        brightness(after) * 10 < brightness(before) * 9 && spread(after) * 2 < spread(before),
+        "centre {before:?} before the cut, {after:?} after: the inside should be darker and greyer"
+    );
+    // The outline stays where it was: the far half has the same silhouette.
+    for x in [w / 2 - h / 3, w / 2 + h / 3] {
+        let (b, a) = (pixel(&whole, w, x, h / 2), pixel(&cut, w, x, h / 2));
+        assert_eq!(is_background(b), is_background(a), "column {x}: {b:?} vs {a:?}");
+    }
+}
+
+#[test]
+fn a_side_clip_removes_the_cut_half() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (160, 120);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 24, 48);
+    let mut s = scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), Vec3::new(0.3, -0.2, -1.0));
+    // The low scalars are at x < 0: blue-dominant pixels (viridis below about 0.45).
+    let low = |p: &[u8]| p[2] > p[1] + 10;
+    let whole = renderer.render(&s).unwrap();
+    assert!(whole.chunks(4).filter(|p| low(p)).count() > 1000, "the whole sphere shows its low half");
+    s.clip = Some((Vec3::ZERO, Vec3::X));
+    let cut = renderer.render(&s).unwrap();
+    write_png(&temp_png("sphere_side_cut"), w, h, &cut).unwrap();
+    let left = cut.chunks(4).filter(|p| low(p)).count();
+    assert_eq!(left, 0, "{left} pixels of the cut-away half (x < 0) are still drawn");
+    let drawn = cut.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count();
+    // The kept half is framed: it fills the picture about as the whole sphere did.
+    assert!(drawn > (w * h / 4) as usize, "only {drawn} pixels of the kept half are drawn");
+}
+
+#[test]
+fn a_dented_slab_under_a_cylinder_cut_away_is_written_as_png() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (640, 400);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let tissue = slab(61);
+    let tool = cylinder(Vec3::new(0.0, -dent(0.0, 0.0), 0.0), 0.6, 1.6, 48);
+    let mut s = scene(
+        vec![tissue.mesh(true, [0.8, 0.6, 0.5]), tool.mesh(false, [0.35, 0.45, 0.6])],
+        (0.0, dent(0.0, 0.0)),
+        Vec3::new(-0.5, -0.6, -1.0),
+    );
+    // Cut both bodies open through the contact: keep z <= 0, facing the camera.
+    s.clip = Some((Vec3::ZERO, Vec3::NEG_Z));
+    let path = temp_png("slab_cylinder_cut");
+    renderer.render_png(&s, &path).unwrap();
+    let (dw, dh, rgba) = decode(&path);
+    assert_eq!((dw, dh), (w, h));
+    assert_eq!(rgba, renderer.render(&s).unwrap(), "the file holds the rendered bytes");
+    let drawn = rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count();
+    assert!(drawn > (w * h / 4) as usize, "only {drawn} pixels drawn");
+    // The dent's bottom maps to the high end (yellow: red and green well over blue) somewhere.
+    let yellow = rgba.chunks(4).filter(|p| p[0] > p[2] + 60 && p[1] > p[2] + 60).count();
+    assert!(yellow > 50, "{yellow} pixels show the deepest part of the dent");
+    // The cylinder is drawn in its own blue-grey.
+    let tool_px = rgba.chunks(4).filter(|p| p[2] > p[0] + 15 && p[1] > p[0] && p[2] > p[1]).count();
+    assert!(tool_px > 200, "{tool_px} pixels show the cylinder");
+}
+
+#[test]
+fn equal_range_ends_draw_one_colour() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (96, 96);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 16, 32);
+    let rgba = renderer.render(&scene(vec![ball.mesh(true, [1.0; 3])], (0.25, 0.25), Vec3::NEG_Z)).unwrap();
+    // One hue everywhere: viridis' low end, violet (blue over red over green), only shaded.
+    for p in rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])) {
+        assert!(p[2] >= p[0] && p[0] >= p[1], "pixel {p:?} is not the low-end violet");
+    }
+}
+
+#[test]
+fn broken_vertices_lose_their_triangles_not_the_picture() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (96, 96);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let mut ball = sphere(Vec3::ZERO, 1.0, 16, 32);
+    ball.positions[40] = Vec3::NAN;
+    ball.positions[41] = Vec3::new(f32::INFINITY, 0.0, 0.0);
+    ball.scalars[100] = f32::NAN;
+    let rgba =
+        renderer.render(&scene(vec![ball.mesh(true, [1.0, 0.0, 0.0])], (-1.0, 1.0), Vec3::NEG_Z)).unwrap();
+    assert!(!is_background(pixel(&rgba, w, w / 2, h / 2)), "the sphere is still drawn");
+
+    // Nothing finite, or nothing at all, to draw: the background alone.
+    let nan = [Vec3::NAN; 3];
+    let broken = SceneMesh { positions: &nan, triangles: &[[0, 1, 2]], scalars: None, base_color: [0.0; 3] };
+    for meshes in [vec![broken], vec![]] {
+        let rgba = renderer.render(&scene(meshes, (0.0, 1.0), Vec3::NEG_Z)).unwrap();
+        assert!(rgba.chunks(4).all(|p| is_background([p[0], p[1], p[2], p[3]])), "not all background");
+    }
+}
+
+#[test]
+fn a_growing_scene_reuses_the_renderer() {
+    let Some(ctx) = common::gpu() else { return };
+    let mut renderer = Renderer::new(&ctx, 64, 48).unwrap();
+    for stacks in [4, 64, 8, 128] {
+        let ball = sphere(Vec3::ZERO, 1.0, stacks, 2 * stacks);
+        let rgba = renderer.render(&scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), Vec3::Y)).unwrap();
+        assert!(!is_background(pixel(&rgba, 64, 32, 24)), "{stacks} stacks: no sphere");
+    }
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let Some(ctx) = common::gpu() else { return };
+    let max = ctx.device().limits().max_texture_dimension_2d;
+    for (w, h, what) in [(0, 10, "width"), (10, 0, "height"), (max + 1, 10, "width"), (10, max + 1, "height")]
+    {
+        let e = Renderer::new(&ctx, w, h).unwrap_err();
+        assert!(matches!(&e, Error::Invalid { what: got, .. } if *got == what), "{w}×{h}: {e}");
+    }
+
+    let mut renderer = Renderer::new(&ctx, 32, 32).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 8, 16);
+    let invalid = |renderer: &mut Renderer, s: &Scene, expected: &str| {
+        let e = renderer.render(s).unwrap_err();
+        assert!(matches!(&e, Error::Invalid { what, .. } if *what == expected), "expected {expected}: {e}");
+        println!("{e}");
+    };
+    let short = &ball.scalars[1..];
+    let mesh = SceneMesh { scalars: Some(short), ..ball.mesh(true, [1.0; 3]) };
+    invalid(&mut renderer, &scene(vec![mesh], (0.0, 1.0), Vec3::NEG_Z), "scalars length");
+
+    let mut triangles = ball.triangles.clone();
+    triangles[5][1] = ball.positions.len() as u32;
+    let mesh = SceneMesh { triangles: &triangles, ..ball.mesh(true, [1.0; 3]) };
+    invalid(&mut renderer, &scene(vec![mesh], (0.0, 1.0), Vec3::NEG_Z), "triangle index");
+
+    let ok = || ball.mesh(true, [1.0; 3]);
+    invalid(&mut renderer, &scene(vec![ok()], (0.0, 1.0), Vec3::ZERO), "view_dir");
+    invalid(&mut renderer, &scene(vec![ok()], (0.0, f32::NAN), Vec3::NEG_Z), "scalar_range");
+    invalid(
+        &mut renderer,
+        &scene(vec![ball.mesh(false, [f32::NAN; 3])], (0.0, 1.0), Vec3::NEG_Z),
+        "base_color",
+    );
+    let mut s = scene(vec![ok()], (0.0, 1.0), Vec3::NEG_Z);
+    for clip in [(Vec3::ZERO, Vec3::ZERO), (Vec3::NAN, Vec3::X), (Vec3::ZERO, Vec3::splat(f32::INFINITY))] {
+        s.clip = Some(clip);
+        invalid(&mut renderer, &s, "clip");
+    }
+
+    // The renderer still works after rejecting input, and an up parallel to the view is fixed.
+    let mut s = scene(vec![ok()], (0.0, 1.0), Vec3::NEG_Z);
+    s.up = Vec3::Z;
+    let rgba = renderer.render(&s).unwrap();
+    assert!(!is_background(pixel(&rgba, 32, 16, 16)));
+
+    let mut failing = Renderer::new(&ctx, 8, 8).unwrap();
+    let path = std::env::temp_dir().join("voxcollide_render_no_such_dir").join("x.png");
+    let e = failing.render_png(&s, &path).unwrap_err();
+    assert!(matches!(e, Error::Io { .. }), "{e}");
+}

@@ -1,0 +1,10 @@
+//! The renderer's shader parses and validates with naga and default capabilities (no GPU
+//! needed).
+
+#[path = "../../voxcollide/tests/common/wgsl.rs"]
+mod wgsl;
+
+#[test]
+fn the_render_shader_validates() {
+    wgsl::validate("render", voxcollide_cli::render::SHADER, &["vs_main", "fs_main"]);
+}

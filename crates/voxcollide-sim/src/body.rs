@@ -1,0 +1,333 @@
+//! A mass-spring body: vertices with velocities, nonlinear springs, pinned and driven vertices,
+//! its surface, and the CPU force and integration steps (the CPU twins of `shaders/forces.wgsl`
+//! and `shaders/integrate.wgsl`).
+
+use glam::Vec3;
+
+use voxcollide::error::Error;
+use voxcollide::math::{cross, dot};
+use crate::mesh::TriangleMesh;
+
+/// How a vertex moves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u32)]
+pub enum Mode {
+    /// Integrated from its forces.
+    Free = 0,
+    /// Held at its rest position.
+    Pinned = 1,
+    /// Held at its rest position plus the body's drive offset (a kinematic boundary).
+    Driven = 2,
+}
+
+/// A spring between two vertices with rest length `rest` and stiffness `k`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Spring {
+    /// One end.
+    pub i: u32,
+    /// The other end.
+    pub j: u32,
+    /// Rest length at rest scale 1.
+    pub rest: f32,
+    /// Stiffness (force per unit of extension at small strain).
+    pub k: f32,
+}
+
+/// The material and integration constants of a body.
+///
+/// **Spring law** (nonlinear, strain-stiffening, as soft tissue is): with length `L`, rest
+/// length `L0 = rest * rest_scale` and strain `s = (L - L0) / L0`, the spring pulls its ends
+/// together with `f = k * (L - L0) * (1 + stiffening * s^2)` along the spring, plus damping
+/// `spring_damping * dot(v_j - v_i, u)` along it. Every vertex also feels `-damping * v`
+/// (a viscous medium) and its contact force.
+///
+/// **Integrator**: semi-implicit (symplectic) Euler, `v += dt * f / mass; x += dt * v`. It is
+/// stable while `dt <= 2 / omega_max` with `omega_max^2 = max over vertices of 4 * (sum of its
+/// springs' k) * (1 + 3 * stiffening * s_max^2) / mass_i` (the Gershgorin bound of the
+/// stiffness matrix at strain `s_max`); [`MassSpring::stable_dt`] returns half of it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    /// Mass of every vertex.
+    pub mass: f32,
+    /// The `stiffening` factor of the spring law (0: linear springs).
+    pub stiffening: f32,
+    /// Damping along each spring.
+    pub spring_damping: f32,
+    /// Viscous damping of every vertex.
+    pub damping: f32,
+}
+
+/// A lattice of vertices joined by springs.
+#[derive(Clone, Debug)]
+pub struct MassSpring {
+    /// Where each vertex starts (and where pinned and driven vertices are anchored).
+    pub rest_pos: Vec<Vec3>,
+    /// Current positions.
+    pub pos: Vec<Vec3>,
+    /// Current velocities.
+    pub vel: Vec<Vec3>,
+    /// How each vertex moves.
+    pub mode: Vec<Mode>,
+    /// The springs.
+    pub springs: Vec<Spring>,
+    /// The outer surface, for pictures, files and the inside test.
+    pub surface: TriangleMesh,
+    /// Material constants.
+    pub material: Material,
+    /// Per vertex, its springs as `(other vertex, spring index)`, in CSR form: the entries of
+    /// vertex `i` are `adjacency[offsets[i]..offsets[i + 1]]`. Forces are summed in this order
+    /// on the CPU and the GPU alike.
+    pub offsets: Vec<u32>,
+    /// See `offsets`.
+    pub adjacency: Vec<[u32; 2]>,
+    /// Per vertex, `1 / mass`: the material's mass scaled by the vertex's spring count over
+    /// [`REFERENCE_DEGREE`] (at least 1), so that hubs (poles, axes) are not the stiffest
+    /// oscillators and do not dictate the time step.
+    pub inv_mass: Vec<f32>,
+    /// Per vertex, the surface triangles around it, in CSR form like `offsets`/`adjacency`
+    /// (for the pressure force).
+    pub tri_offsets: Vec<u32>,
+    /// See `tri_offsets`.
+    pub tri_adjacency: Vec<u32>,
+}
+
+/// The spring count of an interior vertex of the tissue lattice; vertices with more springs
+/// get proportionally more mass.
+pub const REFERENCE_DEGREE: f32 = 18.0;
+
+/// What changes from step to step: the time step, the growth of rest lengths and the drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepInputs {
+    /// Time step.
+    pub dt: f32,
+    /// Rest lengths are `rest * rest_scale` (an inflating implant grows it).
+    pub rest_scale: f32,
+    /// Driven vertices sit at `rest_pos + drive`.
+    pub drive: Vec3,
+    /// Pressure inside the closed surface, pushing every surface triangle outward (an
+    /// inflating implant); 0 for none.
+    pub pressure: f32,
+    /// Free vertices are kept at `z >= floor` (the chest wall); `f32::MIN` for none.
+    pub floor: f32,
+}
+
+impl MassSpring {
+    /// A body at rest at `positions`.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a spring or triangle index out of range, a non-finite position,
+    /// or a non-positive rest length, stiffness or mass.
+    pub fn new(
+        positions: Vec<Vec3>,
+        mode: Vec<Mode>,
+        springs: Vec<Spring>,
+        surface: TriangleMesh,
+        material: Material,
+    ) -> Result<MassSpring, Error> {
+        let n = positions.len();
+        let invalid = |what, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
+        if mode.len() != n {
+            return Err(invalid(
+                "mode length",
+                mode.len().to_string(),
+                &format!("must equal the {n} vertices"),
+            ));
+        }
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(invalid(
+                "vertex position",
+                format!("{} (vertex {i})", positions[i]),
+                "must be finite",
+            ));
+        }
+        for s in &springs {
+            if s.i as usize >= n || s.j as usize >= n || s.i == s.j {
+                return Err(invalid(
+                    "spring",
+                    format!("{}-{}", s.i, s.j),
+                    &format!("needs two distinct vertices below {n}"),
+                ));
+            }
+            if !(s.rest > 0.0 && s.k > 0.0 && s.rest.is_finite() && s.k.is_finite()) {
+                return Err(invalid(
+                    "spring rest/k",
+                    format!("{}/{}", s.rest, s.k),
+                    "must be finite and positive",
+                ));
+            }
+        }
+        if let Some(t) = surface.triangles.iter().find(|t| t.iter().any(|&v| v as usize >= n)) {
+            return Err(invalid("triangle", format!("{t:?}"), &format!("indices must be below {n}")));
+        }
+        if !(material.mass > 0.0 && material.mass.is_finite()) {
+            return Err(invalid("mass", material.mass.to_string(), "must be finite and positive"));
+        }
+        let mut degree = vec![0u32; n];
+        for s in &springs {
+            degree[s.i as usize] += 1;
+            degree[s.j as usize] += 1;
+        }
+        let mut offsets = vec![0u32; n + 1];
+        for i in 0..n {
+            offsets[i + 1] = offsets[i] + degree[i];
+        }
+        let mut fill = offsets.clone();
+        let mut adjacency = vec![[0u32; 2]; offsets[n] as usize];
+        for (k, s) in springs.iter().enumerate() {
+            for (a, b) in [(s.i, s.j), (s.j, s.i)] {
+                adjacency[fill[a as usize] as usize] = [b, k as u32];
+                fill[a as usize] += 1;
+            }
+        }
+        let inv_mass =
+            degree.iter().map(|&d| 1.0 / (material.mass * (d as f32 / REFERENCE_DEGREE).max(1.0))).collect();
+        let mut tri_offsets = vec![0u32; n + 1];
+        for t in &surface.triangles {
+            for &v in t {
+                tri_offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            tri_offsets[i + 1] += tri_offsets[i];
+        }
+        let mut fill = tri_offsets.clone();
+        let mut tri_adjacency = vec![0u32; tri_offsets[n] as usize];
+        for (k, t) in surface.triangles.iter().enumerate() {
+            for &v in t {
+                tri_adjacency[fill[v as usize] as usize] = k as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Ok(MassSpring {
+            inv_mass,
+            tri_offsets,
+            tri_adjacency,
+            vel: vec![Vec3::ZERO; n],
+            pos: positions.clone(),
+            rest_pos: positions,
+            mode,
+            springs,
+            surface,
+            material,
+            offsets,
+            adjacency,
+        })
+    }
+
+    /// Number of vertices.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.pos.len()
+    }
+
+    /// Whether the body has no vertex.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.pos.is_empty()
+    }
+
+    /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`.
+    #[must_use]
+    pub fn stable_dt(&self, s_max: f32) -> f32 {
+        let m = &self.material;
+        let stiffen = 1.0 + 3.0 * m.stiffening * s_max * s_max;
+        let omega2 = (0..self.len())
+            .map(|i| {
+                let adj = &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize];
+                4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>()
+                    * stiffen
+                    * self.inv_mass[i]
+            })
+            .fold(0.0f32, f32::max);
+        if omega2 > 0.0 { 0.5 * 2.0 / omega2.sqrt() } else { f32::INFINITY }
+    }
+
+    /// The force on every vertex (springs, damping and `contact`), summed per vertex over its
+    /// springs in adjacency order. CPU twin of `shaders/forces.wgsl`.
+    pub fn forces(&self, inputs: &StepInputs, contact: &[Vec3], out: &mut Vec<Vec3>) {
+        out.clear();
+        let m = &self.material;
+        out.extend((0..self.len()).map(|i| {
+            let (x, v) = (self.pos[i], self.vel[i]);
+            let mut f = contact[i] - m.damping * v;
+            for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
+                let s = self.springs[k as usize];
+                f += spring_force(
+                    x,
+                    v,
+                    self.pos[j as usize],
+                    self.vel[j as usize],
+                    s.rest * inputs.rest_scale,
+                    s.k,
+                    m,
+                );
+            }
+            if inputs.pressure != 0.0 {
+                // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.
+                for &t in &self.tri_adjacency[self.tri_offsets[i] as usize..self.tri_offsets[i + 1] as usize]
+                {
+                    let [a, b, c] = self.surface.triangles[t as usize].map(|v| self.pos[v as usize]);
+                    f += (inputs.pressure / 6.0) * cross(b - a, c - a);
+                }
+            }
+            f
+        }));
+    }
+
+    /// One integration step with the forces `f`. CPU twin of `shaders/integrate.wgsl`.
+    #[allow(clippy::needless_range_loop)] // one index over five arrays, as the shader has it
+    pub fn integrate(&mut self, inputs: &StepInputs, f: &[Vec3]) {
+        for i in 0..self.len() {
+            match self.mode[i] {
+                Mode::Free => {
+                    self.vel[i] += inputs.dt * (f[i] * self.inv_mass[i]);
+                    self.pos[i] += inputs.dt * self.vel[i];
+                    if self.pos[i].z < inputs.floor {
+                        self.pos[i].z = inputs.floor;
+                        self.vel[i].z = self.vel[i].z.max(0.0);
+                    }
+                }
+                Mode::Pinned => {
+                    self.pos[i] = self.rest_pos[i];
+                    self.vel[i] = Vec3::ZERO;
+                }
+                Mode::Driven => {
+                    let target = self.rest_pos[i] + inputs.drive;
+                    self.vel[i] = (target - self.pos[i]) / inputs.dt;
+                    self.pos[i] = target;
+                }
+            }
+        }
+    }
+
+    /// The first vertex whose position is not finite or whose speed exceeds `v_max`.
+    #[must_use]
+    pub fn blow_up(&self, v_max: f32) -> Option<(usize, String)> {
+        self.pos.iter().zip(&self.vel).enumerate().find_map(|(i, (p, v))| {
+            if !p.is_finite() || !v.is_finite() {
+                Some((i, format!("vertex {i} has a non-finite position or velocity")))
+            } else if v.length() > v_max {
+                Some((i, format!("vertex {i} moves at {:.3e}, above the limit {v_max:.3e}", v.length())))
+            } else {
+                None
+            }
+        })
+    }
+}
+
+/// The force of one spring on its end `x` (velocity `v`) from the other end `y` (velocity `w`):
+/// the nonlinear spring law plus damping along the spring. Written term by term as in
+/// `shaders/forces.wgsl`.
+#[must_use]
+pub fn spring_force(x: Vec3, v: Vec3, y: Vec3, w: Vec3, rest: f32, k: f32, m: &Material) -> Vec3 {
+    let d = y - x;
+    let len = dot(d, d).sqrt();
+    if len < 1e-12 {
+        return Vec3::ZERO;
+    }
+    let u = d / len;
+    let strain = (len - rest) / rest;
+    let tension = k * (len - rest) * (1.0 + m.stiffening * strain * strain);
+    let damping = m.spring_damping * dot(w - v, u);
+    (tension + damping) * u
+}

@@ -1,0 +1,19 @@
+//! Soft-tissue simulation on the voxcollide collision library: mass-spring bodies with nonlinear
+//! springs and their builders, closed triangle surfaces (inside tests, distances), and the scenes
+//! of the paper — a cylinder pressed into tissue, an implant inflating under it — stepped on the
+//! CPU or entirely on the GPU.
+#![doc = include_str!("../README.md")]
+#![deny(missing_docs)]
+
+pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells
+pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integrator
+pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
+pub mod geometry; // closed triangle surfaces: winding numbers, distances
+pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
+pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
+pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
+
+pub use body::{MassSpring, Material, Mode, Spring, StepInputs};
+pub use cpu::CpuSim;
+pub use gpu::GpuSim;
+pub use scene::{Kind, Scene, SceneConfig};

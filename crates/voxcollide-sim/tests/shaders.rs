@@ -1,0 +1,19 @@
+//! The simulation's shaders parse and validate with naga and default capabilities (no GPU
+//! needed), and use the collision kernels' workgroup size.
+
+#[path = "../../voxcollide/tests/common/wgsl.rs"]
+mod wgsl;
+
+#[test]
+fn every_simulation_shader_validates() {
+    for (name, source) in voxcollide_sim::gpu::SHADERS {
+        wgsl::validate(name, source, &["main"]);
+    }
+}
+
+#[test]
+fn the_workgroup_size_is_the_kernels_own() {
+    let sim = include_str!("../shaders/sim_common.wgsl");
+    let line = format!("const WORKGROUP_SIZE: u32 = {}u;", voxcollide::gpu::WORKGROUP_SIZE);
+    assert!(sim.contains(&line), "sim_common.wgsl lacks `{line}`");
+}

@@ -1,0 +1,62 @@
+//! The simulation: the CPU and GPU backends follow the same trajectory over the first steps,
+//! and bad set-ups and blow-ups are errors.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use voxcollide::glam::Vec3;
+use voxcollide_sim::*;
+
+fn same_bits(a: &[Vec3], b: &[Vec3]) -> bool {
+    a.len() == b.len()
+        && a.iter().zip(b).all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
+}
+
+fn max_diff(a: &[Vec3], b: &[Vec3]) -> f32 {
+    a.iter().zip(b).map(|(x, y)| (*x - *y).abs().max_element()).fold(0.0, f32::max)
+}
+
+#[test]
+fn gpu_and_cpu_trajectories_agree_over_the_first_steps() {
+    let Some(ctx) = common::gpu() else { return };
+    let exact = ctx.adapter_name().contains("llvmpipe");
+    for kind in [Kind::Cylinder, Kind::Implant] {
+        let config = SceneConfig { resolution: 10, steps: 200, ..SceneConfig::new(kind) };
+        let scene = Scene::new(config).unwrap();
+        let mut cpu = CpuSim::new(scene.clone()).unwrap();
+        let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+        let mut contacts = 0;
+        for step in 1..=120 {
+            cpu.step().unwrap();
+            gpu.step().unwrap();
+            if step % 20 == 0 {
+                let report = gpu.sync().unwrap();
+                contacts += cpu.report.colliding_b.len();
+                let dt = max_diff(&cpu.scene.tissue.pos, &gpu.scene.tissue.pos);
+                let df = max_diff(&cpu.scene.foreign.pos, &gpu.scene.foreign.pos);
+                eprintln!(
+                    "{kind:?} step {step}: tissue {dt:e} foreign {df:e} contacts cpu {} gpu {}",
+                    cpu.report.colliding_b.len(),
+                    report.colliding_b.len()
+                );
+                if exact {
+                    // Bit-identical on llvmpipe (Vulkan and GL): the README says so.
+                    assert!(
+                        same_bits(&cpu.scene.tissue.pos, &gpu.scene.tissue.pos)
+                            && same_bits(&cpu.scene.foreign.pos, &gpu.scene.foreign.pos)
+                            && same_bits(&cpu.scene.tissue.vel, &gpu.scene.tissue.vel),
+                        "{kind:?} step {step}: trajectories differ by {dt:e} / {df:e}"
+                    );
+                    assert_eq!(cpu.report, report, "{kind:?} step {step}: contact reports");
+                } else {
+                    // Elsewhere fused multiply-adds may round differently: a small drift.
+                    assert!(
+                        dt <= 1e-3 && df <= 1e-3,
+                        "{kind:?} step {step}: trajectories differ by {dt:e} / {df:e}"
+                    );
+                }
+            }
+        }
+        assert!(contacts > 0, "{kind:?}: the bodies never touched in the compared steps");
+    }
+}

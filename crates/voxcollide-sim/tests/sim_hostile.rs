@@ -1,0 +1,151 @@
+//! Hostile input one layer up: the simulator meets NaN or huge positions appearing mid-run, and
+//! bodies without volume. Each is a named error or a run that stays finite, on the CPU and on
+//! the GPU, never a panic and never a NaN handed on.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use voxcollide::glam::{UVec3, Vec3};
+use voxcollide_sim::*;
+use voxcollide::*;
+
+fn scene(kind: Kind) -> Scene {
+    Scene::new(SceneConfig { resolution: 8, steps: 200, ..SceneConfig::new(kind) }).unwrap()
+}
+
+/// The scene after `steps` CPU steps: a run in progress, with the bodies in contact.
+fn mid_run(kind: Kind, steps: u32) -> Scene {
+    let mut cpu = CpuSim::new(scene(kind)).unwrap();
+    for _ in 0..steps {
+        cpu.step().unwrap();
+    }
+    cpu.scene
+}
+
+/// What may become of a poisoned vertex: a blow-up named by its body and vertex, or a run that
+/// stays finite.
+fn assert_named_or_finite(what: &str, result: Result<(), Error>, scene: &Scene) {
+    match result {
+        Err(Error::Simulation { step, message }) => {
+            assert!(step >= 1, "{what}: step {step}");
+            assert!(message.contains("vertex") && message.contains("likely cause"), "{what}: {message}");
+        }
+        Err(e) => panic!("{what}: not a simulation error: {e:?}"),
+        Ok(()) => {
+            for body in [&scene.tissue, &scene.foreign] {
+                assert!(
+                    body.pos.iter().chain(&body.vel).all(|v| v.is_finite()),
+                    "{what}: a NaN was handed on"
+                );
+            }
+        }
+    }
+}
+
+/// The poisons: a NaN, an infinity, and positions far beyond the scene (1e30, f32::MAX).
+const POISONS: [f32; 4] = [f32::NAN, f32::INFINITY, 1e30, f32::MAX];
+
+fn poison(scene: &mut Scene, tissue: bool, value: f32) {
+    let body = if tissue { &mut scene.tissue } else { &mut scene.foreign };
+    let i = body.len() / 2;
+    body.pos[i] = Vec3::new(body.pos[i].x, value, body.pos[i].z);
+}
+
+#[test]
+fn nan_or_huge_positions_mid_run_stop_the_cpu_run_with_a_named_error() {
+    for kind in [Kind::Cylinder, Kind::Implant] {
+        for tissue in [true, false] {
+            for value in POISONS {
+                let what = format!("{kind:?} tissue {tissue} value {value}");
+                let mut scene = mid_run(kind, 30);
+                poison(&mut scene, tissue, value);
+                let mut cpu = CpuSim::new(scene).unwrap();
+                let mut result = Ok(());
+                for _ in 0..20 {
+                    result = cpu.step();
+                    if result.is_err() {
+                        break;
+                    }
+                }
+                if !value.is_finite() {
+                    // A position that is not finite is seen at the very next step.
+                    let Err(Error::Simulation { step, .. }) = &result else { panic!("{what}: {result:?}") };
+                    assert_eq!(*step, 1, "{what}");
+                }
+                assert_named_or_finite(&what, result, &cpu.scene);
+            }
+        }
+    }
+}
+
+#[test]
+fn nan_or_huge_positions_mid_run_stop_the_gpu_run_with_a_named_error() {
+    let Some(ctx) = common::gpu() else { return };
+    for kind in [Kind::Cylinder, Kind::Implant] {
+        for tissue in [true, false] {
+            for value in POISONS {
+                let what = format!("{kind:?} tissue {tissue} value {value}");
+                let mut scene = mid_run(kind, 30);
+                poison(&mut scene, tissue, value);
+                let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+                let mut result = Ok(());
+                for _ in 0..20 {
+                    result = gpu.step();
+                    assert!(result.is_ok(), "{what}: recording failed: {result:?}");
+                }
+                // The GPU checks at each readback: the blow-up is named there, with its step.
+                let synced = gpu.sync().map(|_| ());
+                if !value.is_finite() {
+                    assert!(matches!(synced, Err(Error::Simulation { step: 1, .. })), "{what}: {synced:?}");
+                }
+                assert_named_or_finite(&what, synced.and(result), &gpu.scene);
+            }
+        }
+    }
+}
+
+#[test]
+fn bodies_without_volume_are_errors_or_finite_runs() {
+    let material = Material { mass: 1.0, stiffening: 10.0, spring_damping: 0.6, damping: 0.3 };
+    // A lattice or a shell of no size has springs of rest length 0: refused, by name.
+    let flat_box = bodies::box_lattice(UVec3::splat(3), 0.0, Vec3::ZERO, 1.0, material, |_| Mode::Free);
+    assert!(matches!(&flat_box, Err(Error::Invalid { what: "spring rest/k", .. })), "{flat_box:?}");
+    let point = bodies::ellipsoid_shell(Vec3::ZERO, Vec3::ZERO, 6, 12, 0.6, 1.0, material);
+    assert!(matches!(&point, Err(Error::Invalid { what: "spring rest/k", .. })), "{point:?}");
+    let nan = bodies::ellipsoid_shell(Vec3::ZERO, Vec3::new(1.0, f32::NAN, 1.0), 6, 12, 0.6, 1.0, material);
+    assert!(matches!(&nan, Err(Error::Invalid { .. })), "{nan:?}");
+
+    // A shell flattened to a disc (no volume) inflating under the tissue: it runs, or stops
+    // with a named blow-up, on both backends.
+    let base = scene(Kind::Implant);
+    let center = base.foreign.pos.iter().copied().sum::<Vec3>() / base.foreign.len() as f32;
+    let extent = base.foreign.pos.iter().fold(Vec3::ZERO, |e, p| e.max((*p - center).abs()));
+    // Flattened exactly, its rings fall onto one another: springs of rest length 0, refused.
+    let disc = bodies::ellipsoid_shell(center, Vec3::new(extent.x, extent.y, 0.0), 6, 12, 0.6, 4.0, material);
+    assert!(matches!(&disc, Err(Error::Invalid { what: "spring rest/k", .. })), "{disc:?}");
+    // Flattened to 1e-5 of its width, it has (almost) no volume, and runs.
+    let disc = bodies::ellipsoid_shell(
+        center,
+        Vec3::new(extent.x, extent.y, 1e-5 * extent.x),
+        6,
+        12,
+        0.6,
+        4.0,
+        material,
+    )
+    .unwrap();
+    let mut scene = base.clone();
+    scene.foreign = disc;
+    let mut cpu = CpuSim::new(scene.clone()).unwrap();
+    let result = (0..100).try_for_each(|_| cpu.step());
+    eprintln!("flat shell on the CPU: {result:?}");
+    assert_named_or_finite("flat shell, cpu", result, &cpu.scene);
+    if let Some(ctx) = common::gpu() {
+        let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+        for _ in 0..100 {
+            gpu.step().unwrap();
+        }
+        let synced = gpu.sync().map(|_| ());
+        assert_named_or_finite("flat shell, gpu", synced, &gpu.scene);
+    }
+}
