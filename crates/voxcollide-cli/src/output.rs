@@ -5,8 +5,9 @@
 //! Format choices:
 //! - `.vtp` files are VTK XML PolyData, version 1.0, little-endian, with every array inline in
 //!   base64 binary behind a `UInt64` byte count (`header_type="UInt64"`), uncompressed. They are
-//!   written through `vtkio`'s XML model (its `export_ascii` would write the legacy format
-//!   whatever the extension), and VTK's `vtkXMLPolyDataReader`, ParaView's reader, reads them.
+//!   written through `vtkio` 0.7's XML model (its `export_ascii` would write the legacy format
+//!   whatever the extension), and VTK 9's `vtkXMLPolyDataReader`, ParaView's reader, reads them
+//!   (tests/output.rs runs it, through Python's `vtk`).
 //! - Points are `Float32` × 3; the triangles are `Polys` (`connectivity` and `offsets`, `UInt64`).
 //! - Point data: `displacement` (`Float32` × 3, the active vectors), `contact_force`
 //!   (`Float32` × 3) and `colliding` (`UInt8`, 0 or 1, the active scalars).
@@ -259,7 +260,7 @@ fn to_vtk(body: &BodyFrame) -> Vtk {
         ),
     ];
     Vtk {
-        version: Version::new((1, 0)),
+        version: Version::new_xml(1, 0),
         title: String::new(),
         byte_order: ByteOrder::LittleEndian,
         file_path: None,

@@ -162,18 +162,29 @@ fn vtp_reads_back_points_polys_and_arrays() {
         "{text}"
     );
     assert!(text.contains(r#"NumberOfPoints="8""#) && text.contains(r#"NumberOfPolys="12""#));
-    assert!(text.contains(
-        r#"<DataArray type="Float32" Name="displacement" format="binary" NumberOfComponents="3">"#
-    ));
-    assert!(text.contains(
-        r#"<DataArray type="Float32" Name="contact_force" format="binary" NumberOfComponents="3">"#
-    ));
-    assert!(
-        text.contains(r#"<DataArray type="UInt8" Name="colliding" format="binary" NumberOfComponents="1">"#)
-    );
+    // Each array as VTK declares it (attribute order is the writer's; NumberOfComponents
+    // defaults to 1).
+    for (name, ty, components) in
+        [("displacement", "Float32", "3"), ("contact_force", "Float32", "3"), ("colliding", "UInt8", "1")]
+    {
+        let array = data_array(&text, name).unwrap_or_else(|| panic!("no DataArray {name}: {text}"));
+        let attr = |key: &str| array.iter().find(|(k, _)| k == key).map(|(_, v)| v.as_str());
+        assert_eq!(attr("type"), Some(ty), "{name}");
+        assert_eq!(attr("format"), Some("binary"), "{name}");
+        assert_eq!(attr("NumberOfComponents").unwrap_or("1"), components, "{name}");
+    }
+    assert!(text.contains(r#"Scalars="colliding""#) && text.contains(r#"Vectors="displacement""#));
     assert!(!text.contains("compressor="), "written uncompressed: {text}");
     // No temporary file is left behind.
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+}
+
+/// The attributes of the `<DataArray ... Name="name" ...>` element of `text`.
+fn data_array(text: &str, name: &str) -> Option<Vec<(String, String)>> {
+    text.split("<DataArray ")
+        .skip(1)
+        .filter_map(|rest| rest.find('>').map(|end| parse_attributes(&rest[..end])))
+        .find(|attrs| attrs.iter().any(|(k, v)| k == "Name" && v == name))
 }
 
 #[test]
@@ -482,4 +493,81 @@ fn series_rejects_bad_frames_and_keeps_its_file_valid() {
         entries.iter().map(|e| (e.timestep, e.file.as_str())).collect::<Vec<_>>(),
         [(1.0, "t_0.vtp"), (2.0, "t_1.vtp")]
     );
+}
+
+/// Whether VTK's own readers must run (`VOXCOLLIDE_REQUIRE_VTK=1`, as CI sets it after installing
+/// Python's `vtk`) rather than skip where Python has no `vtk`.
+fn vtk_required() -> bool {
+    std::env::var("VOXCOLLIDE_REQUIRE_VTK").as_deref() == Ok("1")
+}
+
+/// Reads `.vtp` files with VTK 9's own `vtkXMLPolyDataReader` (ParaView's reader for them, via
+/// Python's `vtk`) and prints, per file, the points, polys, each point array's name, components
+/// and range; `None` when Python has no `vtk` module.
+fn read_with_vtk(paths: &[PathBuf]) -> Option<String> {
+    let script = r#"
+import sys, vtk
+print("vtk", vtk.vtkVersion.GetVTKVersion())
+for path in sys.argv[1:]:
+    reader = vtk.vtkXMLPolyDataReader()
+    reader.SetFileName(path)
+    reader.Update()
+    if reader.GetErrorCode() != 0:
+        sys.exit("vtk could not read " + path)
+    data = reader.GetOutput()
+    pd = data.GetPointData()
+    arrays = []
+    for i in range(pd.GetNumberOfArrays()):
+        a = pd.GetArray(i)
+        lo, hi = a.GetRange(-1) if a.GetNumberOfComponents() > 1 else a.GetRange(0)
+        arrays.append("%s/%d/%g/%g" % (a.GetName(), a.GetNumberOfComponents(), lo, hi))
+    p = data.GetPoint(data.GetNumberOfPoints() - 1)
+    print(path, data.GetNumberOfPoints(), data.GetNumberOfPolys(), pd.GetScalars().GetName(),
+          pd.GetVectors().GetName(), " ".join(arrays), "%g,%g,%g" % p)
+"#;
+    let output = std::process::Command::new("python3").arg("-c").arg(script).args(paths).output();
+    match output {
+        Ok(o) if o.status.success() => Some(String::from_utf8_lossy(&o.stdout).into_owned()),
+        Ok(o) if String::from_utf8_lossy(&o.stderr).contains("No module named 'vtk'") && !vtk_required() => {
+            eprintln!("skipped: Python has no vtk module (pip install vtk)");
+            None
+        }
+        Ok(o) => panic!("python3 with vtk failed: {}", String::from_utf8_lossy(&o.stderr)),
+        Err(e) if !vtk_required() => {
+            eprintln!("skipped: no python3 ({e})");
+            None
+        }
+        Err(e) => panic!("VOXCOLLIDE_REQUIRE_VTK=1 but python3 does not start: {e}"),
+    }
+}
+
+#[test]
+fn vtk_9_reads_every_file_of_a_series() {
+    let dir = TempDir::new("vtk9");
+    let cubes = [Cube::new(0.0), Cube::new(0.5), Cube::new(1.25)];
+    let mut series = PvdSeries::new(dir.join("cube.pvd"));
+    let mut paths = Vec::new();
+    for (k, cube) in cubes.iter().enumerate() {
+        let name = format!("cube_{k:04}.vtp");
+        series.write_frame(k as f64 * 0.5, &name, &cube.frame()).unwrap();
+        paths.push(dir.join(&name));
+    }
+    let Some(out) = read_with_vtk(&paths) else { return };
+    eprintln!("{out}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert!(lines[0].starts_with("vtk 9."), "{out}");
+    for (k, cube) in cubes.iter().enumerate() {
+        let line = lines[k + 1];
+        let fields: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(&fields[1..5], ["8", "12", "colliding", "displacement"], "{line}");
+        let arrays = &fields[5..8];
+        for (name, components) in [("displacement", 3), ("contact_force", 3), ("colliding", 1)] {
+            assert!(
+                arrays.iter().any(|a| a.starts_with(&format!("{name}/{components}/"))),
+                "{name} × {components} in {line}"
+            );
+        }
+        let last = cube.positions[7];
+        assert_eq!(fields[8], format!("{},{},{}", last.x, last.y, last.z), "{line}");
+    }
 }
