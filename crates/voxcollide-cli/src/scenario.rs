@@ -7,12 +7,12 @@ use std::time::Instant;
 use glam::Vec3;
 use serde::Serialize;
 
-use voxcollide::error::Error;
-use voxcollide_sim::geometry::{ClosedSurface, penetration};
-use voxcollide::gpu::GpuContext;
 use crate::output::{BodyFrame, PvdSeries};
 use crate::render::{Renderer, Scene as RenderScene, SceneMesh};
+use voxcollide::error::Error;
+use voxcollide::gpu::GpuContext;
 use voxcollide::report::ContactReport;
+use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::{CpuSim, GpuSim, Kind, Scene, SceneConfig};
 
 /// Which backend runs the simulation.

@@ -4,9 +4,9 @@
 use glam::{UVec3, Vec3};
 
 use crate::body::{MassSpring, Material, Mode, Spring};
+use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
 use voxcollide::math::cross;
-use crate::mesh::TriangleMesh;
 
 /// Adds springs between every pair in `pairs`, with rest lengths from `pos`.
 fn springs_from(pos: &[Vec3], pairs: impl IntoIterator<Item = (u32, u32)>, k: f32) -> Vec<Spring> {

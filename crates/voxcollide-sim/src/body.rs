@@ -4,9 +4,9 @@
 
 use glam::Vec3;
 
+use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
 use voxcollide::math::{cross, dot};
-use crate::mesh::TriangleMesh;
 
 /// How a vertex moves.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

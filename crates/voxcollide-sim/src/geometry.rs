@@ -137,7 +137,10 @@ impl<'a> ClosedSurface<'a> {
     /// # Errors
     ///
     /// [`Error::Invalid`](voxcollide::Error::Invalid) if a triangle indexes outside `positions`.
-    pub fn new(positions: &'a [Vec3], mesh: &'a TriangleMesh) -> Result<ClosedSurface<'a>, voxcollide::Error> {
+    pub fn new(
+        positions: &'a [Vec3],
+        mesh: &'a TriangleMesh,
+    ) -> Result<ClosedSurface<'a>, voxcollide::Error> {
         for (t, tri) in mesh.triangles.iter().enumerate() {
             if let Some(&i) = tri.iter().find(|&&i| i as usize >= positions.len()) {
                 return Err(voxcollide::Error::Invalid {

@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use voxcollide_sim::geometry::{ClosedSurface, Penetration, penetration};
 use voxcollide::glam::{DVec3, Vec3};
+use voxcollide_sim::geometry::{ClosedSurface, Penetration, penetration};
 use voxcollide_sim::mesh::TriangleMesh;
 
 // ---------------------------------------------------------------------------------------------

@@ -6,8 +6,8 @@
 mod common;
 
 use voxcollide::glam::{UVec3, Vec3};
-use voxcollide_sim::*;
 use voxcollide::*;
+use voxcollide_sim::*;
 
 fn scene(kind: Kind) -> Scene {
     Scene::new(SceneConfig { resolution: 8, steps: 200, ..SceneConfig::new(kind) }).unwrap()

@@ -17,7 +17,7 @@ var<workgroup> wg_colliding: atomic<u32>;
 
 // The search and direction, fixed when the pipeline is made (they equal params.search and
 // params.direction), so that the compiler drops the paths a backend never takes: a software
-// adapter such as llvmpipe otherwise runs every branch under a mask (benches/NOTES.md).
+// adapter such as llvmpipe otherwise runs every branch under a mask (docs/performance-notes.md).
 override SEARCH: u32 = SEARCH_VOXEL;
 override DIRECTION: u32 = DIRECTION_PAIRWISE;
 // Equals params.dense != 0u: with a slot per voxel, no slot holds another voxel's vertices.

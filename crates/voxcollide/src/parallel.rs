@@ -249,7 +249,7 @@ impl ParallelCpuCollision {
         let bins = &mut self.bins;
         // A grid with at most four voxels a vertex gets one slot per voxel, in (z, y, x) order:
         // no aliasing, and a row is one run of A's vertices in spatial order. Otherwise four
-        // hash slots a vertex keep aliasing rare (benches/NOTES.md). Either way memory is O(|A|).
+        // hash slots a vertex keep aliasing rare (docs/performance-notes.md). Either way memory is O(|A|).
         let d = grid.dims();
         let dense = dense_slots(d, a.len());
         bins.dense = dense.map(|_| [d.x, d.y]);

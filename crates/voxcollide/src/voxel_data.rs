@@ -16,7 +16,7 @@ pub const EMPTY: u32 = u32::MAX;
 /// the voxels of a row land in consecutive slots. Which slot a voxel lands in only affects
 /// speed, never a result (walks check every vertex's own voxel); keeping rows contiguous makes a
 /// 3×3×3 walk touch 9 runs of adjacent slots instead of 27 scattered ones, and neighbouring B
-/// vertices reuse them (see `benches/NOTES.md`). Keep in sync with `voxel_hash` in
+/// vertices reuse them (see `docs/performance-notes.md`). Keep in sync with `voxel_hash` in
 /// `shaders/common.wgsl`.
 #[must_use]
 pub fn voxel_hash(v: UVec3) -> u32 {

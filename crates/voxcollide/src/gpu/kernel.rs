@@ -4,7 +4,7 @@
 //! The collision's passes are built from it, and so are other crates' passes that run beside
 //! them on the same device (the simulator's `forces` and `integrate`). A kernel's shader has one
 //! bind group of storage or uniform buffers, an entry point `main` with
-//! `@workgroup_size(64)` ([`WORKGROUP_SIZE`](super::WORKGROUP_SIZE)), and finds its item as
+//! `@workgroup_size(64)` ([`super::WORKGROUP_SIZE`]), and finds its item as
 //! `gid.x + gid.y * num_workgroups.x * 64`, so that [`Kernel::dispatch`] can cover more than
 //! `65535 * 64` items in rows.
 

@@ -31,7 +31,7 @@ use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots};
 
 /// Invocations per workgroup in every pass but `frame` (64, 128 and 256 measured alike on
-/// lavapipe: benches/NOTES.md). Keep in sync with `WORKGROUP_SIZE` in
+/// lavapipe: docs/performance-notes.md). Keep in sync with `WORKGROUP_SIZE` in
 /// `shaders/common.wgsl`.
 pub const WORKGROUP_SIZE: u32 = 64;
 /// Bytes per vertex position and per force: `vec4<f32>`.

@@ -24,4 +24,3 @@ pub fn gpu() -> Option<GpuContext> {
 pub fn gpu_required() -> bool {
     std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() == Ok("1")
 }
-

@@ -6,8 +6,10 @@
 pub fn validate(name: &str, source: &str, entries: &[&str]) {
     let module = naga::front::wgsl::parse_str(source)
         .unwrap_or_else(|e| panic!("{name}.wgsl: {}", e.emit_to_string(source)));
-    let mut validator =
-        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::default());
+    let mut validator = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::default(),
+    );
     if let Err(e) = validator.validate(&module) {
         panic!("{name}.wgsl does not validate: {}", e.emit_to_string(source));
     }
