@@ -126,6 +126,44 @@ fn a_device_whose_limits_are_too_small_is_a_gpu_error() {
 }
 
 #[test]
+fn a_readback_beyond_the_largest_buffer_is_a_device_limit() {
+    // A device whose largest buffer is its binding size (1 MiB): each body fits its binding
+    // (A up to 32768 vertices, B up to 65536), but both at once cannot be read back through one
+    // buffer, 16 bytes a vertex of each. That is DeviceLimit naming max_buffer_size, before
+    // anything is submitted; sizes that fit step as usual.
+    let mib = 1 << 20;
+    let limits = wgpu::Limits {
+        max_buffer_size: mib,
+        max_storage_buffer_binding_size: mib,
+        ..wgpu::Limits::default()
+    };
+    let Some((device, queue)) = app_device(limits) else { return };
+    let ctx = GpuContext::from_device(device, queue);
+    let a: Vec<Vec3> =
+        (0..32_768).map(|i| Vec3::new((i % 32) as f32, (i / 32 % 32) as f32, (i / 1024) as f32)).collect();
+    let grid = Initializer::new(1.0).margin(1).build(&a).unwrap();
+    let params = all_params(1.0, 1.0)[0];
+    let mut gpu = GpuCollision::new(&ctx, grid, params).unwrap();
+    assert_eq!((gpu.max_vertices_of(Body::A), gpu.max_vertices_of(Body::B)), (32_768, 65_536));
+    let b = vec![Vec3::splat(0.25); 40_000];
+    let err = gpu.step(&a, &b).unwrap_err();
+    let max = (mib as usize - 96) / 16 - a.len();
+    assert_eq!(
+        err,
+        Error::DeviceLimit {
+            body: Body::B,
+            len: 40_000,
+            max,
+            limit: "max_buffer_size",
+            bytes: mib,
+            per_vertex: 16
+        }
+    );
+    let report = gpu.step(&a, &b[..max]).unwrap();
+    assert_eq!(report.colliding_b.len(), max);
+}
+
+#[test]
 fn a_lost_device_is_an_error() {
     let Some(ctx) = gpu() else { return };
     let (a, b, voxel, grid) = bodies(41, 1000);

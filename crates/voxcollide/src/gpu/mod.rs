@@ -249,6 +249,8 @@ pub struct GpuCollision {
     /// Per body (A, B).
     max_vertices: [u32; 2],
     max_binding: u64,
+    /// The device's largest buffer: `step()`'s readback of both bodies' forces must fit one.
+    max_buffer: u64,
     buffers: Option<Buffers>,
     bound: Option<Bound>,
     uploaded: GpuParams,
@@ -288,6 +290,7 @@ impl GpuCollision {
             max_vertices: [Body::A, Body::B]
                 .map(|body| (binding / bytes_per_vertex(body)).min(crate::cpu::MAX_VERTICES as u64) as u32),
             max_binding: binding,
+            max_buffer: limits.max_buffer_size,
             buffers: None,
             bound: None,
             uploaded: GpuParams::default(),
@@ -604,6 +607,8 @@ impl GpuCollision {
     /// until the device is done.
     ///
     /// # Errors
+    /// [`Error::DeviceLimit`] (`max_buffer_size`) when the device's largest buffer cannot hold
+    /// both bodies' forces at once,
     /// [`Error::ForceOverflow`] or [`Error::NonFiniteCenter`] as the CPU reference gives them,
     /// [`Error::Gpu`] / [`Error::DeviceLost`] when the device fails, and [`Error::Gpu`] when no
     /// step was recorded.
@@ -611,6 +616,7 @@ impl GpuCollision {
         let Some((n_a, n_b)) = self.recorded else {
             return Err(Error::Gpu { message: "read_report() before any step was recorded".into() });
         };
+        self.check_readback(n_a, n_b)?;
         let device = self.ctx.device().clone();
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide readback") });
@@ -650,6 +656,24 @@ impl GpuCollision {
             return Err(Error::BufferTooSmall { body, len: n, size: buffer.size(), needed });
         }
         Ok(())
+    }
+
+    /// A report is read back through one buffer holding both bodies' forces and the state; where
+    /// the device's largest buffer cannot hold it (a device whose `max_buffer_size` is not above
+    /// its binding size, with both bodies near their limits), B's count is the one to shrink.
+    fn check_readback(&self, n_a: u32, n_b: u32) -> Result<(), Error> {
+        if readback_size(n_a, n_b) <= self.max_buffer {
+            return Ok(());
+        }
+        let room = self.max_buffer.saturating_sub(GpuState::SIZE) / VEC4;
+        Err(Error::DeviceLimit {
+            body: Body::B,
+            len: n_b as usize,
+            max: room.saturating_sub(u64::from(n_a)) as usize,
+            limit: "max_buffer_size",
+            bytes: self.max_buffer,
+            per_vertex: VEC4,
+        })
     }
 
     fn limit_error(&self, body: Body, len: usize) -> Error {
@@ -780,6 +804,7 @@ impl Collision for GpuCollision {
             return Err(Error::DeviceLost { message: "the device was lost before this step".into() });
         }
         let (n_a, n_b) = (a.len() as u32, b.len() as u32);
+        self.check_readback(n_a, n_b)?;
         self.upload(a, b)?;
         let device = self.ctx.device().clone();
         let staging = self.staging(readback_size(n_a, n_b))?;
