@@ -241,6 +241,21 @@ pub enum Error {
         message: String,
     },
 
+    /// A scene file is malformed or names something that does not exist: where, and why.
+    #[error("{file}:{line}:{column}: {key}: {message}")]
+    SceneFile {
+        /// The file, as given.
+        file: String,
+        /// 1-based line of the offending key or value (0 when the file could not be read).
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// The key, as a dotted path where known (e.g. `body[2].material.poisson`).
+        key: String,
+        /// What is wrong and what is expected.
+        message: String,
+    },
+
     /// A value given to the renderer or the command is outside what it supports.
     #[error("{what} = {value} is invalid: {rule}")]
     Invalid {

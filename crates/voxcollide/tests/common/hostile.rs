@@ -34,7 +34,7 @@ pub struct Rng(SplitMix64);
 
 impl Rng {
     pub fn new(seed: u64) -> Rng {
-        Rng(SplitMix64::new(seed ^ 0x5eed_0f_c011_1de5))
+        Rng(SplitMix64::new(seed ^ 0x005e_ed0f_c011_1de5))
     }
 
     pub fn next_u64(&mut self) -> u64 {

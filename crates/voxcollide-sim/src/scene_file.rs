@@ -1,0 +1,982 @@
+//! Scene files (DESIGN §8): a TOML description of the bodies, their contacts, the schedule and
+//! the output, read with serde so that every error names the file, the line, the column and the
+//! key.
+//!
+//! [`SceneFile::read`] parses and checks a file: TOML syntax, unknown keys (an error, never
+//! ignored), value types and ranges, a body's required keys for its kind, unique body names,
+//! contacts that name existing and distinct bodies, meshes that exist. What passes is a
+//! [`SceneFile`] whose lengths are still in the file's [`Units`]; [`SceneFile::metres`] converts.
+//!
+//! ```
+//! use voxcollide_sim::scene_file::{BodyKind, SceneFile};
+//!
+//! let text = r#"
+//! units = "mm"
+//! [[body]]
+//! name = "tissue"
+//! kind = "soft"
+//! shape = { box = [80, 80, 15] }
+//! spacing = 2.5
+//! [[body]]
+//! name = "probe"
+//! kind = "rigid"
+//! shape = { sphere = 10 }
+//! spacing = 2.0
+//! motion = [{ t = 0.0, position = [0, 0, 20] }, { t = 1.0, position = [0, 0, 12] }]
+//! [[contact]]
+//! a = "probe"
+//! b = "tissue"
+//! "#;
+//! let scene = SceneFile::parse("indent.toml", text)?;
+//! assert_eq!(scene.bodies.len(), 2);
+//! assert_eq!(scene.bodies[1].kind, BodyKind::Rigid);
+//! assert_eq!(scene.contacts[0].a, 1); // the index of "probe"
+//!
+//! let typo = SceneFile::parse("indent.toml", "[[body]]\nname = \"x\"\nkind = \"soft\"\nspacingg = 1\n");
+//! assert!(typo.unwrap_err().to_string().starts_with("indent.toml:4:1: body[0].spacingg:"));
+//! # Ok::<(), voxcollide::Error>(())
+//! ```
+
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use serde::de::{self, Deserializer, Visitor};
+use toml::Spanned;
+use voxcollide::Error;
+
+/// The unit of every length in a file and its meshes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Units {
+    /// Millimetres (the default).
+    #[default]
+    Mm,
+    /// Centimetres.
+    Cm,
+    /// Metres.
+    M,
+}
+
+impl Units {
+    /// Metres per unit.
+    #[must_use]
+    pub fn metres(self) -> f64 {
+        match self {
+            Units::Mm => 1e-3,
+            Units::Cm => 1e-2,
+            Units::M => 1.0,
+        }
+    }
+
+    /// The unit's symbol, as written in files.
+    #[must_use]
+    pub fn symbol(self) -> &'static str {
+        match self {
+            Units::Mm => "mm",
+            Units::Cm => "cm",
+            Units::M => "m",
+        }
+    }
+}
+
+/// A value that is either `"auto"` (the program chooses) or given.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Auto<T> {
+    /// `"auto"`.
+    #[default]
+    Auto,
+    /// A value from the file.
+    Value(T),
+}
+
+impl<'de> Deserialize<'de> for Auto<f64> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = Auto<f64>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("\"auto\" or a number")
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<Auto<f64>, E> {
+                if s == "auto" {
+                    Ok(Auto::Auto)
+                } else {
+                    Err(E::invalid_value(de::Unexpected::Str(s), &self))
+                }
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<Auto<f64>, E> {
+                Ok(Auto::Value(x))
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<Auto<f64>, E> {
+                Ok(Auto::Value(x as f64))
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<Auto<f64>, E> {
+                Ok(Auto::Value(x as f64))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `[time]`: the schedule.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Time {
+    /// Simulated seconds of the schedule (or [`steps`](Self::steps)); default 1 s.
+    pub duration: Option<f64>,
+    /// Steps of the schedule, instead of a duration.
+    pub steps: Option<u64>,
+    /// The time step in seconds, or `"auto"` (half the integrator's stability bound).
+    #[serde(default)]
+    pub dt: Auto<f64>,
+    /// After the schedule, go on until the bodies come to rest.
+    #[serde(default)]
+    pub settle: bool,
+    /// A cap on all steps; reaching it unsettled is reported, not an error.
+    #[serde(default = "default_max_steps")]
+    pub max_steps: u64,
+}
+
+fn default_max_steps() -> u64 {
+    200_000
+}
+
+impl Default for Time {
+    fn default() -> Time {
+        Time { duration: None, steps: None, dt: Auto::Auto, settle: false, max_steps: default_max_steps() }
+    }
+}
+
+/// What a body is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BodyKind {
+    /// A volumetric lattice of springs inside a closed surface, or a tetrahedral mesh.
+    Soft,
+    /// A closed surface of springs (inflatable).
+    Shell,
+    /// Moves only as its keyframes drive it.
+    Rigid,
+}
+
+/// An implant's style.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ImplantStyle {
+    /// Round: rotationally symmetric.
+    #[default]
+    Round,
+    /// Anatomical (teardrop): fuller at the bottom.
+    Anatomical,
+}
+
+/// A built-in shape, centred at the origin.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(rename_all = "lowercase", deny_unknown_fields)]
+pub enum Shape {
+    /// `box = [x, y, z]`: sizes.
+    Box([f64; 3]),
+    /// `sphere = r`.
+    Sphere(f64),
+    /// `ellipsoid = [rx, ry, rz]`.
+    Ellipsoid([f64; 3]),
+    /// `cylinder = { radius, height }`, axis z.
+    Cylinder {
+        /// Radius.
+        radius: f64,
+        /// Height.
+        height: f64,
+    },
+    /// `implant = { volume_ml, base_mm, projection_mm, style }`.
+    Implant {
+        /// Volume in millilitres.
+        volume_ml: f64,
+        /// Base width in millimetres.
+        base_mm: f64,
+        /// Projection in millimetres.
+        projection_mm: f64,
+        /// Round (default) or anatomical.
+        #[serde(default)]
+        style: ImplantStyle,
+    },
+}
+
+/// A body's material.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialSpec {
+    /// Young's modulus in kPa (default 3, soft tissue).
+    #[serde(default = "default_young")]
+    pub young_kpa: f64,
+    /// Poisson's ratio, `0 <= ν < 0.5` (default 0.45).
+    #[serde(default = "default_poisson")]
+    pub poisson: f64,
+    /// Density in kg/m³ (default 1000).
+    #[serde(default = "default_density")]
+    pub density: f64,
+    /// Damping ratio, `>= 0` (default 0.1).
+    #[serde(default = "default_damping")]
+    pub damping: f64,
+}
+
+fn default_young() -> f64 {
+    3.0
+}
+fn default_poisson() -> f64 {
+    0.45
+}
+fn default_density() -> f64 {
+    1000.0
+}
+fn default_damping() -> f64 {
+    0.1
+}
+
+impl Default for MaterialSpec {
+    fn default() -> MaterialSpec {
+        MaterialSpec {
+            young_kpa: default_young(),
+            poisson: default_poisson(),
+            density: default_density(),
+            damping: default_damping(),
+        }
+    }
+}
+
+/// One coordinate: exactly one of `x`, `y`, `z`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AxisValue {
+    /// `x = v`.
+    pub x: Option<f64>,
+    /// `y = v`.
+    pub y: Option<f64>,
+    /// `z = v`.
+    pub z: Option<f64>,
+}
+
+impl AxisValue {
+    /// The axis (0, 1, 2) and value, when exactly one is given.
+    #[must_use]
+    pub fn get(&self) -> Option<(usize, f64)> {
+        match (self.x, self.y, self.z) {
+            (Some(v), None, None) => Some((0, v)),
+            (None, Some(v), None) => Some((1, v)),
+            (None, None, Some(v)) => Some((2, v)),
+            _ => None,
+        }
+    }
+}
+
+/// Which vertices are held.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+pub enum Fixed {
+    /// `{ below = { z = v } }`: vertices below the plane.
+    Below(AxisValue),
+    /// `{ above = { z = v } }`: vertices above the plane.
+    Above(AxisValue),
+    /// `{ inside_box = { min = [..], max = [..] } }`.
+    InsideBox {
+        /// The box's minimum corner.
+        min: [f64; 3],
+        /// The box's maximum corner.
+        max: [f64; 3],
+    },
+    /// `{ rim = w }`: within `w` of the body's lateral (x, y) boundary.
+    Rim(f64),
+}
+
+/// A rigid body's keyframe.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Keyframe {
+    /// Seconds.
+    pub t: f64,
+    /// The body's translation at `t`.
+    pub position: [f64; 3],
+    /// Its rotation at `t` (degrees, x then y then z).
+    #[serde(default)]
+    pub rotation: [f64; 3],
+}
+
+/// A shell's inflation: by pressure or to a volume, ramped.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Inflate {
+    /// The final internal pressure in kPa.
+    pub pressure_kpa: Option<f64>,
+    /// Or the final volume in mL.
+    pub volume_ml: Option<f64>,
+    /// Seconds over which it is ramped (default 1).
+    #[serde(default = "default_ramp")]
+    pub ramp: f64,
+}
+
+fn default_ramp() -> f64 {
+    1.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawBody {
+    name: Spanned<String>,
+    kind: BodyKind,
+    mesh: Option<Spanned<String>>,
+    shape: Option<Shape>,
+    spacing: Option<Spanned<f64>>,
+    #[serde(default)]
+    position: [f64; 3],
+    #[serde(default)]
+    rotation: [f64; 3],
+    #[serde(default = "one")]
+    scale: Spanned<f64>,
+    #[serde(default = "unspanned")]
+    material: Spanned<MaterialSpec>,
+    #[serde(default)]
+    fixed: Vec<Spanned<Fixed>>,
+    #[serde(default = "unspanned")]
+    motion: Spanned<Vec<Keyframe>>,
+    inflate: Option<Spanned<Inflate>>,
+}
+
+/// A default value, at no place in the file (defaults are valid, so no error points there).
+fn unspanned<T: Default>() -> Spanned<T> {
+    Spanned::new(0..0, T::default())
+}
+
+fn one() -> Spanned<f64> {
+    Spanned::new(0..0, 1.0)
+}
+
+/// A contact's force direction.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DirectionSpec {
+    /// Along the line of centres (the default).
+    #[default]
+    Pairwise,
+    /// Along the normal of the plane through the three nearest A vertices.
+    PlaneNormal,
+}
+
+/// A contact's search.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SearchSpec {
+    /// The 3×3×3 block within a radius (the default).
+    #[default]
+    Neighbours,
+    /// The paper's rule: the own voxel.
+    Voxel,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawContact {
+    a: Spanned<String>,
+    b: Spanned<String>,
+    #[serde(default)]
+    direction: DirectionSpec,
+    #[serde(default)]
+    search: SearchSpec,
+    #[serde(default = "unspanned")]
+    radius: Spanned<Auto<f64>>,
+    #[serde(default = "unspanned")]
+    voxel_size: Spanned<Auto<f64>>,
+    #[serde(default = "unspanned")]
+    magnitude: Spanned<Auto<f64>>,
+}
+
+/// `[output]`.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Output {
+    /// Pictures and VTK frames over the run (default 12).
+    #[serde(default = "default_frames")]
+    pub frames: u32,
+    /// Whether to write PNG pictures (default true).
+    #[serde(default = "yes")]
+    pub images: bool,
+    /// Whether to write VTK files (default true).
+    #[serde(default = "yes")]
+    pub vtk: bool,
+}
+
+fn default_frames() -> u32 {
+    12
+}
+fn yes() -> bool {
+    true
+}
+
+impl Default for Output {
+    fn default() -> Output {
+        Output { frames: default_frames(), images: true, vtk: true }
+    }
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    #[serde(default)]
+    units: Units,
+    #[serde(default)]
+    time: Time,
+    #[serde(default)]
+    body: Vec<RawBody>,
+    #[serde(default)]
+    contact: Vec<RawContact>,
+    #[serde(default)]
+    output: Output,
+}
+
+/// Where a body's geometry comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Geometry {
+    /// A mesh file, resolved against the scene file's folder.
+    Mesh(PathBuf),
+    /// A built-in shape.
+    Shape(Shape),
+}
+
+/// One `[[body]]`, checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodySpec {
+    /// Its unique name.
+    pub name: String,
+    /// Soft, shell or rigid.
+    pub kind: BodyKind,
+    /// Its mesh or shape.
+    pub geometry: Geometry,
+    /// Lattice spacing (soft) or surface edge length (shell, rigid shape), in file units.
+    pub spacing: Option<f64>,
+    /// Translation, in file units.
+    pub position: [f64; 3],
+    /// Rotation in degrees, x then y then z.
+    pub rotation: [f64; 3],
+    /// Uniform scale.
+    pub scale: f64,
+    /// Its material.
+    pub material: MaterialSpec,
+    /// Held vertices.
+    pub fixed: Vec<Fixed>,
+    /// Keyframes (rigid bodies), in ascending time.
+    pub motion: Vec<Keyframe>,
+    /// Inflation (shells).
+    pub inflate: Option<Inflate>,
+}
+
+/// One `[[contact]]`, checked: `a` and `b` are indices into [`SceneFile::bodies`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactSpec {
+    /// The indexed body (binned; the voxel model follows it).
+    pub a: usize,
+    /// The probing body.
+    pub b: usize,
+    /// Force direction.
+    pub direction: DirectionSpec,
+    /// Search.
+    pub search: SearchSpec,
+    /// Neighbour radius, in file units.
+    pub radius: Auto<f64>,
+    /// Voxel size, a power of two in file units.
+    pub voxel_size: Auto<f64>,
+    /// Penalty magnitude in newtons.
+    pub magnitude: Auto<f64>,
+}
+
+/// A scene file, read and checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneFile {
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The unit of its lengths.
+    pub units: Units,
+    /// The schedule.
+    pub time: Time,
+    /// The bodies, in file order.
+    pub bodies: Vec<BodySpec>,
+    /// The contacts, in file order.
+    pub contacts: Vec<ContactSpec>,
+    /// The output.
+    pub output: Output,
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rfind('\n').map_or(before.len(), |nl| before.len() - nl - 1) + 1;
+    (line, column)
+}
+
+/// The dotted path of the key whose line holds byte `offset`: the tables above it
+/// (`[[body]]` counted, so `body[2]`), then the key on that line (inline tables too).
+fn key_at(text: &str, offset: usize) -> String {
+    let offset = offset.min(text.len());
+    let mut table = String::new();
+    let mut counts: Vec<(String, usize)> = Vec::new();
+    let mut line_start = 0;
+    for line in text.split_inclusive('\n') {
+        if line_start > offset {
+            break;
+        }
+        let trimmed = line.trim();
+        let here = offset < line_start + line.len();
+        if let Some(name) = trimmed.strip_prefix("[[").and_then(|t| t.split("]]").next()) {
+            let name = name.trim().to_string();
+            let k = match counts.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, c)) => {
+                    *c += 1;
+                    *c - 1
+                }
+                None => {
+                    counts.push((name.clone(), 1));
+                    0
+                }
+            };
+            table = format!("{name}[{k}]");
+        } else if let Some(name) = trimmed.strip_prefix('[').and_then(|t| t.split(']').next()) {
+            table = name.trim().to_string();
+        }
+        if here {
+            // The key whose value holds the offset: the last `key =` before it on this line.
+            let upto = &line[..offset - line_start];
+            let keys: Vec<&str> = upto
+                .split(['{', ',', '['])
+                .filter_map(|part| part.split_once('=').map(|(k, _)| k.trim()))
+                .filter(|k| !k.is_empty() && !k.contains(['"', ']', '}']))
+                .collect();
+            let key = match (keys.is_empty(), line.split_once('=')) {
+                (false, _) => keys.join("."),
+                (true, Some((k, _))) if !trimmed.starts_with('[') => k.trim().to_string(),
+                _ => String::new(),
+            };
+            return match (table.is_empty(), key.is_empty()) {
+                (true, _) => key,
+                (false, true) => table,
+                (false, false) => format!("{table}.{key}"),
+            };
+        }
+        line_start += line.len();
+    }
+    table
+}
+
+/// The file's error at `span`.
+fn at(file: &str, text: &str, span: Range<usize>, key: Option<&str>, message: impl Into<String>) -> Error {
+    let (line, column) = line_column(text, span.start);
+    Error::SceneFile {
+        file: file.to_string(),
+        line,
+        column,
+        key: key.map_or_else(|| key_at(text, span.start), str::to_string),
+        message: message.into(),
+    }
+}
+
+impl SceneFile {
+    /// Reads and checks the scene file at `path`; meshes are resolved against its folder and
+    /// must exist.
+    ///
+    /// # Errors
+    /// [`Error::SceneFile`] naming the file, line, column and key for anything the file gets
+    /// wrong, or, at line 0, for a file that cannot be read.
+    pub fn read(path: impl AsRef<Path>) -> Result<SceneFile, Error> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
+            file: path.display().to_string(),
+            line: 0,
+            column: 0,
+            key: String::new(),
+            message: format!("cannot read the scene file: {e}"),
+        })?;
+        let scene = SceneFile::parse(path, &text)?;
+        let name = path.display().to_string();
+        for (k, body) in scene.bodies.iter().enumerate() {
+            if let Geometry::Mesh(mesh) = &body.geometry
+                && !mesh.is_file()
+            {
+                let offset = nth_table(&text, "body", k).and_then(|t| text[t..].find("mesh").map(|i| t + i));
+                return Err(at(
+                    &name,
+                    &text,
+                    offset.unwrap_or(0)..offset.unwrap_or(0),
+                    Some(&format!("body[{k}].mesh")),
+                    format!("{} does not exist or is not a file", mesh.display()),
+                ));
+            }
+        }
+        Ok(scene)
+    }
+
+    /// Parses and checks scene `text` as if read from `path` (mesh paths are resolved against
+    /// its folder, and not looked for).
+    ///
+    /// # Errors
+    /// As [`read`](Self::read), but for the mesh files.
+    pub fn parse(path: impl AsRef<Path>, text: &str) -> Result<SceneFile, Error> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let raw: RawScene = toml::from_str(text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            let message = e.message().trim().to_string();
+            // An unknown key's span is the key itself.
+            let key =
+                message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
+                    let context = key_at(text, span.start);
+                    if context.ends_with(unknown) { context } else { format!("{context}.{unknown}") }
+                });
+            at(&file, text, span, key.as_deref(), message)
+        })?;
+        let dir = path.parent().unwrap_or(Path::new(""));
+        let err = |span: Range<usize>, message: String| at(&file, text, span, None, message);
+
+        let mut time = raw.time;
+        let time_err = |key: &str, message: String| {
+            let offset = find_key(text, "time", key);
+            at(&file, text, offset..offset, Some(&format!("time.{key}")), message)
+        };
+        if time.duration.is_some() && time.steps.is_some() {
+            return Err(time_err("steps", "give `duration` or `steps`, not both".into()));
+        }
+        if let Some(d) = time.duration
+            && !(d.is_finite() && d > 0.0)
+        {
+            return Err(time_err("duration", format!("{d} must be positive seconds")));
+        }
+        if time.steps == Some(0) {
+            return Err(time_err("steps", "at least 1".into()));
+        }
+        if time.max_steps == 0 {
+            return Err(time_err("max_steps", "at least 1".into()));
+        }
+        if let Auto::Value(dt) = time.dt
+            && !(dt.is_finite() && dt > 0.0)
+        {
+            return Err(time_err("dt", format!("{dt} must be \"auto\" or positive seconds")));
+        }
+        if time.duration.is_none() && time.steps.is_none() {
+            time.duration = Some(1.0);
+        }
+
+        let mut bodies: Vec<BodySpec> = Vec::with_capacity(raw.body.len());
+        for (k, b) in raw.body.into_iter().enumerate() {
+            let key = |what: &str| format!("body[{k}].{what}");
+            let name_span = b.name.span();
+            let name = b.name.into_inner();
+            if name.is_empty() {
+                return Err(at(&file, text, name_span, Some(&key("name")), "a body needs a name"));
+            }
+            if let Some(first) = bodies.iter().position(|o| o.name == name) {
+                return Err(at(
+                    &file,
+                    text,
+                    name_span,
+                    Some(&key("name")),
+                    format!("{name:?} is already the name of body[{first}]; names are unique"),
+                ));
+            }
+            let geometry = match (b.mesh, b.shape) {
+                (Some(mesh), None) => Geometry::Mesh(dir.join(mesh.into_inner())),
+                (None, Some(shape)) => {
+                    check_shape(&shape)
+                        .map_err(|m| at(&file, text, name_span.clone(), Some(&key("shape")), m))?;
+                    Geometry::Shape(shape)
+                }
+                (Some(mesh), Some(_)) => {
+                    return Err(err(
+                        mesh.span(),
+                        format!("body {name:?} has both `mesh` and `shape`; give one"),
+                    ));
+                }
+                (None, None) => {
+                    return Err(at(
+                        &file,
+                        text,
+                        name_span,
+                        Some(&format!("body[{k}]")),
+                        format!("body {name:?} needs `mesh` (a file) or `shape` (a built-in shape)"),
+                    ));
+                }
+            };
+            let spacing = match b.spacing {
+                Some(s) if !(s.get_ref().is_finite() && *s.get_ref() > 0.0) => {
+                    return Err(err(s.span(), format!("{} must be a positive length", s.get_ref())));
+                }
+                s => s.map(Spanned::into_inner),
+            };
+            let needs_spacing = match (&geometry, b.kind) {
+                (_, BodyKind::Soft) => true,
+                (Geometry::Shape(_), BodyKind::Shell | BodyKind::Rigid) => true,
+                (Geometry::Mesh(_), _) => false,
+            };
+            if needs_spacing && spacing.is_none() {
+                let what =
+                    if b.kind == BodyKind::Soft { "the lattice spacing" } else { "the surface edge length" };
+                return Err(at(
+                    &file,
+                    text,
+                    name_span,
+                    Some(&key("spacing")),
+                    format!("body {name:?} ({:?}) needs `spacing`, {what}", b.kind),
+                ));
+            }
+            let scale_span = b.scale.span();
+            let scale = b.scale.into_inner();
+            if !(scale.is_finite() && scale > 0.0) {
+                return Err(err(scale_span, format!("{scale} must be positive")));
+            }
+            if !b.position.iter().chain(&b.rotation).all(|v| v.is_finite()) {
+                return Err(at(
+                    &file,
+                    text,
+                    name_span,
+                    Some(&key("position")),
+                    "position and rotation must be finite",
+                ));
+            }
+            let material_span = b.material.span();
+            let material = b.material.into_inner();
+            check_material(&material).map_err(|(what, m)| {
+                at(&file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
+            })?;
+            let mut fixed = Vec::with_capacity(b.fixed.len());
+            for f in b.fixed {
+                let span = f.span();
+                let f = f.into_inner();
+                check_fixed(&f).map_err(|m| err(span.clone(), m))?;
+                fixed.push(f);
+            }
+            let motion_span = b.motion.span();
+            let motion = b.motion.into_inner();
+            if !motion.is_empty() && b.kind != BodyKind::Rigid {
+                return Err(err(
+                    motion_span,
+                    format!("only a rigid body has `motion`; {name:?} is {:?}", b.kind),
+                ));
+            }
+            if motion
+                .iter()
+                .any(|m| !(m.t.is_finite() && m.position.iter().chain(&m.rotation).all(|v| v.is_finite())))
+            {
+                return Err(err(motion_span, "keyframes must be finite".into()));
+            }
+            if motion.windows(2).any(|w| w[1].t <= w[0].t) {
+                return Err(err(motion_span, "keyframe times must increase".into()));
+            }
+            let inflate = match b.inflate {
+                None => None,
+                Some(i) => {
+                    let span = i.span();
+                    let i = i.into_inner();
+                    if b.kind != BodyKind::Shell {
+                        return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", b.kind)));
+                    }
+                    let amount = match (i.pressure_kpa, i.volume_ml) {
+                        (Some(p), None) => p,
+                        (None, Some(v)) => v,
+                        _ => return Err(err(span, "give `pressure_kpa` or `volume_ml`, one of them".into())),
+                    };
+                    if !(amount.is_finite() && amount >= 0.0 && i.ramp.is_finite() && i.ramp >= 0.0) {
+                        return Err(err(
+                            span,
+                            "the inflation and its ramp must be finite and not negative".into(),
+                        ));
+                    }
+                    Some(i)
+                }
+            };
+            bodies.push(BodySpec {
+                name,
+                kind: b.kind,
+                geometry,
+                spacing,
+                position: b.position,
+                rotation: b.rotation,
+                scale,
+                material,
+                fixed,
+                motion,
+                inflate,
+            });
+        }
+
+        let mut contacts = Vec::with_capacity(raw.contact.len());
+        for c in raw.contact {
+            let find = |s: &Spanned<String>| {
+                bodies.iter().position(|b| b.name == *s.get_ref()).ok_or_else(|| {
+                    let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+                    err(s.span(), format!("no body is named {:?} (the bodies: {names:?})", s.get_ref()))
+                })
+            };
+            let (a, b) = (find(&c.a)?, find(&c.b)?);
+            if a == b {
+                return Err(err(c.b.span(), "a contact needs two different bodies".into()));
+            }
+            for (what, v) in
+                [("radius", &c.radius), ("voxel_size", &c.voxel_size), ("magnitude", &c.magnitude)]
+            {
+                if let Auto::Value(x) = v.get_ref()
+                    && !(x.is_finite() && *x > 0.0)
+                {
+                    return Err(err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
+                }
+            }
+            if let Auto::Value(v) = c.voxel_size.get_ref() {
+                if frexp(*v).0 != 0.5 {
+                    return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
+                }
+            }
+            contacts.push(ContactSpec {
+                a,
+                b,
+                direction: c.direction,
+                search: c.search,
+                radius: *c.radius.get_ref(),
+                voxel_size: *c.voxel_size.get_ref(),
+                magnitude: *c.magnitude.get_ref(),
+            });
+        }
+        if raw.output.frames == 0 {
+            let offset = find_key(text, "output", "frames");
+            return Err(at(&file, text, offset..offset, Some("output.frames"), "at least 1 frame"));
+        }
+        Ok(SceneFile {
+            path: path.to_path_buf(),
+            units: raw.units,
+            time,
+            bodies,
+            contacts,
+            output: raw.output,
+        })
+    }
+
+    /// Metres per file unit.
+    #[must_use]
+    pub fn metres(&self) -> f64 {
+        self.units.metres()
+    }
+}
+
+/// `x = m · 2^e` with `m` in `[0.5, 1)` (0 for 0).
+fn frexp(x: f64) -> (f64, i32) {
+    if x == 0.0 || !x.is_finite() {
+        return (0.0, 0);
+    }
+    let e = x.abs().log2().floor() as i32 + 1;
+    (x / 2f64.powi(e), e)
+}
+
+/// The byte offset of `key = ` under the `[table]` header: the key's first character, or the
+/// header's when the key is not written there (0 when there is no such table).
+fn find_key(text: &str, table: &str, key: &str) -> usize {
+    let header = format!("[{table}]");
+    let mut offset = 0;
+    let mut inside = None;
+    for line in text.split_inclusive('\n') {
+        let t = line.trim_start();
+        let indent = line.len() - t.len();
+        if t.starts_with('[') {
+            if inside.is_some() {
+                break;
+            }
+            if t.trim_end().starts_with(&header) {
+                inside = Some(offset + indent);
+            }
+        } else if inside.is_some() && t.split_once('=').is_some_and(|(k, _)| k.trim() == key) {
+            return offset + indent;
+        }
+        offset += line.len();
+    }
+    inside.unwrap_or(0)
+}
+
+/// The byte offset where the `k`-th `[[name]]` table starts.
+fn nth_table(text: &str, name: &str, k: usize) -> Option<usize> {
+    let header = format!("[[{name}]]");
+    let mut from = 0;
+    for _ in 0..=k {
+        let i = text[from..].find(&header)? + from;
+        from = i + header.len();
+    }
+    Some(from)
+}
+
+fn check_shape(shape: &Shape) -> Result<(), String> {
+    let positive = |v: &[f64]| v.iter().all(|x| x.is_finite() && *x > 0.0);
+    let ok = match shape {
+        Shape::Box(s) | Shape::Ellipsoid(s) => positive(s),
+        Shape::Sphere(r) => positive(&[*r]),
+        Shape::Cylinder { radius, height } => positive(&[*radius, *height]),
+        Shape::Implant { volume_ml, base_mm, projection_mm, .. } => {
+            positive(&[*volume_ml, *base_mm, *projection_mm])
+        }
+    };
+    if ok { Ok(()) } else { Err(format!("{shape:?}: every size must be positive")) }
+}
+
+fn check_material(m: &MaterialSpec) -> Result<(), (&'static str, String)> {
+    if !(m.young_kpa.is_finite() && m.young_kpa > 0.0) {
+        return Err(("young_kpa", format!("{} must be a positive modulus in kPa", m.young_kpa)));
+    }
+    if !(m.poisson.is_finite() && (0.0..0.5).contains(&m.poisson)) {
+        return Err(("poisson", format!("{} must be in [0, 0.5)", m.poisson)));
+    }
+    if !(m.density.is_finite() && m.density > 0.0) {
+        return Err(("density", format!("{} must be a positive density in kg/m³", m.density)));
+    }
+    if !(m.damping.is_finite() && m.damping >= 0.0) {
+        return Err(("damping", format!("{} must be finite and not negative", m.damping)));
+    }
+    Ok(())
+}
+
+fn check_fixed(f: &Fixed) -> Result<(), String> {
+    match f {
+        Fixed::Below(a) | Fixed::Above(a) => match a.get() {
+            Some((_, v)) if v.is_finite() => Ok(()),
+            Some(_) => Err("the plane's coordinate must be finite".into()),
+            None => Err("give exactly one of x, y, z".into()),
+        },
+        Fixed::InsideBox { min, max } => {
+            if min.iter().chain(max).all(|v| v.is_finite()) && (0..3).all(|k| min[k] <= max[k]) {
+                Ok(())
+            } else {
+                Err(format!("the box {min:?}..{max:?} must be finite with min <= max"))
+            }
+        }
+        Fixed::Rim(w) => {
+            if w.is_finite() && *w >= 0.0 {
+                Ok(())
+            } else {
+                Err(format!("rim width {w} must be finite and not negative"))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn line_column_and_key_point_at_the_offset() {
+        let text =
+            "units = \"mm\"\n[[body]]\nname = \"a\"\n[[body]]\nname = \"b\"\nmaterial = { poisson = 0.7 }\n";
+        let at = text.find("0.7").unwrap();
+        assert_eq!(line_column(text, at), (6, 24));
+        assert_eq!(key_at(text, at), "body[1].material.poisson");
+        assert_eq!(key_at(text, text.find("\"a\"").unwrap()), "body[0].name");
+        assert_eq!(key_at(text, 0), "units");
+    }
+
+    #[test]
+    fn powers_of_two() {
+        assert_eq!(frexp(1.0).0, 0.5);
+        assert_eq!(frexp(0.25).0, 0.5);
+        assert_ne!(frexp(0.3).0, 0.5);
+    }
+}
