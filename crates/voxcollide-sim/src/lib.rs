@@ -11,6 +11,7 @@ pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
+pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
 pub mod scene_file; // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
 

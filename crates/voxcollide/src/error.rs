@@ -241,6 +241,16 @@ pub enum Error {
         message: String,
     },
 
+    /// A mesh file cannot be used as the surface it should be: unreadable, malformed, not
+    /// closed, not manifold, or with degenerate triangles.
+    #[error("{path}: {message}")]
+    Mesh {
+        /// The mesh file.
+        path: String,
+        /// What is wrong with it, with counts and the first offending triangle or edge.
+        message: String,
+    },
+
     /// A scene file is malformed or names something that does not exist: where, and why.
     #[error("{file}:{line}:{column}: {key}: {message}")]
     SceneFile {

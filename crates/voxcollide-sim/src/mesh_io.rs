@@ -1,0 +1,293 @@
+//! Closed triangle surfaces from files: STL (binary and ASCII, with `stl_io`), Wavefront OBJ
+//! (`tobj`) and PLY (ASCII and binary, `ply-rs-bw`), checked before a body is made of them.
+//!
+//! [`read_surface`] reads a file by its extension, welds vertices that are exactly equal (an STL
+//! stores every triangle's corners apart), and [`check_closed`] refuses what cannot bound a
+//! volume, naming the problem and counting it: degenerate triangles (a repeated corner or no
+//! area), edges with only one triangle (the surface is not closed), edges with more than two
+//! (not manifold), and triangles whose orientation disagrees with a neighbour's. A closed,
+//! consistently oriented surface whose normals point inward (negative enclosed volume) is turned
+//! outward, and the report says so.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+use voxcollide::Error;
+
+use crate::mesh::TriangleMesh;
+
+/// A surface read from a file: its vertices and triangles, in the file's units.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Surface {
+    /// Vertex positions (exact duplicates welded).
+    pub positions: Vec<Vec3>,
+    /// Triangles over `positions`.
+    pub mesh: TriangleMesh,
+}
+
+/// What [`check_closed`] found in a surface that passed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceReport {
+    /// The enclosed volume, in cubic file units (positive: outward normals).
+    pub volume: f64,
+    /// The surface area, in square file units.
+    pub area: f64,
+    /// Whether the triangles were flipped because their normals pointed inward.
+    pub flipped: bool,
+}
+
+fn mesh_error(path: &Path, message: impl Into<String>) -> Error {
+    Error::Mesh { path: path.display().to_string(), message: message.into() }
+}
+
+/// Reads the closed surface in `path` (`.stl`, `.obj` or `.ply`, in any case) and checks it
+/// with [`check_closed`], turning inward normals outward.
+///
+/// # Errors
+/// [`Error::Mesh`] naming the file: it cannot be read, its extension is none of those, it is
+/// malformed, it has no triangles or a coordinate that is not finite, or it fails
+/// [`check_closed`].
+pub fn read_surface(path: &Path) -> Result<(Surface, SurfaceReport), Error> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let mut surface = match ext.as_deref() {
+        Some("stl") => read_stl(path)?,
+        Some("obj") => read_obj(path)?,
+        Some("ply") => read_ply(path)?,
+        _ => {
+            return Err(mesh_error(path, "not a surface file: the extension must be .stl, .obj or .ply"));
+        }
+    };
+    if surface.mesh.triangles.is_empty() {
+        return Err(mesh_error(path, "has no triangles"));
+    }
+    if let Some(i) = surface.positions.iter().position(|p| !p.is_finite()) {
+        return Err(mesh_error(path, format!("vertex {i} is not finite: {}", surface.positions[i])));
+    }
+    let report = check_closed(&mut surface).map_err(|m| mesh_error(path, m))?;
+    Ok((surface, report))
+}
+
+fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, Error> {
+    std::fs::File::open(path)
+        .map(std::io::BufReader::new)
+        .map_err(|e| mesh_error(path, format!("cannot be read: {e}")))
+}
+
+fn read_stl(path: &Path) -> Result<Surface, Error> {
+    let mesh = stl_io::read_stl(&mut open(path)?)
+        .map_err(|e| mesh_error(path, format!("is not a valid STL file: {e}")))?;
+    let positions = mesh.vertices.iter().map(|v| Vec3::from_array(v.0)).collect();
+    let triangles = mesh.faces.iter().map(|f| f.vertices.map(|i| i as u32)).collect();
+    Ok(weld(Surface { positions, mesh: TriangleMesh { triangles } }))
+}
+
+fn read_obj(path: &Path) -> Result<Surface, Error> {
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ..Default::default() };
+    let (models, _) = tobj::load_obj(path, &options)
+        .map_err(|e| mesh_error(path, format!("is not a valid OBJ file: {e}")))?;
+    let mut surface = Surface::default();
+    for model in models {
+        let base = surface.positions.len() as u32;
+        let m = model.mesh;
+        surface.positions.extend(m.positions.chunks_exact(3).map(|c| Vec3::new(c[0], c[1], c[2])));
+        surface
+            .mesh
+            .triangles
+            .extend(m.indices.chunks_exact(3).map(|t| [base + t[0], base + t[1], base + t[2]]));
+    }
+    Ok(weld(surface))
+}
+
+#[derive(Debug, Default)]
+struct PlyVertex([f32; 3]);
+
+impl ply_rs_bw::ply::PropertyAccess for PlyVertex {
+    fn new() -> Self {
+        PlyVertex::default()
+    }
+    fn set_float(&mut self, name: &str, v: f32) -> ply_rs_bw::ply::PropertyAccessResult {
+        self.set(name, v)
+    }
+    fn set_double(&mut self, name: &str, v: f64) -> ply_rs_bw::ply::PropertyAccessResult {
+        self.set(name, v as f32)
+    }
+}
+
+impl PlyVertex {
+    fn set(&mut self, name: &str, v: f32) -> ply_rs_bw::ply::PropertyAccessResult {
+        match name {
+            "x" => self.0[0] = v,
+            "y" => self.0[1] = v,
+            "z" => self.0[2] = v,
+            _ => return ply_rs_bw::ply::PropertyAccessResult::Ignored,
+        }
+        ply_rs_bw::ply::PropertyAccessResult::Set
+    }
+}
+
+#[derive(Debug, Default)]
+struct PlyFace(Vec<i64>);
+
+impl ply_rs_bw::ply::PropertyAccess for PlyFace {
+    fn new() -> Self {
+        PlyFace::default()
+    }
+    fn set_list_int(&mut self, name: &str, v: Vec<i32>) -> ply_rs_bw::ply::PropertyAccessResult {
+        self.set(name, v.into_iter().map(i64::from).collect())
+    }
+    fn set_list_uint(&mut self, name: &str, v: Vec<u32>) -> ply_rs_bw::ply::PropertyAccessResult {
+        self.set(name, v.into_iter().map(i64::from).collect())
+    }
+}
+
+impl PlyFace {
+    fn set(&mut self, name: &str, v: Vec<i64>) -> ply_rs_bw::ply::PropertyAccessResult {
+        if name == "vertex_indices" || name == "vertex_index" {
+            self.0 = v;
+            ply_rs_bw::ply::PropertyAccessResult::Set
+        } else {
+            ply_rs_bw::ply::PropertyAccessResult::Ignored
+        }
+    }
+}
+
+fn read_ply(path: &Path) -> Result<Surface, Error> {
+    use ply_rs_bw::parser::{Parser, Reader};
+    fn bad<E: std::fmt::Display>(path: &Path) -> impl Fn(E) -> Error + '_ {
+        move |e| mesh_error(path, format!("is not a valid PLY file: {e}"))
+    }
+    let mut reader = Reader::new(open(path)?);
+    let vertex_parser = Parser::<PlyVertex>::new();
+    let header = vertex_parser.read_header(&mut reader).map_err(bad(path))?;
+    let (Some(vertex), Some(face)) = (header.elements.get("vertex"), header.elements.get("face")) else {
+        return Err(mesh_error(path, "has no `vertex` or no `face` element"));
+    };
+    let vertices = vertex_parser.read_payload_for_element(&mut reader, vertex, &header).map_err(bad(path))?;
+    let faces =
+        Parser::<PlyFace>::new().read_payload_for_element(&mut reader, face, &header).map_err(bad(path))?;
+    let n = vertices.len() as i64;
+    let mut triangles = Vec::with_capacity(faces.len());
+    for (k, f) in faces.iter().enumerate() {
+        if f.0.len() < 3 || f.0.iter().any(|&i| i < 0 || i >= n) {
+            return Err(mesh_error(path, format!("face {k} has indices {:?} for {n} vertices", f.0)));
+        }
+        // A polygon as a fan of triangles.
+        for j in 1..f.0.len() - 1 {
+            triangles.push([f.0[0] as u32, f.0[j] as u32, f.0[j + 1] as u32]);
+        }
+    }
+    let positions = vertices.into_iter().map(|v| Vec3::from_array(v.0)).collect();
+    Ok(weld(Surface { positions, mesh: TriangleMesh { triangles } }))
+}
+
+/// Merges vertices with exactly equal coordinates (bitwise, `-0.0` as `+0.0`), keeping the first
+/// of each; drops vertices no triangle uses.
+fn weld(surface: Surface) -> Surface {
+    let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(surface.positions.len());
+    let mut positions = Vec::with_capacity(surface.positions.len());
+    let mut remap = vec![u32::MAX; surface.positions.len()];
+    for t in &surface.mesh.triangles {
+        for &v in t {
+            let v = v as usize;
+            if v < remap.len() && remap[v] == u32::MAX {
+                let p = surface.positions[v];
+                let key = (p + Vec3::ZERO).to_array().map(f32::to_bits);
+                remap[v] = *index.entry(key).or_insert_with(|| {
+                    positions.push(p);
+                    (positions.len() - 1) as u32
+                });
+            }
+        }
+    }
+    let triangles = surface.mesh.triangles.iter().map(|t| t.map(|v| remap[v as usize])).collect();
+    Surface { positions, mesh: TriangleMesh { triangles } }
+}
+
+/// Checks that `surface` bounds a volume, and turns it outward if it is inside out.
+///
+/// # Errors
+/// A message naming the problem, its count and the first instance: degenerate triangles, edges
+/// of one triangle (the count of boundary edges), edges of more than two, inconsistent
+/// orientation.
+pub fn check_closed(surface: &mut Surface) -> Result<SurfaceReport, String> {
+    let p = &surface.positions;
+    let tris = &surface.mesh.triangles;
+    let mut degenerate = 0usize;
+    let mut first_degenerate = None;
+    for (k, t) in tris.iter().enumerate() {
+        let area2 = {
+            let [a, b, c] = t.map(|i| p[i as usize].as_dvec3());
+            (b - a).cross(c - a).length()
+        };
+        if t[0] == t[1] || t[1] == t[2] || t[0] == t[2] || area2 == 0.0 {
+            degenerate += 1;
+            first_degenerate.get_or_insert(k);
+        }
+    }
+    if let Some(k) = first_degenerate {
+        return Err(format!(
+            "{degenerate} degenerate triangle(s) (a repeated corner or no area), the first triangle {k}: {:?}",
+            tris[k]
+        ));
+    }
+    // Every directed edge, and how many triangles use each undirected one.
+    let mut directed: HashMap<(u32, u32), u32> = HashMap::with_capacity(3 * tris.len());
+    for t in tris {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *directed.entry((a, b)).or_default() += 1;
+        }
+    }
+    let (mut boundary, mut shared, mut flipped_edges) = (0usize, 0usize, 0usize);
+    let mut first = (None, None, None);
+    for (&(a, b), &n) in &directed {
+        let back = directed.get(&(b, a)).copied().unwrap_or(0);
+        if a < b || back == 0 {
+            let total = n + back;
+            if total == 1 {
+                boundary += 1;
+                first.0.get_or_insert((a, b));
+            } else if total > 2 {
+                shared += 1;
+                first.1.get_or_insert((a, b));
+            }
+        }
+        if n > 1 && n + back == 2 {
+            flipped_edges += 1;
+            first.2.get_or_insert((a, b));
+        }
+    }
+    if boundary > 0 {
+        let (a, b) = first.0.unwrap_or_default();
+        return Err(format!(
+            "is not closed: {boundary} boundary edge(s) belong to one triangle only (e.g. vertices {a}–{b} at {} and {})",
+            p[a as usize], p[b as usize]
+        ));
+    }
+    if shared > 0 {
+        let (a, b) = first.1.unwrap_or_default();
+        return Err(format!(
+            "is not manifold: {shared} edge(s) belong to more than two triangles (e.g. vertices {a}–{b})"
+        ));
+    }
+    if flipped_edges > 0 {
+        let (a, b) = first.2.unwrap_or_default();
+        return Err(format!(
+            "is not consistently oriented: {flipped_edges} edge(s) run the same way in both of their triangles (e.g. vertices {a}–{b})"
+        ));
+    }
+    let (mut volume, mut area) = (0.0f64, 0.0f64);
+    for t in tris {
+        let [a, b, c]: [DVec3; 3] = t.map(|i| p[i as usize].as_dvec3());
+        volume += a.dot(b.cross(c)) / 6.0;
+        area += (b - a).cross(c - a).length() / 2.0;
+    }
+    let flipped = volume < 0.0;
+    if flipped {
+        for t in &mut surface.mesh.triangles {
+            t.swap(1, 2);
+        }
+        volume = -volume;
+    }
+    Ok(SurfaceReport { volume, area, flipped })
+}
