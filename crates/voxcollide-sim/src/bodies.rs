@@ -1,7 +1,7 @@
 //! Builders of the paper's bodies: a tissue layer (box lattice), a cylinder (polar lattice) and
 //! an implant (closed ellipsoidal shell), each with its springs and outward-facing surface.
 
-use glam::{UVec3, Vec3};
+use glam::{DVec3, UVec3, Vec3};
 
 use crate::body::{MassSpring, Material, Mode, Spring};
 use crate::mesh::TriangleMesh;
@@ -328,4 +328,372 @@ pub fn ellipsoid_shell(
     let floor = center.z - pin_below * radii.z;
     let modes = pos.iter().map(|p| if p.z < floor { Mode::Pinned } else { Mode::Free }).collect();
     MassSpring::new(pos, modes, springs, surface, material)
+}
+
+/// Where rays along +x through the rows of a lattice's half-spacing grid cross a closed surface:
+/// the inside test of every lattice node and every spring's middle, by parity, at the cost of
+/// the triangles each row meets instead of a winding number a point. Each row is probed by four
+/// rays a millionth of the spacing off it (±y, ±z), and a point is inside when one of them says
+/// so — or when a crossing is within the tolerance of it — so that points on a face parallel to
+/// the rays count as on the surface.
+struct RowCrossings {
+    /// Per ray (4) per half-grid row (`(2n.y - 1) × (2n.z - 1)`): crossing x's, sorted; `None`
+    /// where the crossings were odd in number (the ray met an edge or a vertex exactly).
+    rows: Vec<Option<Vec<f64>>>,
+    ny2: u32,
+    nz2: u32,
+}
+
+impl RowCrossings {
+    fn new(positions: &[Vec3], mesh: &TriangleMesh, origin: Vec3, h: f32, n: UVec3) -> RowCrossings {
+        use rayon::prelude::*;
+        let (ny2, nz2) = (2 * n.y - 1, 2 * n.z - 1);
+        let half = f64::from(h) / 2.0;
+        let (oy, oz) = (f64::from(origin.y), f64::from(origin.z));
+        let delta = 1e-6 * f64::from(h);
+        let offsets =
+            [(delta, 0.7 * delta), (-0.8 * delta, delta), (0.9 * delta, -delta), (-delta, -0.6 * delta)];
+        // Which rows each triangle's (y, z) box spans, and its crossing there.
+        let mut lists: Vec<Vec<f64>> = vec![Vec::new(); 4 * (ny2 * nz2) as usize];
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+            let (ylo, yhi) = (a.y.min(b.y).min(c.y), a.y.max(b.y).max(c.y));
+            let (zlo, zhi) = (a.z.min(b.z).min(c.z), a.z.max(b.z).max(c.z));
+            let r0 =
+                |lo: f64, o: f64, m: u32| (((lo - o - 2.0 * delta) / half).ceil().max(0.0) as u32).min(m);
+            let r1 = |hi: f64, o: f64, m: u32| {
+                let r = ((hi - o + 2.0 * delta) / half).floor();
+                if r < 0.0 { None } else { Some((r as u32).min(m - 1)) }
+            };
+            let (Some(y1), Some(z1)) = (r1(yhi, oy, ny2), r1(zhi, oz, nz2)) else { continue };
+            for yr in r0(ylo, oy, ny2)..=y1 {
+                for zr in r0(zlo, oz, nz2)..=z1 {
+                    for (k, (dy, dz)) in offsets.iter().enumerate() {
+                        let (py, pz) = (oy + f64::from(yr) * half + dy, oz + f64::from(zr) * half + dz);
+                        if let Some(x) = ray_x(a, b, c, py, pz) {
+                            lists[(k as u32 * ny2 * nz2 + zr * ny2 + yr) as usize].push(x);
+                        }
+                    }
+                }
+            }
+        }
+        let rows = lists
+            .into_par_iter()
+            .map(|mut xs| {
+                xs.sort_by(f64::total_cmp);
+                xs.len().is_multiple_of(2).then_some(xs)
+            })
+            .collect();
+        RowCrossings { rows, ny2, nz2 }
+    }
+
+    /// Whether x on half-grid row (y2, z2) is inside (or within `on` of a crossing); `None` when
+    /// a ray of that row met an edge or a vertex exactly.
+    fn inside(&self, x: f32, y2: u32, z2: u32, on: f32) -> Option<bool> {
+        let x = f64::from(x);
+        let mut any = false;
+        for k in 0..4 {
+            let xs = self.rows[(k * self.ny2 * self.nz2 + z2 * self.ny2 + y2) as usize].as_ref()?;
+            let before = xs.partition_point(|&c| c < x);
+            let near = [before.checked_sub(1), Some(before)]
+                .into_iter()
+                .flatten()
+                .filter_map(|i| xs.get(i))
+                .any(|&c| (c - x).abs() <= f64::from(on));
+            any |= before % 2 == 1 || near;
+        }
+        Some(any)
+    }
+}
+
+/// Where the ray `(t, py, pz)`, `t` along +x, crosses triangle `a b c`, if it does (the
+/// triangle's projection on the (y, z) plane holds the point; edges count on one side only
+/// where the signs say so, and an exact hit on an edge is treated as a crossing of both
+/// triangles, which the parity check of the row then refuses).
+fn ray_x(a: DVec3, b: DVec3, c: DVec3, py: f64, pz: f64) -> Option<f64> {
+    let e = |p: DVec3, q: DVec3| (q.y - p.y) * (pz - p.z) - (q.z - p.z) * (py - p.y);
+    let (w0, w1, w2) = (e(b, c), e(c, a), e(a, b));
+    let inside = (w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0) || (w0 <= 0.0 && w1 <= 0.0 && w2 <= 0.0);
+    let sum = w0 + w1 + w2;
+    if !inside || sum == 0.0 {
+        return None;
+    }
+    Some((w0 * a.x + w1 * b.x + w2 * c.x) / sum)
+}
+
+/// The most vertices a lattice may have: a body of more does not fit the GPU's storage
+/// bindings on common adapters, and the CPU would need gigabytes.
+pub const MAX_LATTICE_VERTICES: u64 = 16 << 20;
+
+/// What [`lattice_in_surface`] made, and what it could not keep.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LatticeReport {
+    /// Lattice vertices inside the surface (those with at least one spring).
+    pub vertices: usize,
+    /// Springs kept.
+    pub springs: usize,
+    /// Springs between two inside vertices whose middle is outside the surface (across a fold
+    /// or a gap narrower than the spacing): left out, so that the lattice does not leak.
+    pub springs_outside: usize,
+    /// Inside vertices without any spring left (slivers thinner than the spacing): left out.
+    pub isolated: usize,
+    /// The volume of the lattice's full cells (those with all 8 corners kept: the solid the
+    /// lattice holds) over the surface's enclosed volume. Below 1 by about a cell layer at the
+    /// surface; much below where parts are thinner than the spacing.
+    pub coverage: f64,
+    /// Surface vertices farther than a cell's diagonal (`√3 · spacing`) from every lattice
+    /// vertex: parts of the surface thinner than the spacing, which the lattice does not hold.
+    pub uncovered: usize,
+    /// All surface vertices, for the fraction.
+    pub surface_vertices: usize,
+}
+
+/// A soft body filling the closed surface `positions` / `mesh` (outward-oriented, as
+/// [`crate::mesh_io::read_surface`] gives it), in the manner of SOFA's `SparseGridTopology`: a
+/// cubic lattice of spacing `h` centred on the surface's bounding box, keeping the nodes inside
+/// (generalized winding number above ½, or on the surface within `1e-4 · h`), joined by
+/// structural and face-diagonal springs of
+/// stiffness `k` as in [`box_lattice`] — but only springs whose middle is inside too, so that
+/// no spring bridges a concave gap. The body's own surface is the outer faces of the lattice's
+/// full cells; `mode` decides from a vertex's position whether it is held.
+///
+/// # Errors
+/// [`Error::Invalid`] for a spacing that is not a positive length, a surface without triangles,
+/// a lattice of more than [`MAX_LATTICE_VERTICES`] vertices (estimated from the box and the
+/// enclosed volume before anything is allocated, and named with its count), and a spacing so
+/// coarse that no lattice cell lies wholly inside (no interior).
+pub fn lattice_in_surface(
+    positions: &[Vec3],
+    mesh: &TriangleMesh,
+    h: f32,
+    k: f32,
+    material: Material,
+    mode: impl Fn(Vec3) -> Mode,
+) -> Result<(MassSpring, LatticeReport), Error> {
+    use rayon::prelude::*;
+
+    let invalid = |what, value: String, rule: String| Error::Invalid { what, value, rule };
+    if !(h.is_finite() && h > 0.0) {
+        return Err(invalid("lattice spacing", h.to_string(), "must be a positive length".into()));
+    }
+    let surface = crate::geometry::ClosedSurface::new(positions, mesh)?;
+    let Some((lo, hi)) = surface.bounds() else {
+        return Err(invalid("surface", "no triangles".into(), "a lattice needs a closed surface".into()));
+    };
+    let volume: f64 = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+            a.dot(b.cross(c)) / 6.0
+        })
+        .sum();
+    let extent = (hi - lo).as_dvec3();
+    let hd = f64::from(h);
+    let n = (extent / hd).floor() + glam::DVec3::ONE;
+    let grid = n.x * n.y * n.z;
+    let estimate = (volume.abs() / (hd * hd * hd)).max(1.0);
+    if grid > 4.0 * MAX_LATTICE_VERTICES as f64 || estimate > MAX_LATTICE_VERTICES as f64 {
+        return Err(invalid(
+            "lattice spacing",
+            h.to_string(),
+            format!(
+                "gives about {estimate:.0} lattice vertices ({grid:.0} lattice nodes in the box); at most {MAX_LATTICE_VERTICES} are allowed"
+            ),
+        ));
+    }
+    let n = UVec3::new(n.x as u32, n.y as u32, n.z as u32);
+    let origin = 0.5 * (lo + hi) - 0.5 * h * (n - UVec3::ONE).as_vec3();
+    let node = |x: u32, y: u32, z: u32| origin + h * Vec3::new(x as f32, y as f32, z as f32);
+    let count = (n.x * n.y * n.z) as usize;
+    let idx = |x: u32, y: u32, z: u32| (x + n.x * (y + n.y * z)) as usize;
+    // Inside, or on the surface within a ten-thousandth of the spacing (a node or a spring's
+    // middle exactly on a face, as where a box's faces fall on the lattice, is not outside).
+    // Inside, or on the surface within a ten-thousandth of the spacing (a node or a spring's
+    // middle exactly on a face, as where a box's faces fall on the lattice, is not outside).
+    let rays = RowCrossings::new(positions, mesh, origin, h, n);
+    let on = 1e-4 * h;
+    let keeps = |p: Vec3, y2: u32, z2: u32| match rays.inside(p.x, y2, z2, on) {
+        Some(inside) => inside,
+        // A row whose rays met an edge or a vertex exactly: the winding number decides.
+        None => surface.contains(p) || surface.distance(p) <= on,
+    };
+    // Which nodes are inside, from the crossings of the rows' rays with the surface.
+    let inside: Vec<bool> = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            let i = i as u32;
+            let (x, y, z) = (i % n.x, i / n.x % n.y, i / (n.x * n.y));
+            keeps(node(x, y, z), 2 * y, 2 * z)
+        })
+        .collect();
+
+    // Springs between inside nodes whose middle is inside too.
+    let steps: [[i32; 3]; 9] = [
+        [1, 0, 0],
+        [0, 1, 0],
+        [0, 0, 1],
+        [1, 1, 0],
+        [1, -1, 0],
+        [1, 0, 1],
+        [1, 0, -1],
+        [0, 1, 1],
+        [0, 1, -1],
+    ];
+    let at = |x: u32, y: u32, z: u32, d: [i32; 3]| -> Option<usize> {
+        let (x, y, z) = (x as i64 + i64::from(d[0]), y as i64 + i64::from(d[1]), z as i64 + i64::from(d[2]));
+        let inb = |v: i64, m: u32| v >= 0 && v < i64::from(m);
+        (inb(x, n.x) && inb(y, n.y) && inb(z, n.z)).then(|| idx(x as u32, y as u32, z as u32))
+    };
+    let candidates: Vec<(usize, usize)> = (0..count)
+        .filter(|&i| inside[i])
+        .flat_map(|i| {
+            let i32_ = i as u32;
+            let (x, y, z) = (i32_ % n.x, i32_ / n.x % n.y, i32_ / (n.x * n.y));
+            steps.iter().filter_map(move |&d| at(x, y, z, d).map(|j| (i, j)))
+        })
+        .filter(|&(_, j)| inside[j])
+        .collect();
+    let grid_pos = |i: usize| {
+        let i = i as u32;
+        node(i % n.x, i / n.x % n.y, i / (n.x * n.y))
+    };
+    // A spring's middle lies on a row of the half-spacing grid: (y_i + y_j, z_i + z_j) in
+    // half-spacings.
+    let half_row = |i: usize| {
+        let i = i as u32;
+        (i / n.x % n.y, i / (n.x * n.y))
+    };
+    let kept: Vec<bool> = candidates
+        .par_iter()
+        .map(|&(i, j)| {
+            let ((yi, zi), (yj, zj)) = (half_row(i), half_row(j));
+            keeps(0.5 * (grid_pos(i) + grid_pos(j)), yi + yj, zi + zj)
+        })
+        .collect();
+    let springs_outside = kept.iter().filter(|k| !**k).count();
+    let mut has_spring = vec![false; count];
+    // Per node, which of the three axis springs forward from it were kept (bits x, y, z).
+    let mut axis_kept = vec![0u8; count];
+    for (&(i, j), &keep) in candidates.iter().zip(&kept) {
+        if keep {
+            has_spring[i] = true;
+            has_spring[j] = true;
+            let d = j - i;
+            let bit = if d == 1 {
+                1
+            } else if d == n.x as usize {
+                2
+            } else if d == (n.x * n.y) as usize {
+                4
+            } else {
+                0
+            };
+            axis_kept[i] |= bit;
+        }
+    }
+    let isolated = (0..count).filter(|&i| inside[i] && !has_spring[i]).count();
+    let mut vertex = vec![u32::MAX; count];
+    let mut pos = Vec::new();
+    for i in 0..count {
+        if has_spring[i] {
+            vertex[i] = pos.len() as u32;
+            pos.push(grid_pos(i));
+        }
+    }
+    // The outer faces of the full cells: all 8 corners and all 12 edges kept, so that a cell
+    // never spans a gap whose springs were left out.
+    let full = |x: u32, y: u32, z: u32| {
+        if !(x + 1 < n.x && y + 1 < n.y && z + 1 < n.z) {
+            return false;
+        }
+        let corner = |c: u32| idx(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2 & 1));
+        // Edges along x start at the corners with x = 0, along y at y = 0, along z at z = 0.
+        (0..8).all(|c| vertex[corner(c)] != u32::MAX)
+            && [0u32, 2, 4, 6].iter().all(|&c| axis_kept[corner(c)] & 1 != 0)
+            && [0u32, 1, 4, 5].iter().all(|&c| axis_kept[corner(c)] & 2 != 0)
+            && [0u32, 1, 2, 3].iter().all(|&c| axis_kept[corner(c)] & 4 != 0)
+    };
+    let mut cells = 0usize;
+    let mut surface_mesh = TriangleMesh::default();
+    for z in 0..n.z.saturating_sub(1) {
+        for y in 0..n.y.saturating_sub(1) {
+            for x in 0..n.x.saturating_sub(1) {
+                if !full(x, y, z) {
+                    continue;
+                }
+                cells += 1;
+                let v = |dx: u32, dy: u32, dz: u32| vertex[idx(x + dx, y + dy, z + dz)];
+                let neighbour_full = |dx: i32, dy: i32, dz: i32| {
+                    let (a, b, c) =
+                        (x as i64 + i64::from(dx), y as i64 + i64::from(dy), z as i64 + i64::from(dz));
+                    a >= 0 && b >= 0 && c >= 0 && full(a as u32, b as u32, c as u32)
+                };
+                let faces = [
+                    ((-1, 0, 0), [v(0, 0, 0), v(0, 1, 0), v(0, 1, 1), v(0, 0, 1)], Vec3::NEG_X),
+                    ((1, 0, 0), [v(1, 0, 0), v(1, 1, 0), v(1, 1, 1), v(1, 0, 1)], Vec3::X),
+                    ((0, -1, 0), [v(0, 0, 0), v(1, 0, 0), v(1, 0, 1), v(0, 0, 1)], Vec3::NEG_Y),
+                    ((0, 1, 0), [v(0, 1, 0), v(1, 1, 0), v(1, 1, 1), v(0, 1, 1)], Vec3::Y),
+                    ((0, 0, -1), [v(0, 0, 0), v(1, 0, 0), v(1, 1, 0), v(0, 1, 0)], Vec3::NEG_Z),
+                    ((0, 0, 1), [v(0, 0, 1), v(1, 0, 1), v(1, 1, 1), v(0, 1, 1)], Vec3::Z),
+                ];
+                for ((dx, dy, dz), corners, out) in faces {
+                    if !neighbour_full(dx, dy, dz) {
+                        quad(&mut surface_mesh, &pos, corners, out);
+                    }
+                }
+            }
+        }
+    }
+    if cells == 0 {
+        return Err(invalid(
+            "lattice spacing",
+            h.to_string(),
+            format!(
+                "leaves no lattice cell wholly inside the surface (its box is {:.4} × {:.4} × {:.4}); use a finer spacing",
+                extent.x, extent.y, extent.z
+            ),
+        ));
+    }
+    // Surface vertices the lattice does not reach: no kept node within a cell's diagonal.
+    let reach2 = 3.0 * h * h * 1.0001;
+    let uncovered = positions
+        .par_iter()
+        .filter(|p| {
+            let q = ((**p - origin) / h).round();
+            let mut near = false;
+            for dz in -1..=1 {
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let c = q + Vec3::new(dx as f32, dy as f32, dz as f32);
+                        if c.cmplt(Vec3::ZERO).any() || c.cmpge(n.as_vec3()).any() {
+                            continue;
+                        }
+                        let i = idx(c.x as u32, c.y as u32, c.z as u32);
+                        near |= vertex[i] != u32::MAX && grid_pos(i).distance_squared(**p) <= reach2;
+                    }
+                }
+            }
+            !near
+        })
+        .count();
+    let pairs: Vec<(u32, u32)> = candidates
+        .iter()
+        .zip(&kept)
+        .filter(|(_, keep)| **keep)
+        .map(|(&(i, j), _)| (vertex[i], vertex[j]))
+        .collect();
+    let springs = springs_from(&pos, pairs, k);
+    let report = LatticeReport {
+        vertices: pos.len(),
+        springs: springs.len(),
+        springs_outside,
+        isolated,
+        coverage: cells as f64 * hd * hd * hd / volume.abs().max(f64::MIN_POSITIVE),
+        uncovered,
+        surface_vertices: positions.len(),
+    };
+    let modes = pos.iter().map(|p| mode(*p)).collect();
+    let body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
+    Ok((body, report))
 }

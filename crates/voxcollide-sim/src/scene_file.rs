@@ -825,10 +825,10 @@ impl SceneFile {
                     return Err(err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
                 }
             }
-            if let Auto::Value(v) = c.voxel_size.get_ref() {
-                if frexp(*v).0 != 0.5 {
-                    return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
-                }
+            if let Auto::Value(v) = c.voxel_size.get_ref()
+                && frexp(*v).0 != 0.5
+            {
+                return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
             }
             contacts.push(ContactSpec {
                 a,

@@ -6,89 +6,12 @@
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
 
+mod common;
+
+use common::shapes::{breast, kidney, torus, volume};
 use voxcollide::Error;
-use voxcollide::glam::{DVec3, Vec3};
-use voxcollide_sim::mesh::TriangleMesh;
+use voxcollide::glam::Vec3;
 use voxcollide_sim::mesh_io::{Surface, read_surface};
-
-/// A closed surface of sphere topology: the poles and `rings` rings of `segments`, the point at
-/// polar angle θ and azimuth φ given by `f`, triangles counter-clockwise seen from outside.
-fn sphere_like(rings: u32, segments: u32, f: impl Fn(f64, f64) -> DVec3) -> Surface {
-    let pi = std::f64::consts::PI;
-    let mut positions = vec![f(0.0, 0.0)];
-    for r in 1..=rings {
-        let theta = pi * f64::from(r) / f64::from(rings + 1);
-        for s in 0..segments {
-            positions.push(f(theta, 2.0 * pi * f64::from(s) / f64::from(segments)));
-        }
-    }
-    positions.push(f(pi, 0.0));
-    let south = 1 + rings * segments;
-    let at = |r: u32, s: u32| 1 + r * segments + s % segments;
-    let mut triangles = Vec::new();
-    for s in 0..segments {
-        triangles.push([0, at(0, s), at(0, s + 1)]);
-        triangles.push([south, at(rings - 1, s + 1), at(rings - 1, s)]);
-    }
-    for r in 0..rings - 1 {
-        for s in 0..segments {
-            triangles.push([at(r, s), at(r + 1, s), at(r + 1, s + 1)]);
-            triangles.push([at(r, s), at(r + 1, s + 1), at(r, s + 1)]);
-        }
-    }
-    Surface { positions: positions.iter().map(|p| p.as_vec3()).collect(), mesh: TriangleMesh { triangles } }
-}
-
-/// A kidney bean, 120 × 60 × 50 mm, concave on one side (its hilum).
-fn kidney() -> Surface {
-    sphere_like(24, 48, |t, p| {
-        let (x, y, z) = (t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
-        DVec3::new(60.0 * x, 30.0 * (y + 0.55 * (1.0 - x * x)), 25.0 * z)
-    })
-}
-
-/// A breast-like bulge: wide and flat at the chest wall (z low), projecting and drooping.
-fn breast() -> Surface {
-    sphere_like(20, 40, |t, p| {
-        let (x, y, z) = (t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
-        let droop = 0.35 * (1.0 - z) * (1.0 - z);
-        DVec3::new(70.0 * x, 65.0 * y - 20.0 * droop, 40.0 * z.max(-0.3) + 8.0 * (x * x + y * y))
-    })
-}
-
-/// A torus (genus 1): closed without being a sphere.
-fn torus() -> Surface {
-    let (big, small, n, m) = (40.0f64, 12.0f64, 48u32, 16u32);
-    let pi = std::f64::consts::PI;
-    let mut positions = Vec::new();
-    for i in 0..n {
-        for j in 0..m {
-            let (u, v) = (2.0 * pi * f64::from(i) / f64::from(n), 2.0 * pi * f64::from(j) / f64::from(m));
-            let r = big + small * v.cos();
-            positions.push(Vec3::new((r * u.cos()) as f32, (r * u.sin()) as f32, (small * v.sin()) as f32));
-        }
-    }
-    let at = |i: u32, j: u32| (i % n) * m + j % m;
-    let mut triangles = Vec::new();
-    for i in 0..n {
-        for j in 0..m {
-            triangles.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
-            triangles.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
-        }
-    }
-    Surface { positions, mesh: TriangleMesh { triangles } }
-}
-
-fn volume(s: &Surface) -> f64 {
-    s.mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| s.positions[i as usize].as_dvec3());
-            a.dot(b.cross(c)) / 6.0
-        })
-        .sum()
-}
 
 struct Dir(PathBuf);
 
@@ -188,7 +111,9 @@ fn write_ply(path: &Path, s: &Surface, binary: bool) {
 }
 
 /// Every format: `(file name, writer)`.
-fn formats() -> Vec<(&'static str, fn(&Path, &Surface))> {
+type Writer = fn(&Path, &Surface);
+
+fn formats() -> Vec<(&'static str, Writer)> {
     vec![
         ("binary.stl", write_binary_stl),
         ("ascii.stl", write_ascii_stl),

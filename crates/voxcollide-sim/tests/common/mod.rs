@@ -1,0 +1,4 @@
+//! Helpers shared by the simulator's tests.
+#![allow(dead_code)]
+
+pub mod shapes;
