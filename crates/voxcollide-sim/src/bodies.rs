@@ -697,3 +697,46 @@ pub fn lattice_in_surface(
     let body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
     Ok((body, report))
 }
+
+/// A soft body of a tetrahedral mesh: a spring of stiffness `k` along every edge (once, however
+/// many tetrahedra share it) and **lumped masses** — each tetrahedron's mass, `density` times
+/// its volume, split equally among its four vertices. Its surface is the mesh's boundary.
+///
+/// # Errors
+/// [`Error::Invalid`] for a density that is not positive, and the errors of
+/// [`MassSpring::new`].
+pub fn tetrahedral_body(
+    mesh: &crate::mesh_io::Tetrahedra,
+    k: f32,
+    density: f32,
+    material: Material,
+    mode: impl Fn(Vec3) -> Mode,
+) -> Result<MassSpring, Error> {
+    if !(density.is_finite() && density > 0.0) {
+        return Err(Error::Invalid {
+            what: "density",
+            value: density.to_string(),
+            rule: "must be finite and positive".into(),
+        });
+    }
+    let p = &mesh.positions;
+    let mut edges: Vec<(u32, u32)> = Vec::with_capacity(6 * mesh.tets.len());
+    let mut mass = vec![0.0f64; p.len()];
+    for t in &mesh.tets {
+        for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+            edges.push((t[i].min(t[j]), t[i].max(t[j])));
+        }
+        let [a, b, c, d] = t.map(|i| p[i as usize].as_dvec3());
+        let volume = (b - a).dot((c - a).cross(d - a)) / 6.0;
+        for &v in t {
+            mass[v as usize] += f64::from(density) * volume / 4.0;
+        }
+    }
+    edges.sort_unstable();
+    edges.dedup();
+    let springs = springs_from(p, edges, k);
+    let modes = p.iter().map(|q| mode(*q)).collect();
+    let mut body = MassSpring::new(p.clone(), modes, springs, mesh.boundary.clone(), material)?;
+    body.inv_mass = mass.iter().map(|&m| (1.0 / m) as f32).collect();
+    Ok(body)
+}

@@ -291,3 +291,168 @@ pub fn check_closed(surface: &mut Surface) -> Result<SurfaceReport, String> {
     }
     Ok(SurfaceReport { volume, area, flipped })
 }
+
+/// A tetrahedral mesh read from a file: its vertices, its tetrahedra (positively oriented:
+/// `dot(b - a, cross(c - a, d - a)) > 0`) and its boundary, outward.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Tetrahedra {
+    /// Vertex positions (those no tetrahedron uses are dropped).
+    pub positions: Vec<Vec3>,
+    /// The tetrahedra, as indices into `positions`.
+    pub tets: Vec<[u32; 4]>,
+    /// The boundary: faces of one tetrahedron only, counter-clockwise seen from outside.
+    pub boundary: TriangleMesh,
+    /// Tetrahedra whose vertices were given in the negative order and were turned.
+    pub turned: usize,
+}
+
+/// Reads the tetrahedral mesh in `path`: VTK XML unstructured grid (`.vtu`, cells of type
+/// `VTK_TETRA`, with `vtkio`) or Gmsh `.msh` 4.1 (ASCII or binary, elements of type 4, with
+/// `mshio`). Other cells (triangles, lines, points of a Gmsh file's lower-dimensional entities)
+/// are ignored; tetrahedra of negative orientation are turned and counted.
+///
+/// # Errors
+/// [`Error::Mesh`] naming the file: unreadable or malformed, no tetrahedra, a vertex index out
+/// of range, a coordinate that is not finite, or a degenerate tetrahedron (no volume).
+pub fn read_tetrahedra(path: &Path) -> Result<Tetrahedra, Error> {
+    let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+    let (positions, tets) = match ext.as_deref() {
+        Some("vtu") => read_vtu(path)?,
+        Some("msh") => read_msh(path)?,
+        _ => return Err(mesh_error(path, "not a tetrahedral mesh: the extension must be .vtu or .msh")),
+    };
+    tetrahedra(positions, tets).map_err(|m| mesh_error(path, m))
+}
+
+fn read_vtu(path: &Path) -> Result<(Vec<Vec3>, Vec<[u64; 4]>), Error> {
+    use vtkio::model::{CellType, DataSet, VertexNumbers};
+    let bad = |m: String| mesh_error(path, m);
+    let vtk = vtkio::Vtk::import(path).map_err(|e| bad(format!("is not a readable VTK file: {e}")))?;
+    let DataSet::UnstructuredGrid { pieces, .. } = vtk.data else {
+        return Err(bad("is not an unstructured grid".into()));
+    };
+    let (mut positions, mut tets) = (Vec::new(), Vec::new());
+    for piece in pieces {
+        let piece = piece.load_piece_data(None).map_err(|e| bad(format!("cannot load a piece: {e}")))?;
+        let base = positions.len() as u64;
+        let points: Vec<f64> =
+            piece.points.cast_into().ok_or_else(|| bad("points are not numbers".into()))?;
+        positions.extend(points.chunks_exact(3).map(|c| DVec3::new(c[0], c[1], c[2]).as_vec3()));
+        let (connectivity, offsets) = match piece.cells.cell_verts {
+            VertexNumbers::XML { connectivity, offsets } => (connectivity, offsets),
+            legacy => legacy.into_xml(),
+        };
+        let mut start = 0u64;
+        for (k, (&end, ty)) in offsets.iter().zip(&piece.cells.types).enumerate() {
+            if *ty == CellType::Tetra {
+                let v = connectivity
+                    .get(start as usize..end as usize)
+                    .filter(|v| v.len() == 4)
+                    .ok_or_else(|| bad(format!("cell {k} is a tetrahedron without 4 vertices")))?;
+                tets.push([v[0] + base, v[1] + base, v[2] + base, v[3] + base]);
+            }
+            start = end;
+        }
+    }
+    Ok((positions, tets))
+}
+
+fn read_msh(path: &Path) -> Result<(Vec<Vec3>, Vec<[u64; 4]>), Error> {
+    let bytes = std::fs::read(path).map_err(|e| mesh_error(path, format!("cannot be read: {e}")))?;
+    let msh = mshio::parse_msh_bytes(&bytes)
+        .map_err(|e| mesh_error(path, format!("is not a valid Gmsh 4.1 file: {e}")))?;
+    let mut positions = Vec::new();
+    let mut index: HashMap<u64, u64> = HashMap::new();
+    if let Some(nodes) = &msh.data.nodes {
+        for block in &nodes.node_blocks {
+            // Tags run consecutively from the block's first unless the block lists them.
+            let mut tags: Vec<(u64, usize)> = match &block.node_tags {
+                Some(t) => t.iter().map(|(&tag, &i)| (tag, i)).collect(),
+                None => (0..block.nodes.len()).map(|i| (nodes.min_node_tag + i as u64, i)).collect(),
+            };
+            tags.sort_unstable();
+            let base = positions.len() as u64;
+            positions.extend(block.nodes.iter().map(|n| DVec3::new(n.x, n.y, n.z).as_vec3()));
+            for (tag, i) in tags {
+                index.insert(tag, base + i as u64);
+            }
+        }
+    }
+    let mut tets = Vec::new();
+    if let Some(elements) = &msh.data.elements {
+        for block in elements.element_blocks.iter().filter(|b| b.element_type == mshio::ElementType::Tet4) {
+            for e in &block.elements {
+                let v: Option<Vec<u64>> = e.nodes.iter().map(|tag| index.get(tag).copied()).collect();
+                let v = v.filter(|v| v.len() == 4).ok_or_else(|| {
+                    mesh_error(path, format!("element {} names a node that does not exist", e.element_tag))
+                })?;
+                tets.push([v[0], v[1], v[2], v[3]]);
+            }
+        }
+    }
+    Ok((positions, tets))
+}
+
+/// Checks and orients tetrahedra, drops unused vertices, and finds the boundary.
+fn tetrahedra(positions: Vec<Vec3>, tets: Vec<[u64; 4]>) -> Result<Tetrahedra, String> {
+    if tets.is_empty() {
+        return Err("has no tetrahedra".into());
+    }
+    let n = positions.len() as u64;
+    if let Some((k, t)) = tets.iter().enumerate().find(|(_, t)| t.iter().any(|&v| v >= n)) {
+        return Err(format!("tetrahedron {k} has indices {t:?} for {n} vertices"));
+    }
+    let mut remap = vec![u32::MAX; positions.len()];
+    let mut kept = Vec::new();
+    let mut out = Vec::with_capacity(tets.len());
+    let mut turned = 0;
+    let mut degenerate = (0usize, None);
+    for (k, t) in tets.iter().enumerate() {
+        let t = t.map(|v| {
+            let v = v as usize;
+            if remap[v] == u32::MAX {
+                remap[v] = kept.len() as u32;
+                kept.push(positions[v]);
+            }
+            remap[v]
+        });
+        let [a, b, c, d] = t.map(|i| kept[i as usize].as_dvec3());
+        let six_v = (b - a).dot((c - a).cross(d - a));
+        let scale = (b - a).length().max((c - a).length()).max((d - a).length());
+        // Not above the threshold: zero volume, or NaN from a non-finite corner.
+        if six_v.abs().partial_cmp(&(1e-12 * scale * scale * scale)) != Some(std::cmp::Ordering::Greater) {
+            degenerate.0 += 1;
+            degenerate.1.get_or_insert(k);
+            continue;
+        }
+        if six_v < 0.0 {
+            turned += 1;
+            out.push([t[0], t[2], t[1], t[3]]);
+        } else {
+            out.push(t);
+        }
+    }
+    if let (count, Some(k)) = degenerate {
+        return Err(format!(
+            "{count} degenerate tetrahedra (no volume), the first tetrahedron {k}: {:?}",
+            tets[k]
+        ));
+    }
+    if let Some(i) = kept.iter().position(|p| !p.is_finite()) {
+        return Err(format!("vertex {i} is not finite: {}", kept[i]));
+    }
+    // Faces of one tetrahedron are the boundary; a positive tet's faces, seen from outside,
+    // are (a c b), (a b d), (a d c), (b c d).
+    let mut faces: HashMap<[u32; 3], (u32, [u32; 3])> = HashMap::new();
+    for t in &out {
+        let [a, b, c, d] = *t;
+        for f in [[a, c, b], [a, b, d], [a, d, c], [b, c, d]] {
+            let mut key = f;
+            key.sort_unstable();
+            faces.entry(key).and_modify(|e| e.0 += 1).or_insert((1, f));
+        }
+    }
+    let mut boundary: Vec<[u32; 3]> = faces.into_values().filter(|(n, _)| *n == 1).map(|(_, f)| f).collect();
+    boundary.sort_unstable();
+    Ok(Tetrahedra { positions: kept, tets: out, boundary: TriangleMesh { triangles: boundary }, turned })
+}
