@@ -1,39 +1,45 @@
-//! The scene stepped on the CPU: the reference collision backend, then spring forces and
-//! integration for both bodies.
+//! Worlds stepped on the CPU: each contact on the parallel collision backend (the reference's
+//! reports, on all cores), then spring forces and integration for every body.
 
 use glam::Vec3;
 
 use crate::scene::Scene;
-use voxcollide::collision::Collision;
-use voxcollide::cpu::CpuCollision;
+use crate::world::World;
 use voxcollide::error::Error;
+use voxcollide::parallel::ParallelCpuCollision;
 use voxcollide::report::ContactReport;
 
-/// A scene stepping on the CPU.
-pub struct CpuSim {
-    /// The scene, whose bodies move as it steps.
-    pub scene: Scene,
-    collision: CpuCollision,
-    force_tissue: Vec<Vec3>,
-    force_foreign: Vec<Vec3>,
-    /// The last step's contact report.
-    pub report: ContactReport,
+/// A world stepping on the CPU.
+pub struct CpuWorld {
+    /// The world, whose bodies move as it steps.
+    pub world: World,
+    collisions: Vec<ParallelCpuCollision>,
+    /// The last step's contact report of each contact.
+    pub reports: Vec<ContactReport>,
+    contacts_of: Vec<Vec<(usize, bool)>>,
+    contact_force: Vec<Vec<Vec3>>,
+    force: Vec<Vec3>,
     step: u64,
 }
 
-impl CpuSim {
-    /// Starts `scene` at step 0.
+impl CpuWorld {
+    /// Starts `world` at step 0.
     ///
     /// # Errors
-    /// The contact-parameter errors of [`CpuCollision::new`].
-    pub fn new(scene: Scene) -> Result<CpuSim, Error> {
-        let collision = CpuCollision::new(scene.grid, scene.params)?;
-        Ok(CpuSim {
-            scene,
-            collision,
-            force_tissue: Vec::new(),
-            force_foreign: Vec::new(),
-            report: ContactReport::default(),
+    /// The contact-parameter errors of [`ParallelCpuCollision::new`].
+    pub fn new(world: World) -> Result<CpuWorld, Error> {
+        let collisions = world
+            .contacts
+            .iter()
+            .map(|c| ParallelCpuCollision::new(c.grid, c.params))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(CpuWorld {
+            reports: vec![ContactReport::default(); collisions.len()],
+            contacts_of: world.contacts_of(),
+            contact_force: world.bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect(),
+            force: Vec::new(),
+            collisions,
+            world,
             step: 0,
         })
     }
@@ -44,6 +50,68 @@ impl CpuSim {
         self.step
     }
 
+    /// One step: every contact's collision → each body's contact forces, summed in contact
+    /// order → spring forces → integration.
+    ///
+    /// # Errors
+    /// Collision errors, and [`Error::Simulation`] when a vertex's position stops being finite
+    /// or its speed runs away (naming the step, the body and the vertex).
+    pub fn step(&mut self) -> Result<(), Error> {
+        let w = &mut self.world;
+        for (c, pair) in w.contacts.iter().enumerate() {
+            let (a, b) = (&w.bodies[pair.a].pos, &w.bodies[pair.b].pos);
+            self.collisions[c].step_into(a, b, &mut self.reports[c])?;
+        }
+        let inputs = w.inputs(self.step)?;
+        for (k, body) in w.bodies.iter_mut().enumerate() {
+            let sum = &mut self.contact_force[k];
+            for (n, &(c, as_a)) in self.contacts_of[k].iter().enumerate() {
+                let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
+                if n == 0 {
+                    sum.copy_from_slice(f);
+                } else {
+                    sum.iter_mut().zip(f).for_each(|(s, f)| *s += *f);
+                }
+            }
+            body.forces(&inputs[k], sum, &mut self.force);
+            body.integrate(&inputs[k], &self.force);
+        }
+        self.step += 1;
+        for (k, body) in w.bodies.iter().enumerate() {
+            if let Some((_, what)) = body.blow_up(w.v_max) {
+                return Err(blow_up(self.step, &w.names[k], &what, None));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A paper scene stepping on the CPU: the scene's world of two bodies (tissue, foreign body)
+/// and one contact.
+pub struct CpuSim {
+    /// The scene, whose bodies move as it steps.
+    pub scene: Scene,
+    world: CpuWorld,
+    /// The last step's contact report.
+    pub report: ContactReport,
+}
+
+impl CpuSim {
+    /// Starts `scene` at step 0.
+    ///
+    /// # Errors
+    /// The contact-parameter errors of [`ParallelCpuCollision::new`].
+    pub fn new(scene: Scene) -> Result<CpuSim, Error> {
+        let world = CpuWorld::new(scene.world()?)?;
+        Ok(CpuSim { scene, world, report: ContactReport::default() })
+    }
+
+    /// Steps taken so far.
+    #[must_use]
+    pub fn steps_done(&self) -> u64 {
+        self.world.steps_done()
+    }
+
     /// One step: collision (A = foreign body, B = tissue) → penalty forces → spring forces →
     /// integration.
     ///
@@ -51,31 +119,40 @@ impl CpuSim {
     /// Collision errors, and [`Error::Simulation`] when a vertex's position stops being finite
     /// or its speed runs away.
     pub fn step(&mut self) -> Result<(), Error> {
-        let s = &mut self.scene;
-        self.report = self.collision.step(&s.foreign.pos, &s.tissue.pos)?;
-        let (in_t, in_f) = s.inputs(self.step);
-        s.tissue.forces(&in_t, &self.report.force_b, &mut self.force_tissue);
-        s.foreign.forces(&in_f, &self.report.force_a, &mut self.force_foreign);
-        s.tissue.integrate(&in_t, &self.force_tissue);
-        s.foreign.integrate(&in_f, &self.force_foreign);
-        self.step += 1;
-        for (name, body) in [("tissue", &s.tissue), ("foreign body", &s.foreign)] {
-            if let Some((_, what)) = body.blow_up(s.v_max) {
-                return Err(blow_up(self.step, name, &what, s));
-            }
-        }
-        Ok(())
+        let result = self.world.step().map_err(|e| with_cause(e, &self.scene));
+        let [tissue, foreign] = &self.world.world.bodies[..] else { unreachable!("a scene has two bodies") };
+        self.scene.tissue.pos.clone_from(&tissue.pos);
+        self.scene.tissue.vel.clone_from(&tissue.vel);
+        self.scene.foreign.pos.clone_from(&foreign.pos);
+        self.scene.foreign.vel.clone_from(&foreign.vel);
+        self.report.clone_from(&self.world.reports[0]);
+        result
     }
 }
 
-/// The error for a blow-up seen at `step`.
-pub(crate) fn blow_up(step: u64, body: &str, what: &str, scene: &Scene) -> Error {
-    Error::Simulation {
-        step,
-        message: format!(
-            "{body}: {what}; likely cause: a time step above the integrator's stability bound \
-             (dt = {:.3e}) or a penalty magnitude ({}) too large for the stiffness ({})",
-            scene.dt, scene.params.magnitude, scene.config.stiffness
+/// The error for a blow-up of `body` seen at `step`, with the scene's likely cause where known.
+pub(crate) fn blow_up(step: u64, body: &str, what: &str, scene: Option<&Scene>) -> Error {
+    let cause = match scene {
+        Some(s) => format!(
+            "likely cause: a time step above the integrator's stability bound (dt = {:.3e}) or a \
+             penalty magnitude ({}) too large for the stiffness ({})",
+            s.dt, s.params.magnitude, s.config.stiffness
         ),
+        None => "likely cause: a time step above the integrator's stability bound, a penalty \
+                 magnitude too large for the bodies' stiffness, or a degenerate body"
+            .into(),
+    };
+    Error::Simulation { step, message: format!("{body}: {what}; {cause}") }
+}
+
+/// A world's blow-up error restated with the scene's parameters.
+pub(crate) fn with_cause(e: Error, scene: &Scene) -> Error {
+    match e {
+        Error::Simulation { step, message } => {
+            let (body, what) = message.split_once(": ").unwrap_or(("", &message));
+            let what = what.split("; likely cause").next().unwrap_or(what);
+            blow_up(step, body, what, Some(scene))
+        }
+        e => e,
     }
 }

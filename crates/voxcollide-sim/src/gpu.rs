@@ -8,13 +8,15 @@ use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
 use crate::scene::Scene;
+use crate::world::World;
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuCollision, GpuContext, scoped};
 use voxcollide::report::ContactReport;
 
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
-pub const SHADERS: [(&str, &str); 2] = [("forces", FORCES), ("integrate", INTEGRATE)];
+pub const SHADERS: [(&str, &str); 3] =
+    [("accumulate", ACCUMULATE), ("forces", FORCES), ("integrate", INTEGRATE)];
 /// Pass 1: forces over mass.
 pub const FORCES: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/forces.wgsl"));
@@ -119,40 +121,97 @@ impl GpuBody {
     }
 }
 
-/// Bind groups of both bodies' passes (made after the first collision step, whose force buffers
-/// they read).
+/// The bind groups of a world's passes (made after the first collision step, whose force
+/// buffers they read).
 struct Bound {
-    forces: [wgpu::BindGroup; 2],
-    integrate: [wgpu::BindGroup; 2],
+    /// Per body with two or more contacts: one `accumulate` group per contact, in order.
+    accumulate: Vec<Vec<wgpu::BindGroup>>,
+    forces: Vec<wgpu::BindGroup>,
+    integrate: Vec<wgpu::BindGroup>,
 }
 
-/// A scene stepping on the GPU.
-pub struct GpuSim {
-    /// The scene. Its bodies' positions and velocities are only brought up to date by
+/// Where a body's contact forces come from on the device.
+enum ContactSource {
+    /// No contact: a buffer of zeros.
+    Zeros(Buffer),
+    /// One contact: its force buffer, as it is (`(contact, as_a)`).
+    One(usize, bool),
+    /// Several: summed in contact order into this buffer, with one uniform per contact.
+    Sum(Buffer, Vec<Buffer>),
+}
+
+/// A world stepping entirely on the GPU: every contact's collision passes (through the
+/// embedding API), each body's contact forces summed where it has several, then `forces` and
+/// `integrate` for every body — one command encoder and one submit a step, nothing read back
+/// until [`sync`](Self::sync).
+pub struct GpuWorld {
+    /// The world. Its bodies' positions and velocities are only brought up to date by
     /// [`sync`](Self::sync).
-    pub scene: Scene,
+    pub world: World,
     ctx: GpuContext,
-    collision: GpuCollision,
+    collisions: Vec<GpuCollision>,
     forces: Kernel,
     integrate: Kernel,
-    tissue: GpuBody,
-    foreign: GpuBody,
+    accumulate: Kernel,
+    bodies: Vec<GpuBody>,
+    sources: Vec<ContactSource>,
     bound: Option<Bound>,
     max_per_dim: u32,
     step: u64,
 }
 
-impl GpuSim {
-    /// Uploads `scene` to the device of `ctx`.
+/// The `accumulate` pass: one body's contact forces from several contacts.
+pub const ACCUMULATE: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/accumulate.wgsl"));
+
+impl GpuWorld {
+    /// Uploads `world` to the device of `ctx`.
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
     /// [`GpuCollision::new`].
-    pub fn new(ctx: &GpuContext, scene: Scene) -> Result<GpuSim, Error> {
+    pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
+        use wgpu::util::DeviceExt as _;
         let device = ctx.device();
-        let collision = GpuCollision::new(ctx, scene.grid, scene.params)?;
+        let collisions = world
+            .contacts
+            .iter()
+            .map(|c| GpuCollision::new(ctx, c.grid, c.params))
+            .collect::<Result<Vec<_>, _>>()?;
         use Slot::{Read, ReadWrite, Uniform};
-        let (forces, integrate, tissue, foreign) = scoped(device, || {
+        let contacts_of = world.contacts_of();
+        let (forces, integrate, accumulate, bodies, sources) = scoped(device, || {
+            let bodies: Vec<GpuBody> = world.bodies.iter().map(|b| GpuBody::new(device, b)).collect();
+            let sources = contacts_of
+                .iter()
+                .zip(&bodies)
+                .map(|(of, body)| {
+                    let forces_buffer = |label| {
+                        device.create_buffer(&wgpu::BufferDescriptor {
+                            label: Some(label),
+                            size: 16 * u64::from(body.n.max(1)),
+                            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                            mapped_at_creation: false,
+                        })
+                    };
+                    match of.as_slice() {
+                        [] => ContactSource::Zeros(forces_buffer("sim no contact")),
+                        [(c, as_a)] => ContactSource::One(*c, *as_a),
+                        many => ContactSource::Sum(
+                            forces_buffer("sim contact sum"),
+                            (0..many.len())
+                                .map(|k| {
+                                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                        label: Some("sim accumulate params"),
+                                        contents: bytemuck::cast_slice(&[body.n, u32::from(k == 0), 0, 0]),
+                                        usage: BufferUsages::UNIFORM,
+                                    })
+                                })
+                                .collect(),
+                        ),
+                    }
+                })
+                .collect::<Vec<_>>();
             (
                 Kernel::new(
                     device,
@@ -166,20 +225,22 @@ impl GpuSim {
                     INTEGRATE,
                     &[Uniform, ReadWrite, ReadWrite, Read, Read, ReadWrite],
                 ),
-                GpuBody::new(device, &scene.tissue),
-                GpuBody::new(device, &scene.foreign),
+                Kernel::new(device, "voxcollide accumulate", ACCUMULATE, &[Uniform, Read, ReadWrite]),
+                bodies,
+                sources,
             )
         })?;
-        Ok(GpuSim {
+        Ok(GpuWorld {
             max_per_dim: device.limits().max_compute_workgroups_per_dimension,
             ctx: ctx.clone(),
-            collision,
+            collisions,
             forces,
             integrate,
-            tissue,
-            foreign,
+            accumulate,
+            bodies,
+            sources,
             bound: None,
-            scene,
+            world,
             step: 0,
         })
     }
@@ -190,11 +251,11 @@ impl GpuSim {
         self.step
     }
 
-    /// One step, recorded into one encoder and submitted: collision (A = foreign body, B =
-    /// tissue) → forces → integration. Nothing is read back.
+    /// One step, recorded into one encoder and submitted: every contact's collision → contact
+    /// sums → forces → integration, for every body. Nothing is read back.
     ///
     /// # Errors
-    /// The collision's recording errors, and [`Error::Gpu`] for a validation or out-of-memory
+    /// The collisions' recording errors, and [`Error::Gpu`] for a validation or out-of-memory
     /// error while recording or submitting (the whole step runs inside error scopes, so such an
     /// error becomes this value instead of reaching wgpu's default handler).
     pub fn step(&mut self) -> Result<(), Error> {
@@ -205,58 +266,22 @@ impl GpuSim {
     fn record_and_submit(&mut self) -> Result<(), Error> {
         let device = self.ctx.device().clone();
         let queue = self.ctx.queue();
-        let (in_t, in_f) = self.scene.inputs(self.step);
-        let s = &self.scene;
-        queue.write_buffer(
-            &self.tissue.params,
-            0,
-            bytemuck::bytes_of(&self.tissue.params(&s.tissue, &in_t, s.v_max, self.step)),
-        );
-        queue.write_buffer(
-            &self.foreign.params,
-            0,
-            bytemuck::bytes_of(&self.foreign.params(&s.foreign, &in_f, s.v_max, self.step)),
-        );
+        let inputs = self.world.inputs(self.step)?;
+        for ((gpu, body), inputs) in self.bodies.iter().zip(&self.world.bodies).zip(&inputs) {
+            queue.write_buffer(
+                &gpu.params,
+                0,
+                bytemuck::bytes_of(&gpu.params(body, inputs, self.world.v_max, self.step)),
+            );
+        }
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
-        self.collision.record(
-            &mut encoder,
-            &self.foreign.pos,
-            self.foreign.n,
-            &self.tissue.pos,
-            self.tissue.n,
-        )?;
+        for (collision, pair) in self.collisions.iter_mut().zip(&self.world.contacts) {
+            let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
+            collision.record(&mut encoder, &a.pos, a.n, &b.pos, b.n)?;
+        }
         if self.bound.is_none() {
-            let (Some(force_a), Some(force_b)) =
-                (self.collision.force_a_buffer(), self.collision.force_b_buffer())
-            else {
-                return Err(Error::Gpu {
-                    message: "collision force buffers missing after a recorded step".into(),
-                });
-            };
-            let forces = |b: &GpuBody, contact: &Buffer| {
-                self.forces.bind(
-                    &device,
-                    &[
-                        &b.params,
-                        &b.pos,
-                        &b.vel,
-                        contact,
-                        &b.offsets,
-                        &b.adjacency,
-                        &b.springs,
-                        &b.triangles,
-                        &b.acc,
-                    ],
-                )
-            };
-            let integrate = |b: &GpuBody| {
-                self.integrate.bind(&device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status])
-            };
-            self.bound = Some(scoped(&device, || Bound {
-                forces: [forces(&self.tissue, force_b), forces(&self.foreign, force_a)],
-                integrate: [integrate(&self.tissue), integrate(&self.foreign)],
-            })?);
+            self.bound = Some(self.bind(&device)?);
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bound above") };
         {
@@ -264,16 +289,138 @@ impl GpuSim {
                 label: Some("voxcollide sim"),
                 timestamp_writes: None,
             });
-            for (k, body) in [&self.tissue, &self.foreign].into_iter().enumerate() {
-                self.forces.dispatch(&mut pass, &bound.forces[k], body.n, self.max_per_dim);
+            for (groups, body) in bound.accumulate.iter().zip(&self.bodies) {
+                for group in groups {
+                    self.accumulate.dispatch(&mut pass, group, body.n, self.max_per_dim);
+                }
             }
-            for (k, body) in [&self.tissue, &self.foreign].into_iter().enumerate() {
-                self.integrate.dispatch(&mut pass, &bound.integrate[k], body.n, self.max_per_dim);
+            for (group, body) in bound.forces.iter().zip(&self.bodies) {
+                self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
+            }
+            for (group, body) in bound.integrate.iter().zip(&self.bodies) {
+                self.integrate.dispatch(&mut pass, group, body.n, self.max_per_dim);
             }
         }
         queue.submit([encoder.finish()]);
         self.step += 1;
         Ok(())
+    }
+
+    /// The bind groups, once the collisions have their force buffers.
+    fn bind(&self, device: &wgpu::Device) -> Result<Bound, Error> {
+        let force_buffer = |c: usize, as_a: bool| {
+            let collision = &self.collisions[c];
+            if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
+                Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
+            })
+        };
+        let contacts_of = self.world.contacts_of();
+        let mut accumulate = Vec::with_capacity(self.bodies.len());
+        let mut forces = Vec::with_capacity(self.bodies.len());
+        let mut integrate = Vec::with_capacity(self.bodies.len());
+        for (k, b) in self.bodies.iter().enumerate() {
+            let mut groups = Vec::new();
+            let contact = match &self.sources[k] {
+                ContactSource::Zeros(zeros) => zeros,
+                ContactSource::One(c, as_a) => force_buffer(*c, *as_a)?,
+                ContactSource::Sum(sum, params) => {
+                    for (&(c, as_a), p) in contacts_of[k].iter().zip(params) {
+                        groups.push(self.accumulate.bind(device, &[p, force_buffer(c, as_a)?, sum]));
+                    }
+                    sum
+                }
+            };
+            accumulate.push(groups);
+            forces.push(self.forces.bind(
+                device,
+                &[
+                    &b.params,
+                    &b.pos,
+                    &b.vel,
+                    contact,
+                    &b.offsets,
+                    &b.adjacency,
+                    &b.springs,
+                    &b.triangles,
+                    &b.acc,
+                ],
+            ));
+            integrate
+                .push(self.integrate.bind(device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status]));
+        }
+        Ok(Bound { accumulate, forces, integrate })
+    }
+
+    /// Reads every body's positions and velocities back into [`world`](Self::world), checks
+    /// for a blow-up, and returns the last step's report of every contact.
+    ///
+    /// # Errors
+    /// [`Error::Simulation`] when a vertex blew up (naming the first step it was seen at, the
+    /// body and the vertex), and the readback's device errors.
+    pub fn sync(&mut self) -> Result<Vec<ContactReport>, Error> {
+        let reports = if self.step > 0 {
+            self.collisions.iter_mut().map(GpuCollision::read_report).collect::<Result<Vec<_>, _>>()?
+        } else {
+            vec![ContactReport::default(); self.collisions.len()]
+        };
+        for (k, gpu) in self.bodies.iter().enumerate() {
+            let n = u64::from(gpu.n);
+            let bytes = voxcollide::gpu::read_buffers(
+                &self.ctx,
+                &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8)],
+            )?;
+            let status: [u32; 2] = bytemuck::pod_read_unaligned(&bytes[2]);
+            if status[0] != 0 {
+                let what = format!("vertex {} has a non-finite position or a runaway speed", !status[1]);
+                return Err(crate::cpu::blow_up(
+                    u64::from(!status[0]) + 1,
+                    &self.world.names[k],
+                    &what,
+                    None,
+                ));
+            }
+            let body = &mut self.world.bodies[k];
+            let pos: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[0]);
+            let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[1]);
+            body.pos = pos.iter().map(|p| p.truncate()).collect();
+            body.vel = vel.iter().map(|v| v.truncate()).collect();
+        }
+        Ok(reports)
+    }
+}
+
+/// A paper scene stepping on the GPU: the scene's world of two bodies and one contact.
+pub struct GpuSim {
+    /// The scene. Its bodies' positions and velocities are only brought up to date by
+    /// [`sync`](Self::sync).
+    pub scene: Scene,
+    world: GpuWorld,
+}
+
+impl GpuSim {
+    /// Uploads `scene` to the device of `ctx`.
+    ///
+    /// # Errors
+    /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
+    /// [`GpuCollision::new`].
+    pub fn new(ctx: &GpuContext, scene: Scene) -> Result<GpuSim, Error> {
+        let world = GpuWorld::new(ctx, scene.world()?)?;
+        Ok(GpuSim { scene, world })
+    }
+
+    /// Steps taken so far.
+    #[must_use]
+    pub fn steps_done(&self) -> u64 {
+        self.world.steps_done()
+    }
+
+    /// One step, recorded into one encoder and submitted: collision (A = foreign body, B =
+    /// tissue) → forces → integration. Nothing is read back.
+    ///
+    /// # Errors
+    /// As [`GpuWorld::step`].
+    pub fn step(&mut self) -> Result<(), Error> {
+        self.world.step()
     }
 
     /// Reads both bodies' positions and velocities back into [`scene`](Self::scene), checks
@@ -283,25 +430,12 @@ impl GpuSim {
     /// [`Error::Simulation`] when a vertex blew up (naming the first step it was seen at),
     /// and the readback's device errors.
     pub fn sync(&mut self) -> Result<ContactReport, Error> {
-        let report = if self.step > 0 { self.collision.read_report()? } else { ContactReport::default() };
-        for (name, tissue) in [("tissue", true), ("foreign body", false)] {
-            let gpu = if tissue { &self.tissue } else { &self.foreign };
-            let n = gpu.n as u64;
-            let bytes = voxcollide::gpu::read_buffers(
-                &self.ctx,
-                &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8)],
-            )?;
-            let status: [u32; 2] = bytemuck::pod_read_unaligned(&bytes[2]);
-            if status[0] != 0 {
-                let what = format!("vertex {} has a non-finite position or a runaway speed", !status[1]);
-                return Err(crate::cpu::blow_up(u64::from(!status[0]) + 1, name, &what, &self.scene));
-            }
-            let body = if tissue { &mut self.scene.tissue } else { &mut self.scene.foreign };
-            let pos: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[0]);
-            let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[1]);
-            body.pos = pos.iter().map(|p| p.truncate()).collect();
-            body.vel = vel.iter().map(|v| v.truncate()).collect();
-        }
-        Ok(report)
+        let mut reports = self.world.sync().map_err(|e| crate::cpu::with_cause(e, &self.scene))?;
+        let [tissue, foreign] = &self.world.world.bodies[..] else { unreachable!("a scene has two bodies") };
+        self.scene.tissue.pos.clone_from(&tissue.pos);
+        self.scene.tissue.vel.clone_from(&tissue.vel);
+        self.scene.foreign.pos.clone_from(&foreign.pos);
+        self.scene.foreign.vel.clone_from(&foreign.vel);
+        Ok(reports.swap_remove(0))
     }
 }

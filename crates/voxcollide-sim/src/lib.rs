@@ -13,9 +13,11 @@ pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
-pub mod scene_file; // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
+pub mod scene_file;
+pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
 
 pub use body::{MassSpring, Material, Mode, Spring, StepInputs};
-pub use cpu::CpuSim;
-pub use gpu::GpuSim;
+pub use cpu::{CpuSim, CpuWorld};
+pub use gpu::{GpuSim, GpuWorld};
 pub use scene::{Kind, Scene, SceneConfig};
+pub use world::{ContactPair, World};

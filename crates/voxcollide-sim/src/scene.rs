@@ -5,6 +5,7 @@ use glam::{UVec3, Vec3};
 
 use crate::bodies::{CylinderShape, box_lattice, box_slice, cylinder, ellipsoid_shell};
 use crate::body::{MassSpring, Material, Mode, StepInputs};
+use crate::world::{ContactPair, World};
 use voxcollide::error::Error;
 use voxcollide::grid::VoxelGrid;
 use voxcollide::initializer::Initializer;
@@ -238,10 +239,59 @@ impl Scene {
     /// What step `step` (0-based) applies to the tissue and to the foreign body.
     #[must_use]
     pub fn inputs(&self, step: u64) -> (StepInputs, StepInputs) {
-        let progress = smoothstep((step + 1) as f32 / (ACTIVE_FRACTION * self.config.steps as f32));
+        self.schedule().at(step)
+    }
+
+    /// What the schedule of [`inputs`](Self::inputs) depends on, apart from the bodies.
+    fn schedule(&self) -> SceneSchedule {
+        SceneSchedule {
+            kind: self.config.kind,
+            steps: self.config.steps,
+            dt: self.dt,
+            press_depth: self.press_depth,
+            pressure: self.pressure,
+            chest_wall: self.chest_wall,
+        }
+    }
+
+    /// The scene as a [`World`]: bodies `tissue` (0) and `foreign body` (1), one contact with
+    /// the foreign body as A.
+    ///
+    /// # Errors
+    /// The contact errors of [`World::new`].
+    pub fn world(&self) -> Result<World, Error> {
+        let schedule = self.schedule();
+        World::new(
+            vec!["tissue".into(), "foreign body".into()],
+            vec![self.tissue.clone(), self.foreign.clone()],
+            vec![ContactPair { a: 1, b: 0, grid: self.grid, params: self.params }],
+            self.v_max,
+            std::sync::Arc::new(move |step| {
+                let (t, f) = schedule.at(step);
+                vec![t, f]
+            }),
+        )
+    }
+}
+
+/// The schedule of a paper scene: the drive or the pressure ramped over the active part of
+/// the run.
+#[derive(Clone, Copy, Debug)]
+struct SceneSchedule {
+    kind: Kind,
+    steps: u64,
+    dt: f32,
+    press_depth: f32,
+    pressure: f32,
+    chest_wall: f32,
+}
+
+impl SceneSchedule {
+    fn at(&self, step: u64) -> (StepInputs, StepInputs) {
+        let progress = smoothstep((step + 1) as f32 / (ACTIVE_FRACTION * self.steps as f32));
         let tissue =
             StepInputs { dt: self.dt, rest_scale: 1.0, drive: Vec3::ZERO, pressure: 0.0, floor: f32::MIN };
-        let foreign = match self.config.kind {
+        let foreign = match self.kind {
             Kind::Cylinder => {
                 StepInputs { drive: Vec3::new(0.0, 0.0, -self.press_depth * progress), ..tissue }
             }

@@ -1,0 +1,125 @@
+//! Any number of bodies and contacts: a [`World`] is bodies, the pairs of them that touch (each
+//! with its own voxel model, the paper's one model per pair), the time step and a schedule of
+//! each body's inputs. [`crate::cpu::CpuWorld`] and [`crate::gpu::GpuWorld`] step it; the paper's
+//! two scenes are worlds of two bodies and one contact ([`crate::Scene::world`]).
+//!
+//! A body in several contacts gets their forces summed in contact order (the same `f32`
+//! additions on the CPU and the GPU, so the two stay bit-identical where the collision is).
+
+use std::sync::Arc;
+
+use voxcollide::{ContactParams, Error, VoxelGrid};
+
+use crate::body::{MassSpring, StepInputs};
+
+/// One pair of bodies in contact: `a` is binned (its voxel model follows it under
+/// [`Anchor::FollowA`](voxcollide::Anchor::FollowA)), `b` probes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactPair {
+    /// The indexed body, an index into [`World::bodies`].
+    pub a: usize,
+    /// The probing body.
+    pub b: usize,
+    /// The pair's voxel model.
+    pub grid: VoxelGrid,
+    /// The pair's contact parameters.
+    pub params: ContactParams,
+}
+
+/// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
+pub type Schedule = Arc<dyn Fn(u64) -> Vec<StepInputs> + Send + Sync>;
+
+/// Bodies, their contacts and their schedule.
+#[derive(Clone)]
+pub struct World {
+    /// The bodies' names, for messages and output.
+    pub names: Vec<String>,
+    /// The bodies; they move as the world steps.
+    pub bodies: Vec<MassSpring>,
+    /// The pairs in contact, in the order their forces are summed.
+    pub contacts: Vec<ContactPair>,
+    /// The speed above which a vertex is taken to have blown up.
+    pub v_max: f32,
+    /// Each body's inputs (time step, drive, pressure, floor) at each step.
+    pub schedule: Schedule,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("names", &self.names)
+            .field("vertices", &self.bodies.iter().map(MassSpring::len).collect::<Vec<_>>())
+            .field("contacts", &self.contacts)
+            .field("v_max", &self.v_max)
+            .finish_non_exhaustive()
+    }
+}
+
+impl World {
+    /// A world of `bodies` named `names` with `contacts` between them.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a count of names that is not the count of bodies, an empty body,
+    /// a contact naming a body that does not exist or the same body twice, or a non-positive
+    /// `v_max`.
+    pub fn new(
+        names: Vec<String>,
+        bodies: Vec<MassSpring>,
+        contacts: Vec<ContactPair>,
+        v_max: f32,
+        schedule: Schedule,
+    ) -> Result<World, Error> {
+        let invalid = |what, value: String, rule: String| Error::Invalid { what, value, rule };
+        if names.len() != bodies.len() {
+            return Err(invalid(
+                "body names",
+                names.len().to_string(),
+                format!("one per body ({})", bodies.len()),
+            ));
+        }
+        if let Some(k) = bodies.iter().position(MassSpring::is_empty) {
+            return Err(invalid("body", names[k].clone(), "has no vertices".into()));
+        }
+        for (c, pair) in contacts.iter().enumerate() {
+            if pair.a >= bodies.len() || pair.b >= bodies.len() || pair.a == pair.b {
+                return Err(invalid(
+                    "contact",
+                    format!("{c}: {} – {}", pair.a, pair.b),
+                    format!("needs two different bodies of the {}", bodies.len()),
+                ));
+            }
+            pair.params.validate(&pair.grid)?;
+        }
+        if !(v_max.is_finite() && v_max > 0.0) {
+            return Err(invalid("v_max", v_max.to_string(), "must be finite and positive".into()));
+        }
+        Ok(World { names, bodies, contacts, v_max, schedule })
+    }
+
+    /// The inputs of every body at `step`.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] when the schedule gives a count other than the bodies'.
+    pub fn inputs(&self, step: u64) -> Result<Vec<StepInputs>, Error> {
+        let inputs = (self.schedule)(step);
+        if inputs.len() != self.bodies.len() {
+            return Err(Error::Invalid {
+                what: "schedule",
+                value: inputs.len().to_string(),
+                rule: format!("must give inputs for each of the {} bodies", self.bodies.len()),
+            });
+        }
+        Ok(inputs)
+    }
+
+    /// For each body, the contacts that push it, in contact order: `(contact, as_a)`.
+    #[must_use]
+    pub fn contacts_of(&self) -> Vec<Vec<(usize, bool)>> {
+        let mut of = vec![Vec::new(); self.bodies.len()];
+        for (c, pair) in self.contacts.iter().enumerate() {
+            of[pair.a].push((c, true));
+            of[pair.b].push((c, false));
+        }
+        of
+    }
+}

@@ -1,0 +1,138 @@
+//! Worlds of any number of bodies and contacts: a tissue slab lifted by two implants at once
+//! (the slab in two contacts, its forces summed), and a free body in none. The CPU (parallel
+//! collision) and the GPU (every pair in one encoder) follow bit-identical trajectories on
+//! llvmpipe; bad contact graphs are errors.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::sync::Arc;
+
+use voxcollide::glam::{UVec3, Vec3};
+use voxcollide::*;
+use voxcollide_sim::bodies::{box_lattice, ellipsoid_shell};
+use voxcollide_sim::*;
+
+fn world() -> World {
+    let material = Material { mass: 1.0, stiffening: 10.0, spring_damping: 0.6, damping: 0.2 };
+    let n = UVec3::new(13, 7, 3);
+    let slab = box_lattice(n, 0.5, Vec3::new(-3.0, -1.5, 0.0), 40.0, material, |v| {
+        if v.z == n.z - 1 && (v.x == 0 || v.x == n.x - 1) { Mode::Pinned } else { Mode::Free }
+    })
+    .unwrap();
+    let shell = |x: f32| {
+        ellipsoid_shell(Vec3::new(x, 0.0, -0.9), Vec3::new(1.1, 1.1, 1.0), 6, 12, 0.6, 80.0, material)
+            .unwrap()
+    };
+    let (left, right) = (shell(-1.5), shell(1.5));
+    let loose =
+        box_lattice(UVec3::splat(2), 0.5, Vec3::new(10.0, 10.0, 10.0), 40.0, material, |_| Mode::Free)
+            .unwrap();
+    let dt = [&slab, &left, &right, &loose].iter().map(|b| b.stable_dt(0.3)).fold(f32::MAX, f32::min);
+    let params = ContactParams {
+        magnitude: 3.0,
+        search: Search::Neighbours { radius: 0.25 },
+        direction: Direction::PlaneNormal,
+        anchor: Anchor::FollowA,
+    };
+    let contact = |a: usize, shell: &MassSpring| ContactPair {
+        a,
+        b: 0,
+        grid: Initializer::new(0.25).margin(4).build(&shell.pos).unwrap(),
+        params,
+    };
+    let contacts = vec![contact(1, &left), contact(2, &right)];
+    let schedule = Arc::new(move |step: u64| {
+        let still = StepInputs { dt, rest_scale: 1.0, drive: Vec3::ZERO, pressure: 0.0, floor: f32::MIN };
+        let ramp = (step as f32 / 100.0).min(1.0);
+        let inflating = StepInputs { pressure: 6.0 * ramp, floor: -1.9, ..still };
+        vec![still, inflating, inflating, still]
+    });
+    World::new(
+        ["slab", "left implant", "right implant", "loose"].map(String::from).to_vec(),
+        vec![slab, left, right, loose],
+        contacts,
+        400.0,
+        schedule,
+    )
+    .unwrap()
+}
+
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+#[test]
+fn two_implants_lift_one_slab_the_same_on_cpu_and_gpu() {
+    let mut cpu = CpuWorld::new(world()).unwrap();
+    let gpu_ctx = common::gpu();
+    let mut gpu = gpu_ctx.as_ref().map(|ctx| GpuWorld::new(ctx, world()).unwrap());
+    let exact = gpu_ctx.as_ref().is_some_and(|c| c.adapter_name().contains("llvmpipe"));
+    let start = cpu.world.bodies[0].pos.clone();
+    let mut touched = [0usize; 2];
+    for step in 1..=150 {
+        cpu.step().unwrap();
+        for (c, t) in touched.iter_mut().enumerate() {
+            *t += cpu.reports[c].colliding_b.len();
+        }
+        let Some(gpu) = gpu.as_mut() else { continue };
+        gpu.step().unwrap();
+        if step % 50 == 0 {
+            let reports = gpu.sync().unwrap();
+            for k in 0..4 {
+                let (c, g) = (&cpu.world.bodies[k], &gpu.world.bodies[k]);
+                let name = &cpu.world.names[k];
+                if exact {
+                    assert_eq!(bits(&c.pos), bits(&g.pos), "step {step}: {name} positions");
+                    assert_eq!(bits(&c.vel), bits(&g.vel), "step {step}: {name} velocities");
+                } else {
+                    let d = c.pos.iter().zip(&g.pos).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+                    assert!(d < 1e-3, "step {step}: {name} differs by {d}");
+                }
+            }
+            for (c, r) in reports.iter().enumerate() {
+                assert_eq!(r.colliding_b, cpu.reports[c].colliding_b, "step {step}: contact {c}");
+            }
+        }
+    }
+    // Both implants pushed the slab, which rose over both of them, and the loose body, in no
+    // contact, fell (no floor) without any contact force.
+    assert!(touched[0] > 0 && touched[1] > 0, "{touched:?}");
+    let slab = &cpu.world.bodies[0];
+    let lift = |x0: f32, x1: f32| {
+        slab.pos
+            .iter()
+            .zip(&start)
+            .filter(|(_, s)| s.x > x0 && s.x < x1 && s.z < 0.1)
+            .map(|(p, s)| p.z - s.z)
+            .fold(f32::MIN, f32::max)
+    };
+    let (l, r) = (lift(-2.0, -1.0), lift(1.0, 2.0));
+    assert!(l > 0.02 && r > 0.02 && (l - r).abs() < 0.1 * l, "lift over the implants: {l} {r}");
+    assert!(cpu.world.bodies[3].pos.iter().all(|p| p.is_finite()));
+}
+
+#[test]
+fn bad_contact_graphs_are_errors() {
+    let w = world();
+    let schedule = w.schedule.clone();
+    let bad = |contacts: Vec<ContactPair>| {
+        World::new(w.names.clone(), w.bodies.clone(), contacts, 400.0, schedule.clone()).unwrap_err()
+    };
+    let pair = w.contacts[0];
+    for (contacts, says) in [
+        (vec![ContactPair { a: 0, b: 0, ..pair }], "two different bodies"),
+        (vec![ContactPair { a: 9, ..pair }], "two different bodies"),
+        (vec![ContactPair { params: ContactParams { magnitude: -1.0, ..pair.params }, ..pair }], "magnitude"),
+    ] {
+        let err = bad(contacts);
+        assert!(err.to_string().contains(says), "{err}");
+    }
+    let err = World::new(vec!["one".into()], w.bodies.clone(), vec![], 400.0, schedule.clone()).unwrap_err();
+    assert!(err.to_string().contains("one per body"), "{err}");
+    // A schedule that forgets a body is an error at the step, not a panic.
+    let short =
+        World::new(w.names.clone(), w.bodies.clone(), w.contacts.clone(), 400.0, Arc::new(|_| vec![]));
+    let err = CpuWorld::new(short.unwrap()).unwrap().step().unwrap_err();
+    assert!(err.to_string().contains("schedule"), "{err}");
+}
