@@ -5,8 +5,9 @@
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 
-pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells
+pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells, lattices in surfaces
 pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integrator
+pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units
 pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback

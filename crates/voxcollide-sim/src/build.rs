@@ -1,0 +1,482 @@
+//! From a checked [`SceneFile`] to a [`World`]: bodies from built-in shapes and mesh files,
+//! materials in physical units, contacts with their voxel models, and the schedule.
+//!
+//! # Units
+//! The simulation runs in the file's length unit `L` (so that a voxel size given as a power of
+//! two in the file stays one), seconds and kilograms. Forces are then in `kg·L/s²`, which is
+//! `s` newtons for `s` metres per `L` (`s = 10⁻³` for mm), and stresses in `kg/(L·s²)`, `s`
+//! pascals. So:
+//! - a lattice of spacing `h` whose axis and face-diagonal springs have stiffness `k` behaves,
+//!   for small strains, as a cubic material with `C11 = 3k/h` and `C12 = C44 = k/h`: Young's
+//!   modulus `2.5 k/h` and Poisson's ratio 1/4, whatever the file's ν. Hence
+//!   `k = 0.4 · E · h`, with `E = young_kpa · 10³ · s` (internal stress units).
+//! - a vertex of a lattice carries the mass of its cell, `density · (h·s)³` kg; a tetrahedral
+//!   mesh lumps a quarter of each tetrahedron's mass at each corner; a shell vertex carries
+//!   `density · area · h` (a wall as thick as its edge length).
+//! - `damping` is a damping ratio ζ of a vertex on one spring: the viscous term is
+//!   `2ζ√(k m)` and the same along each spring.
+//! - pressures: `pressure_kpa · 10³ · s`; penalty magnitudes given in newtons: `N / s`.
+
+use glam::{DVec3, Mat3, UVec3, Vec3};
+use voxcollide::{Anchor, ContactParams, Direction, Error, Initializer, Search};
+
+use crate::bodies::{
+    CylinderShape, box_lattice, cylinder, ellipsoid_shell, lattice_in_surface, tetrahedral_body,
+};
+use crate::body::{MassSpring, Material, Mode, StepInputs};
+use crate::mesh::TriangleMesh;
+use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
+use crate::scene_file::{
+    Auto, BodyKind, BodySpec, DirectionSpec, Fixed, Geometry, SceneFile, SearchSpec, Shape,
+};
+use crate::world::{ContactPair, World};
+
+/// What building a world found worth saying about each body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BodyNote {
+    /// The body's name.
+    pub name: String,
+    /// Its vertex count.
+    pub vertices: usize,
+    /// For a lattice filling a surface: the fraction of the surface's volume its full cells
+    /// cover, and the surface vertices it does not reach.
+    pub coverage: Option<(f64, usize)>,
+    /// Remarks: a surface turned outward, tetrahedra turned, springs left out across a gap.
+    pub remarks: Vec<String>,
+}
+
+/// A world built from a scene file, with its run length.
+#[derive(Clone, Debug)]
+pub struct Built {
+    /// The world.
+    pub world: World,
+    /// The time step, in seconds.
+    pub dt: f32,
+    /// Steps of the schedule (`time.steps`, or `time.duration / dt`).
+    pub steps: u64,
+    /// Per body, what building it found.
+    pub notes: Vec<BodyNote>,
+}
+
+/// Newtons per internal force unit and pascals per internal stress unit: `s`, the metres per
+/// file unit.
+fn spring_k(young_kpa: f64, h: f64, s: f64) -> f32 {
+    (0.4 * young_kpa * 1e3 * s * h) as f32
+}
+
+fn scene_error(file: &SceneFile, k: usize, what: &str, message: impl Into<String>) -> Error {
+    Error::SceneFile {
+        file: file.path.display().to_string(),
+        line: 0,
+        column: 0,
+        key: format!("body[{k}].{what}"),
+        message: message.into(),
+    }
+}
+
+/// The rotation of `degrees` about x, then y, then z.
+fn rotation(degrees: [f64; 3]) -> Mat3 {
+    let [x, y, z] = degrees.map(|d| (d as f32).to_radians());
+    Mat3::from_rotation_z(z) * Mat3::from_rotation_y(y) * Mat3::from_rotation_x(x)
+}
+
+/// A closed surface of an ellipsoid with edges of about `edge`, outward.
+fn ellipsoid_surface(radii: Vec3, edge: f32) -> Surface {
+    let r = radii.max_element();
+    let segments = ((std::f32::consts::TAU * r / edge).round() as u32).max(8);
+    let rings = (segments / 2).max(3);
+    let shell = ellipsoid_shell(Vec3::ZERO, radii, rings, segments, 2.0, 1.0, unit_material());
+    match shell {
+        Ok(s) => Surface { positions: s.pos, mesh: s.surface },
+        Err(_) => Surface::default(),
+    }
+}
+
+/// A closed surface of a cylinder (axis z, base at z = 0), edges of about `edge`.
+fn cylinder_surface(radius: f32, height: f32, edge: f32) -> Surface {
+    let segments = ((std::f32::consts::TAU * radius / edge).round() as u32).max(8);
+    let layers = ((height / edge).round() as u32).max(1) + 1;
+    let mut positions = vec![Vec3::ZERO, Vec3::new(0.0, 0.0, height)];
+    for l in 0..layers {
+        let z = height * l as f32 / (layers - 1) as f32;
+        for s in 0..segments {
+            let a = std::f32::consts::TAU * s as f32 / segments as f32;
+            positions.push(Vec3::new(radius * a.cos(), radius * a.sin(), z));
+        }
+    }
+    let at = |l: u32, s: u32| 2 + l * segments + s % segments;
+    let mut triangles = Vec::new();
+    for s in 0..segments {
+        triangles.push([0, at(0, s + 1), at(0, s)]);
+        triangles.push([1, at(layers - 1, s), at(layers - 1, s + 1)]);
+        for l in 0..layers - 1 {
+            triangles.push([at(l, s), at(l, s + 1), at(l + 1, s + 1)]);
+            triangles.push([at(l, s), at(l + 1, s + 1), at(l + 1, s)]);
+        }
+    }
+    Surface { positions, mesh: TriangleMesh { triangles } }
+}
+
+fn unit_material() -> Material {
+    Material { mass: 1.0, stiffening: 10.0, spring_damping: 0.0, damping: 0.0 }
+}
+
+/// Whether `fixed` holds a vertex at `p` of a body whose lateral bounds are `lo`..`hi`.
+fn held(fixed: &[Fixed], p: Vec3, lo: Vec3, hi: Vec3) -> bool {
+    fixed.iter().any(|f| match *f {
+        Fixed::Below(a) => a.get().is_some_and(|(axis, v)| f64::from(p[axis]) < v),
+        Fixed::Above(a) => a.get().is_some_and(|(axis, v)| f64::from(p[axis]) > v),
+        Fixed::InsideBox { min, max } => {
+            (0..3).all(|k| f64::from(p[k]) >= min[k] && f64::from(p[k]) <= max[k])
+        }
+        Fixed::Rim(w) => {
+            let w = w as f32;
+            p.x <= lo.x + w || p.x >= hi.x - w || p.y <= lo.y + w || p.y >= hi.y - w
+        }
+    })
+}
+
+/// The body of `spec`, in file units, with its material's spring constant for spacing `h`.
+fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32), Error> {
+    if let Geometry::Shape(Shape::Implant { .. }) = spec.geometry {
+        return Err(scene_error(file, k, "shape", "the implant shape is not built yet (issue 13)"));
+    }
+    let s = file.metres();
+    let m = &spec.material;
+    let rot = rotation(spec.rotation);
+    let scale = spec.scale as f32;
+    let offset = Vec3::from_array(spec.position.map(|v| v as f32));
+    let place = |p: Vec3| rot * (scale * p) + offset;
+    let h = spec.spacing.map(|h| h as f32);
+    let mut note = BodyNote { name: spec.name.clone(), vertices: 0, coverage: None, remarks: Vec::new() };
+    let material_for = |h: f32, mass: f64| {
+        let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
+        let c = 2.0 * m.damping * (kspring * mass).sqrt();
+        (
+            Material { mass: mass as f32, stiffening: 10.0, spring_damping: c as f32, damping: c as f32 },
+            kspring as f32,
+        )
+    };
+    let cell_mass = |h: f32| m.density * (f64::from(h) * s).powi(3);
+    // A closed surface of the body, placed, for lattices, shells and rigid bodies.
+    let surface = |edge: f32| -> Result<(Surface, Option<String>), Error> {
+        let mut remark = None;
+        let mut surface = match &spec.geometry {
+            Geometry::Shape(Shape::Sphere(r)) => ellipsoid_surface(Vec3::splat(*r as f32), edge / scale),
+            Geometry::Shape(Shape::Ellipsoid(r)) => {
+                ellipsoid_surface(Vec3::from_array(r.map(|v| v as f32)), edge / scale)
+            }
+            Geometry::Shape(Shape::Cylinder { radius, height }) => {
+                let mut c = cylinder_surface(*radius as f32, *height as f32, edge / scale);
+                c.positions.iter_mut().for_each(|p| p.z -= 0.5 * *height as f32);
+                c
+            }
+            Geometry::Shape(Shape::Box(size)) => {
+                let size = Vec3::from_array(size.map(|v| v as f32));
+                let n = (size / (edge / scale)).round().max(Vec3::ONE).as_uvec3() + UVec3::ONE;
+                let b = box_lattice(n, 1.0, Vec3::ZERO, 1.0, unit_material(), |_| Mode::Free)?;
+                let cells = (n - UVec3::ONE).as_vec3();
+                Surface {
+                    positions: b.pos.iter().map(|p| (*p / cells - 0.5) * size).collect(),
+                    mesh: b.surface,
+                }
+            }
+            Geometry::Shape(Shape::Implant { .. }) => unreachable!("refused above"),
+            Geometry::Mesh(path) => {
+                let (surface, report) = read_surface(path)?;
+                if report.flipped {
+                    remark = Some(format!("{}: its normals pointed inward; turned outward", path.display()));
+                }
+                surface
+            }
+        };
+        surface.positions.iter_mut().for_each(|p| *p = place(*p));
+        if rot.determinant() < 0.0 || scale < 0.0 {
+            surface.mesh.triangles.iter_mut().for_each(|t| t.swap(1, 2));
+        }
+        Ok((surface, remark))
+    };
+    let (mut body, kspring) = match spec.kind {
+        BodyKind::Soft => {
+            let h = h.unwrap_or(1.0);
+            let (material, kspring) = material_for(h, cell_mass(h));
+            match &spec.geometry {
+                Geometry::Shape(Shape::Box(size)) if spec.rotation == [0.0; 3] => {
+                    let size = Vec3::from_array(size.map(|v| v as f32)) * scale;
+                    let n = (size / h).round().max(Vec3::ONE).as_uvec3() + UVec3::ONE;
+                    let origin = offset - 0.5 * h * (n - UVec3::ONE).as_vec3();
+                    (box_lattice(n, h, origin, kspring, material, |_| Mode::Free)?, kspring)
+                }
+                Geometry::Mesh(path)
+                    if path
+                        .extension()
+                        .is_some_and(|e| e.eq_ignore_ascii_case("vtu") || e.eq_ignore_ascii_case("msh")) =>
+                {
+                    let mut tets = read_tetrahedra(path)?;
+                    tets.positions.iter_mut().for_each(|p| *p = place(*p));
+                    if tets.turned > 0 {
+                        note.remarks.push(format!(
+                            "{} tetrahedra were given in the negative order and turned",
+                            tets.turned
+                        ));
+                    }
+                    let edge = tets
+                        .tets
+                        .iter()
+                        .map(|t| tets.positions[t[0] as usize].distance(tets.positions[t[1] as usize]))
+                        .sum::<f32>()
+                        / tets.tets.len() as f32;
+                    let (material, kspring) = material_for(edge, cell_mass(edge));
+                    let density = (m.density * s.powi(3)) as f32; // kg per cubic file unit
+                    (tetrahedral_body(&tets, kspring, density, material, |_| Mode::Free)?, kspring)
+                }
+                _ => {
+                    let (surface, remark) = surface(h)?;
+                    note.remarks.extend(remark);
+                    let (body, report) =
+                        lattice_in_surface(&surface.positions, &surface.mesh, h, kspring, material, |_| {
+                            Mode::Free
+                        })?;
+                    note.coverage = Some((report.coverage, report.uncovered));
+                    if report.springs_outside > 0 {
+                        note.remarks.push(format!(
+                            "{} springs across gaps narrower than the spacing were left out",
+                            report.springs_outside
+                        ));
+                    }
+                    if report.uncovered > 0 {
+                        note.remarks.push(format!(
+                            "{} of {} surface vertices are more than a cell from the lattice: parts thinner than the spacing {h} are not held",
+                            report.uncovered, report.surface_vertices
+                        ));
+                    }
+                    (body, kspring)
+                }
+            }
+        }
+        BodyKind::Shell => {
+            let edge = h.unwrap_or(1.0);
+            let (material, kspring) = material_for(edge, cell_mass(edge));
+            match &spec.geometry {
+                Geometry::Shape(Shape::Sphere(_) | Shape::Ellipsoid(_)) => {
+                    let radii = match &spec.geometry {
+                        Geometry::Shape(Shape::Sphere(r)) => Vec3::splat(*r as f32),
+                        Geometry::Shape(Shape::Ellipsoid(r)) => Vec3::from_array(r.map(|v| v as f32)),
+                        _ => unreachable!("matched above"),
+                    } * scale;
+                    let segments =
+                        ((std::f32::consts::TAU * radii.max_element() / edge).round() as u32).max(8);
+                    let mut shell = ellipsoid_shell(
+                        Vec3::ZERO,
+                        radii,
+                        (segments / 2).max(3),
+                        segments,
+                        2.0,
+                        kspring,
+                        material,
+                    )?;
+                    for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
+                        *p = rot * *p + offset;
+                    }
+                    (shell, kspring)
+                }
+                _ => {
+                    return Err(scene_error(
+                        file,
+                        k,
+                        "shape",
+                        "a shell is built from a sphere or an ellipsoid here; shells from meshes come next",
+                    ));
+                }
+            }
+        }
+        BodyKind::Rigid => {
+            let edge = h.unwrap_or(1.0);
+            let (material, kspring) = material_for(edge, cell_mass(edge));
+            match &spec.geometry {
+                Geometry::Shape(Shape::Cylinder { radius, height }) if spec.rotation == [0.0; 3] => {
+                    let (radius, height) = (*radius as f32 * scale, *height as f32 * scale);
+                    let rings = ((radius / edge).round() as u32).max(1);
+                    let shape = CylinderShape {
+                        base: offset - Vec3::new(0.0, 0.0, 0.5 * height),
+                        radius,
+                        height,
+                        rings,
+                        segments: (6 * rings).max(12),
+                        layers: ((height / edge).round() as u32).max(1) + 1,
+                    };
+                    (cylinder(shape, kspring, material)?, kspring)
+                }
+                _ => {
+                    let (surface, remark) = surface(edge)?;
+                    note.remarks.extend(remark);
+                    let mut edges: Vec<(u32, u32)> = surface
+                        .mesh
+                        .triangles
+                        .iter()
+                        .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
+                        .map(|(a, b)| (a.min(b), a.max(b)))
+                        .collect();
+                    edges.sort_unstable();
+                    edges.dedup();
+                    let springs = edges
+                        .into_iter()
+                        .map(|(i, j)| crate::body::Spring {
+                            i,
+                            j,
+                            rest: surface.positions[i as usize].distance(surface.positions[j as usize]),
+                            k: kspring,
+                        })
+                        .collect();
+                    let n = surface.positions.len();
+                    (
+                        MassSpring::new(
+                            surface.positions,
+                            vec![Mode::Free; n],
+                            springs,
+                            surface.mesh,
+                            material,
+                        )?,
+                        kspring,
+                    )
+                }
+            }
+        }
+    };
+    // Held vertices, and a rigid body's are all driven.
+    let lo = body.pos.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
+    let hi = body.pos.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+    for (i, p) in body.rest_pos.iter().enumerate() {
+        body.mode[i] = if spec.kind == BodyKind::Rigid {
+            Mode::Driven
+        } else if held(&spec.fixed, *p, lo, hi) {
+            Mode::Pinned
+        } else {
+            Mode::Free
+        };
+    }
+    note.vertices = body.len();
+    Ok((body, note, kspring))
+}
+
+/// Builds the world of `file`.
+///
+/// # Errors
+/// The errors of reading its meshes ([`Error::Mesh`]), of making its bodies
+/// ([`Error::Invalid`] naming the body), and [`Error::SceneFile`] for a shape not built yet.
+pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
+    let s = file.metres();
+    let mut bodies = Vec::with_capacity(file.bodies.len());
+    let mut notes = Vec::with_capacity(file.bodies.len());
+    let mut stiffness = Vec::with_capacity(file.bodies.len());
+    for (k, spec) in file.bodies.iter().enumerate() {
+        let (body, note, kspring) = body(file, k, spec).map_err(|e| match e {
+            Error::Invalid { what, value, rule } => {
+                Error::Invalid { what, value: format!("{value} (body {:?})", spec.name), rule }
+            }
+            e => e,
+        })?;
+        bodies.push(body);
+        notes.push(note);
+        stiffness.push(kspring);
+    }
+    let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
+    let mut contacts = Vec::with_capacity(file.contacts.len());
+    for c in &file.contacts {
+        let h = spacing(c.a).max(spacing(c.b));
+        let voxel = match c.voxel_size {
+            Auto::Value(v) => v as f32,
+            Auto::Auto => 2f32.powi(h.log2().ceil() as i32),
+        };
+        let radius = match c.radius {
+            Auto::Value(r) => r as f32,
+            Auto::Auto => (0.75 * h).min(voxel),
+        };
+        let magnitude = match c.magnitude {
+            Auto::Value(newtons) => (newtons / s) as f32,
+            Auto::Auto => 4.0 * stiffness[c.b] * spacing(c.b),
+        };
+        let params = ContactParams {
+            magnitude,
+            search: match c.search {
+                SearchSpec::Neighbours => Search::Neighbours { radius },
+                SearchSpec::Voxel => Search::Voxel,
+            },
+            direction: match c.direction {
+                DirectionSpec::Pairwise => Direction::Pairwise,
+                DirectionSpec::PlaneNormal => Direction::PlaneNormal,
+            },
+            anchor: Anchor::FollowA,
+        };
+        // Room for the body A to grow (an inflating shell) and move within its own size.
+        let grid = Initializer::new(voxel).margin(4).build(&bodies[c.a].pos)?;
+        contacts.push(ContactPair { a: c.a, b: c.b, grid, params });
+    }
+    let dt = match file.time.dt {
+        Auto::Value(dt) => dt as f32,
+        Auto::Auto => bodies.iter().map(|b| b.stable_dt(0.3)).fold(f32::MAX, f32::min),
+    };
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::Invalid {
+            what: "time step",
+            value: dt.to_string(),
+            rule: "the bodies give no finite stability bound; give [time] dt".into(),
+        });
+    }
+    let steps = match (file.time.steps, file.time.duration) {
+        (Some(n), _) => n,
+        (None, Some(d)) => ((d / f64::from(dt)).ceil() as u64).max(1),
+        (None, None) => 1,
+    };
+    let extent = bodies
+        .iter()
+        .flat_map(|b| b.pos.iter())
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let size = (extent.1 - extent.0).max_element().max(f32::MIN_POSITIVE);
+    let names: Vec<String> = file.bodies.iter().map(|b| b.name.clone()).collect();
+    // Per body: its keyframes (time, offset from the first), its final pressure and its ramp.
+    type BodySchedule = (Vec<(f64, Vec3)>, f32, f32);
+    let schedule_specs: Vec<BodySchedule> = file
+        .bodies
+        .iter()
+        .map(|b| {
+            let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
+            let keys =
+                b.motion.iter().map(|m| (m.t, (DVec3::from_array(m.position) - base).as_vec3())).collect();
+            let (pressure, ramp) = match b.inflate {
+                Some(i) => ((i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32, i.ramp as f32),
+                None => (0.0, 0.0),
+            };
+            (keys, pressure, ramp)
+        })
+        .collect();
+    if let Some(k) = file.bodies.iter().position(|b| b.inflate.is_some_and(|i| i.volume_ml.is_some())) {
+        return Err(scene_error(
+            file,
+            k,
+            "inflate",
+            "inflating to a volume comes with issue 13; give pressure_kpa",
+        ));
+    }
+    let schedule = std::sync::Arc::new(move |step: u64| {
+        let t = (step + 1) as f64 * f64::from(dt);
+        schedule_specs
+            .iter()
+            .map(|(keys, pressure, ramp)| {
+                let drive = match keys.iter().position(|(kt, _)| *kt >= t) {
+                    None => keys.last().map_or(Vec3::ZERO, |(_, p)| *p),
+                    Some(0) => keys[0].1,
+                    Some(i) => {
+                        let ((t0, p0), (t1, p1)) = (keys[i - 1], keys[i]);
+                        p0.lerp(p1, ((t - t0) / (t1 - t0)) as f32)
+                    }
+                };
+                let ramped = if *ramp > 0.0 { (t as f32 / ramp).min(1.0) } else { 1.0 };
+                StepInputs { dt, rest_scale: 1.0, drive, pressure: pressure * ramped, floor: f32::MIN }
+            })
+            .collect()
+    });
+    // A vertex faster than 50 scene sizes a second has blown up.
+    let world = World::new(names, bodies, contacts, 50.0 * size, schedule)?;
+    Ok(Built { world, dt, steps, notes })
+}

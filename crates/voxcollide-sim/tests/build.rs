@@ -1,0 +1,189 @@
+//! Scene files built into worlds and run: a rigid sphere indenting a soft block (mm, kPa), an
+//! inflating shell lifting a layer, a soft body filling an STL surface; the physical units give
+//! the block the Young's modulus the file asks for.
+
+mod common;
+
+use std::io::Write as _;
+
+use voxcollide::Error;
+use voxcollide::glam::Vec3;
+use voxcollide_sim::build::build_world;
+use voxcollide_sim::scene_file::SceneFile;
+use voxcollide_sim::{CpuWorld, Mode};
+
+const INDENT: &str = r#"
+units = "mm"
+[time]
+duration = 0.4
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [40, 40, 10] }
+spacing = 2.5
+material = { young_kpa = 3.0, poisson = 0.45, density = 1000, damping = 0.5 }
+fixed = [{ below = { z = -4.9 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 8 }
+spacing = 2.0
+position = [0, 0, 14]
+motion = [{ t = 0.0, position = [0, 0, 14] }, { t = 0.3, position = [0, 0, 11] }]
+[[contact]]
+a = "ball"
+b = "block"
+"#;
+
+#[test]
+fn a_rigid_sphere_indents_a_soft_block() {
+    let file = SceneFile::parse("indent.toml", INDENT).unwrap();
+    let built = build_world(&file).unwrap();
+    let w = &built.world;
+    assert_eq!(w.names, ["block", "ball"]);
+    assert_eq!(w.bodies[0].len(), 17 * 17 * 5, "a 40 × 40 × 10 box at 2.5 mm");
+    assert!(w.bodies[0].mode.iter().filter(|m| **m == Mode::Pinned).count() == 17 * 17, "the bottom layer");
+    assert!(w.bodies[1].mode.iter().all(|m| *m == Mode::Driven), "a rigid body is driven");
+    assert!(built.dt > 0.0 && built.steps == (0.4 / f64::from(built.dt)).ceil() as u64);
+    let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
+    let top = |b: &voxcollide_sim::MassSpring| {
+        b.pos
+            .iter()
+            .zip(&b.rest_pos)
+            .filter(|(_, r)| r.z > 4.9 && r.x.abs() < 1.0 && r.y.abs() < 1.0)
+            .map(|(p, r)| p.z - r.z)
+            .fold(0.0, f32::min)
+    };
+    let mut contacts = 0;
+    for _ in 0..built.steps {
+        cpu.step().unwrap();
+        contacts += cpu.reports[0].colliding_b.len();
+    }
+    // The ball's bottom went from 6 mm to 3 mm, 2 mm into the block's top at 5 mm, and the
+    // contact holds the block's vertices about the contact radius (0.75 × 2.5 mm) off the ball.
+    let depth = -top(&cpu.world.bodies[0]);
+    eprintln!(
+        "dt {:.3e}, {} steps, {contacts} contacts, the block's top went down {depth:.3} mm",
+        built.dt, built.steps
+    );
+    assert!(contacts > 0);
+    assert!(depth > 2.0 && depth < 2.0 + 1.875 + 0.5, "{depth}");
+}
+
+#[test]
+fn an_inflating_shell_lifts_a_layer() {
+    let text = r#"
+units = "mm"
+[time]
+steps = 300
+[[body]]
+name = "skin"
+kind = "soft"
+shape = { box = [60, 60, 6] }
+spacing = 3
+fixed = [{ rim = 1 }]
+[[body]]
+name = "expander"
+kind = "shell"
+shape = { ellipsoid = [15, 15, 6] }
+spacing = 4
+position = [0, 0, -9.5]
+inflate = { pressure_kpa = 0.5, ramp = 0.1 }
+material = { young_kpa = 30 }
+fixed = [{ below = { z = -14 } }]
+[[contact]]
+a = "expander"
+b = "skin"
+direction = "plane-normal"
+"#;
+    let file = SceneFile::parse("expander.toml", text).unwrap();
+    let built = build_world(&file).unwrap();
+    let mut cpu = CpuWorld::new(built.world).unwrap();
+    for _ in 0..built.steps {
+        cpu.step().unwrap();
+    }
+    let skin = &cpu.world.bodies[0];
+    let lift = skin.pos.iter().zip(&skin.rest_pos).map(|(p, r)| p.z - r.z).fold(f32::MIN, f32::max);
+    eprintln!("the skin rose {lift:.3} mm over {} steps of {:.2e} s", built.steps, built.dt);
+    assert!(lift > 0.5, "{lift}");
+}
+
+#[test]
+fn a_soft_body_fills_an_stl_surface() {
+    let dir = std::env::temp_dir().join(format!("voxcollide-build-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let kidney = common::shapes::kidney();
+    let mut stl = std::fs::File::create(dir.join("kidney.stl")).unwrap();
+    let triangles: Vec<stl_io::Triangle> = kidney
+        .mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| kidney.positions[i as usize]);
+            stl_io::Triangle {
+                normal: stl_io::Normal::new((b - a).cross(c - a).normalize().to_array()),
+                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
+            }
+        })
+        .collect();
+    stl_io::write_stl(&mut stl, triangles.iter()).unwrap();
+    stl.flush().unwrap();
+    let path = dir.join("scene.toml");
+    std::fs::write(
+        &path,
+        "[[body]]\nname = \"kidney\"\nkind = \"soft\"\nmesh = \"kidney.stl\"\nspacing = 5\nrotation = [0, 0, 90]\nposition = [0, 0, 100]\n",
+    )
+    .unwrap();
+    let file = SceneFile::read(&path).unwrap();
+    let built = build_world(&file).unwrap();
+    let body = &built.world.bodies[0];
+    let (coverage, uncovered) = built.notes[0].coverage.unwrap();
+    eprintln!("{:?}", built.notes[0]);
+    assert!(body.len() > 500 && (0.5..1.0).contains(&coverage) && uncovered == 0);
+    // Rotated a quarter turn about z and lifted: long along y now, around z = 100.
+    let (lo, hi) = body.pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+    assert!(hi.y - lo.y > 1.5 * (hi.x - lo.x), "{lo} {hi}");
+    assert!((0.5 * (lo.z + hi.z) - 100.0).abs() < 5.0, "{lo} {hi}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn what_is_not_built_yet_says_so() {
+    for (text, says) in [
+        (
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 300, base_mm = 110, projection_mm = 45 } }\nspacing = 3\n",
+            "implant shape",
+        ),
+        (
+            "[[body]]\nname = \"s\"\nkind = \"shell\"\nshape = { sphere = 10 }\nspacing = 3\ninflate = { volume_ml = 300 }\n",
+            "volume",
+        ),
+    ] {
+        let err = build_world(&SceneFile::parse("x.toml", text).unwrap()).unwrap_err();
+        assert!(matches!(&err, Error::SceneFile { .. }) && err.to_string().contains(says), "{err}");
+    }
+}
+
+#[test]
+fn a_block_has_the_young_modulus_the_file_gives() {
+    // A 20 mm cube of E = 3 kPa at spacing 2 mm, stretched uniformly by 0.5 % along z (and
+    // shrunk by a quarter of that across, the lattice's own Poisson ratio): the stress its
+    // springs put on an inner vertex of the top face is E × strain, in the simulation's units
+    // (stresses in pascals × metres per mm).
+    let text = "[[body]]\nname = \"cube\"\nkind = \"soft\"\nshape = { box = [20, 20, 20] }\nspacing = 2\nmaterial = { young_kpa = 3.0 }\n";
+    let built = build_world(&SceneFile::parse("cube.toml", text).unwrap()).unwrap();
+    let mut cube = built.world.bodies[0].clone();
+    let strain = 0.005f32;
+    for (p, r) in cube.pos.iter_mut().zip(&cube.rest_pos) {
+        *p = Vec3::new(r.x * (1.0 - strain / 4.0), r.y * (1.0 - strain / 4.0), r.z * (1.0 + strain));
+    }
+    let inputs = (built.world.schedule)(0)[0];
+    let mut force = Vec::new();
+    cube.forces(&inputs, &vec![Vec3::ZERO; cube.len()], &mut force);
+    let top = cube.rest_pos.iter().position(|r| r.z > 9.9 && r.x.abs() < 0.1 && r.y.abs() < 0.1).unwrap();
+    let f_z = force[top].z;
+    let e_measured = -f_z / (2.0 * 2.0 * strain); // stress on the vertex's h² of face
+    let e_expected = 3.0e3 * 1e-3; // 3 kPa in pascals × (metres per mm)
+    eprintln!("E measured {e_measured} vs {e_expected} (internal units)");
+    assert!((e_measured - e_expected).abs() < 0.03 * e_expected, "{e_measured} vs {e_expected}");
+}
