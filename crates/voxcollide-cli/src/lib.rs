@@ -8,3 +8,4 @@ pub mod bench; //    `voxcollide bench`: every backend against a k-d tree baseli
 pub mod output; //   VTK / ParaView files of the bodies
 pub mod render; //   offscreen PNG pictures with wgpu
 pub mod scenario; // a scene run end to end: backend, frames, files, summary
+pub mod scene_run; // a scene file run end to end: any bodies and contacts

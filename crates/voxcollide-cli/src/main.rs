@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use voxcollide_cli::scenario::{Backend, RunConfig, run};
+use voxcollide_cli::scene_run::{FileRunConfig, run_file as run_file_with};
 use voxcollide_sim::{Kind, SceneConfig};
 
 /// Collision between soft tissue and foreign bodies with a modified voxel model (Nikolaev, 2013).
@@ -88,8 +89,9 @@ enum BackendArg {
 
 #[derive(clap::Args, Debug)]
 struct RunArgs {
-    /// Which scenario.
-    scenario: Scenario,
+    /// A paper scenario (`implant`, `cylinder`) or a scene file (`FILE.toml`, DESIGN §8; the
+    /// options below but --backend, --out and --image are the paper scenarios' own).
+    scene: String,
     /// Where to run.
     #[arg(long, value_enum, default_value = "auto")]
     backend: BackendArg,
@@ -155,9 +157,15 @@ fn main() -> ExitCode {
         Command::Run(args) => args,
         Command::Bench(args) => return bench(&args),
     };
-    let kind = match args.scenario {
-        Scenario::Cylinder => Kind::Cylinder,
-        Scenario::Implant => Kind::Implant,
+    let backend = match args.backend {
+        BackendArg::Auto => Backend::Auto,
+        BackendArg::Gpu => Backend::Gpu,
+        BackendArg::Cpu => Backend::Cpu,
+    };
+    let kind = match Scenario::from_str(&args.scene, true) {
+        Ok(Scenario::Cylinder) => Kind::Cylinder,
+        Ok(Scenario::Implant) => Kind::Implant,
+        Err(_) => return run_file(&args, backend),
     };
     let config = RunConfig {
         scene: SceneConfig {
@@ -169,11 +177,7 @@ fn main() -> ExitCode {
             voxel_size: args.voxel_size,
             pressure: args.pressure,
         },
-        backend: match args.backend {
-            BackendArg::Auto => Backend::Auto,
-            BackendArg::Gpu => Backend::Gpu,
-            BackendArg::Cpu => Backend::Cpu,
-        },
+        backend,
         out: args.out.clone(),
         frames: args.frames,
         image: (!args.no_images).then_some(args.image),
@@ -208,6 +212,72 @@ fn main() -> ExitCode {
                 s.layer_thickness
             );
             println!("{:<28} {}", "contacts at the end", last.colliding);
+            println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// `voxcollide run FILE.toml`.
+fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
+    let path = PathBuf::from(&args.scene);
+    if !path.is_file() {
+        eprintln!(
+            "error: {:?} is neither a paper scenario (implant, cylinder) nor a scene file that exists",
+            args.scene
+        );
+        return ExitCode::FAILURE;
+    }
+    let config = FileRunConfig { path, backend, out: args.out.clone(), image: args.image };
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{bar:40}] {pos}/{len} steps  {per_sec}  eta {eta}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let result = run_file_with(
+        &config,
+        &mut |done, planned| {
+            bar.set_length(planned);
+            bar.set_position(done);
+        },
+        &mut |line| {
+            if bar.is_hidden() { eprintln!("{line}") } else { bar.println(line) }
+        },
+    );
+    bar.finish_and_clear();
+    match result {
+        Ok(s) => {
+            println!("{:<28} {}", "scene", s.scenario);
+            println!("{:<28} {} ({})", "backend", s.backend, s.adapter);
+            println!(
+                "{:<28} {} × dt {:.2e} s = {:.3} s simulated, {:.0} steps/s, {:.3} simulated s per s",
+                "steps", s.steps, s.dt, s.simulated_time, s.steps_per_second, s.realtime_factor
+            );
+            for b in &s.bodies {
+                println!(
+                    "{:<28} {} vertices, moved up to {:.3} {}",
+                    format!("body {} ({})", b.name, b.kind),
+                    b.vertices,
+                    b.max_displacement,
+                    s.units
+                );
+            }
+            for c in &s.contacts {
+                println!(
+                    "{:<28} max penetration {:.3} {}, {:.2} % inside, {} in contact at the end",
+                    format!("contact {} – {}", c.a, c.b),
+                    c.max_penetration,
+                    s.units,
+                    100.0 * c.penetrating_fraction,
+                    c.contacts_at_end
+                );
+            }
+            println!("{:<28} {}", "settled", s.settled);
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
             ExitCode::SUCCESS
         }

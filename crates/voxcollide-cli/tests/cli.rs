@@ -178,3 +178,84 @@ fn bench_times_every_gpu_pass_when_asked() {
         }
     }
 }
+
+#[test]
+fn run_a_scene_file_writes_every_body_and_the_design_keys() {
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let out = std::env::temp_dir().join(format!("voxcollide-cli-file-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    let output =
+        voxcollide().arg("run").arg(scenes.join("expander.toml")).arg("--out").arg(&out).output().unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stdout}\n{stderr}");
+    assert!(!stderr.to_lowercase().contains("error"), "{stderr}");
+    for line in ["body skin (soft)", "body expander (shell)", "contact expander – skin", "simulated s per s"]
+    {
+        assert!(stdout.contains(line), "no {line:?} in:\n{stdout}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for key in ["bodies", "contacts", "settled", "simulated_time", "steps", "dt", "files", "units"] {
+        assert!(json.get(key).is_some(), "summary.json lacks {key}");
+    }
+    let bodies = json["bodies"].as_array().unwrap();
+    assert_eq!(bodies.len(), 2);
+    for b in bodies {
+        for key in ["name", "kind", "vertices", "max_displacement"] {
+            assert!(b.get(key).is_some(), "a body lacks {key}: {b}");
+        }
+    }
+    assert!(bodies[0]["max_displacement"].as_f64().unwrap() > 0.5, "the skin was lifted: {}", bodies[0]);
+    let contact = &json["contacts"][0];
+    for key in ["a", "b", "max_penetration", "penetrating_fraction", "contacts_at_end"] {
+        assert!(contact.get(key).is_some(), "the contact lacks {key}: {contact}");
+    }
+    assert_eq!((contact["a"].as_str(), contact["b"].as_str()), (Some("expander"), Some("skin")));
+    // A VTK series per body, every frame (4 after the first) of each; pictures with every body
+    // where there is an adapter.
+    for body in ["skin", "expander"] {
+        assert!(out.join(format!("{body}.pvd")).is_file());
+        assert!(out.join(format!("{body}_0004.vtp")).is_file());
+    }
+    if common::gpu_required() {
+        assert!(out.join("expander_0004.png").is_file());
+    }
+    std::fs::remove_dir_all(&out).unwrap();
+}
+
+#[test]
+fn a_bad_scene_file_is_named_and_nothing_is_written() {
+    let dir = std::env::temp_dir().join(format!("voxcollide-cli-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cases = [
+        (
+            "typo.toml",
+            "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [1, 1, 1] }\nspacng = 0.5\n",
+            "typo.toml:5:1: body[0].spacng",
+        ),
+        (
+            "mesh.toml",
+            "[[body]]\nname = \"t\"\nkind = \"soft\"\nmesh = \"nope.stl\"\nspacing = 1\n",
+            "body[0].mesh",
+        ),
+        (
+            "contact.toml",
+            "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [1, 1, 1] }\nspacing = 0.5\n[[contact]]\na = \"x\"\nb = \"t\"\n",
+            "no body is named \"x\"",
+        ),
+    ];
+    for (name, text, says) in cases {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        let out = dir.join(format!("out-{name}"));
+        let output = voxcollide().arg("run").arg(&path).arg("--out").arg(&out).output().unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{name}");
+        assert!(stderr.contains(says), "{name}: {stderr}");
+        assert!(!out.exists(), "{name}: something was written");
+    }
+    let output = voxcollide().args(["run", "no-such-scene"]).output().unwrap();
+    assert!(String::from_utf8_lossy(&output.stderr).contains("neither a paper scenario"));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

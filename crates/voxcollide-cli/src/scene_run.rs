@@ -1,0 +1,372 @@
+//! Running a scene file end to end (`voxcollide run FILE.toml`): its world on the GPU or the
+//! CPU, frames (PNG with every body, a VTK series per body), measurements per body and per
+//! contact, an optional settling phase, and `summary.json` with DESIGN §8's keys.
+//!
+//! Nothing is written when the set-up fails: the file is read, its meshes loaded and its world
+//! built before the output folder is touched.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::Vec3;
+use serde::Serialize;
+
+use crate::output::{BodyFrame, PvdSeries};
+use crate::render::{Renderer, Scene as RenderScene, SceneMesh};
+use crate::scenario::Backend;
+use voxcollide::error::Error;
+use voxcollide::gpu::GpuContext;
+use voxcollide::report::ContactReport;
+use voxcollide_sim::build::{BodyNote, build_world};
+use voxcollide_sim::geometry::{ClosedSurface, penetration};
+use voxcollide_sim::scene_file::{BodyKind, SceneFile};
+use voxcollide_sim::{CpuWorld, GpuWorld, MassSpring, World};
+
+/// A body in `summary.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct BodySummary {
+    /// Its name in the file.
+    pub name: String,
+    /// `soft`, `shell` or `rigid`.
+    pub kind: String,
+    /// Its vertex count.
+    pub vertices: usize,
+    /// The largest distance of one of its vertices from where it started, over the run (file
+    /// units).
+    pub max_displacement: f32,
+    /// For a lattice in a surface: the fraction of the surface's volume it covers.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage: Option<f64>,
+    /// What building it found worth saying.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub remarks: Vec<String>,
+}
+
+/// A contact in `summary.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ContactSummary {
+    /// The indexed body's name.
+    pub a: String,
+    /// The probing body's name.
+    pub b: String,
+    /// The deepest vertex of `b` inside `a`'s closed surface, over the frames (file units).
+    pub max_penetration: f32,
+    /// The largest fraction of `b`'s vertices inside `a`'s surface, over the frames.
+    pub penetrating_fraction: f32,
+    /// `b`'s vertices in contact (the voxel model's count) at the last frame.
+    pub contacts_at_end: usize,
+}
+
+/// What a scene-file run did, as written to `summary.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct FileSummary {
+    /// The scene file's name without its extension.
+    pub scenario: String,
+    /// The file's length unit.
+    pub units: String,
+    /// `gpu` or `cpu`.
+    pub backend: String,
+    /// The adapter that ran it, or why there was none.
+    pub adapter: String,
+    /// Steps run (the schedule's, and the settling ones).
+    pub steps: u64,
+    /// The time step, in seconds.
+    pub dt: f32,
+    /// Simulated seconds.
+    pub simulated_time: f64,
+    /// Steps per second over the run, frames excluded.
+    pub steps_per_second: f64,
+    /// Simulated seconds per wall-clock second.
+    pub realtime_factor: f64,
+    /// Whether the bodies came to rest (`[time] settle`: every free vertex slower than 0.1 %
+    /// of the scene's size per second at a frame after the schedule); false without settling.
+    pub settled: bool,
+    /// Per body.
+    pub bodies: Vec<BodySummary>,
+    /// Per contact.
+    pub contacts: Vec<ContactSummary>,
+    /// Files written, relative to the output directory.
+    pub files: Vec<String>,
+}
+
+/// Where to run and what to write.
+#[derive(Clone, Debug)]
+pub struct FileRunConfig {
+    /// The scene file.
+    pub path: PathBuf,
+    /// Which backend.
+    pub backend: Backend,
+    /// The output folder (created).
+    pub out: PathBuf,
+    /// Picture size, when the file asks for images.
+    pub image: (u32, u32),
+}
+
+enum Run {
+    Cpu(Box<CpuWorld>),
+    Gpu(Box<GpuWorld>),
+}
+
+impl Run {
+    fn step(&mut self) -> Result<(), Error> {
+        match self {
+            Run::Cpu(w) => w.step(),
+            Run::Gpu(w) => w.step(),
+        }
+    }
+
+    fn frame(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
+        match self {
+            Run::Cpu(w) => Ok((&w.world, w.reports.clone())),
+            Run::Gpu(w) => {
+                let reports = w.sync()?;
+                Ok((&w.world, reports))
+            }
+        }
+    }
+}
+
+fn io(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Io { path: path.display().to_string(), message: e.to_string() }
+}
+
+fn kind_name(kind: BodyKind) -> &'static str {
+    match kind {
+        BodyKind::Soft => "soft",
+        BodyKind::Shell => "shell",
+        BodyKind::Rigid => "rigid",
+    }
+}
+
+/// Runs the scene file of `config`, calling `progress(steps_done, steps_planned)` and `note`.
+///
+/// # Errors
+/// The scene file's, meshes' and bodies' errors before anything is written;
+/// [`Error::NoAdapter`] for `Backend::Gpu` without one; [`Error::Simulation`] on a blow-up;
+/// file errors.
+pub fn run_file(
+    config: &FileRunConfig,
+    progress: &mut dyn FnMut(u64, u64),
+    note: &mut dyn FnMut(&str),
+) -> Result<FileSummary, Error> {
+    let file = SceneFile::read(&config.path)?;
+    let built = build_world(&file)?;
+    for n in &built.notes {
+        for r in &n.remarks {
+            note(&format!("{}: {r}", n.name));
+        }
+    }
+    let mut without = String::from("no adapter used: --backend cpu, no pictures");
+    let wants_pictures = file.output.images;
+    let ctx = match config.backend {
+        Backend::Cpu if !wants_pictures => None,
+        Backend::Gpu => Some(GpuContext::new()?),
+        _ => match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                note(&format!("{e}; running on the CPU and writing no pictures"));
+                without = e.to_string();
+                None
+            }
+        },
+    };
+    let (mut run, backend, adapter) = match (config.backend, &ctx) {
+        (Backend::Cpu, _) | (Backend::Auto, None) => (
+            Run::Cpu(Box::new(CpuWorld::new(built.world.clone())?)),
+            "cpu",
+            ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
+        ),
+        (_, Some(ctx)) => {
+            (Run::Gpu(Box::new(GpuWorld::new(ctx, built.world.clone())?)), "gpu", ctx.adapter_name())
+        }
+        (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
+    };
+    let scenario =
+        config.path.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
+    note(&format!("{scenario} on the {backend} backend ({adapter})"));
+    let mut renderer = match (&ctx, wants_pictures) {
+        (Some(ctx), true) => Some(Renderer::new(ctx, config.image.0, config.image.1)?),
+        _ => None,
+    };
+    std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
+    let world = &built.world;
+    let mut series: Vec<PvdSeries> = if file.output.vtk {
+        world.names.iter().map(|n| PvdSeries::new(config.out.join(format!("{n}.pvd")))).collect()
+    } else {
+        Vec::new()
+    };
+    let mut summary = FileSummary {
+        scenario: scenario.clone(),
+        units: file.units.symbol().into(),
+        backend: backend.into(),
+        adapter,
+        dt: built.dt,
+        bodies: world
+            .names
+            .iter()
+            .zip(&world.bodies)
+            .zip(&file.bodies)
+            .zip(&built.notes)
+            .map(|(((name, body), spec), n): (((&String, &MassSpring), _), &BodyNote)| BodySummary {
+                name: name.clone(),
+                kind: kind_name(spec.kind).into(),
+                vertices: body.len(),
+                coverage: n.coverage.map(|(c, _)| c),
+                remarks: n.remarks.clone(),
+                ..BodySummary::default()
+            })
+            .collect(),
+        contacts: world
+            .contacts
+            .iter()
+            .map(|c| ContactSummary {
+                a: world.names[c.a].clone(),
+                b: world.names[c.b].clone(),
+                ..Default::default()
+            })
+            .collect(),
+        ..FileSummary::default()
+    };
+    let size = world
+        .bodies
+        .iter()
+        .flat_map(|b| b.pos.iter())
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let size = (size.1 - size.0).max_element();
+    let soft: Vec<bool> = file.bodies.iter().map(|b| b.kind == BodyKind::Soft).collect();
+    let frames = u64::from(file.output.frames);
+    let planned = built.steps;
+    let chunk = planned.div_ceil(frames).max(1);
+    let mut stepping = 0.0f64;
+    let mut done = 0u64;
+    let mut frame = 0u32;
+    loop {
+        let (world, reports) = run.frame()?;
+        measure(world, &reports, &mut summary)?;
+        let at_rest = done >= planned && resting(world, built.dt, size);
+        let last = if file.time.settle {
+            (done >= planned && at_rest) || done >= file.time.max_steps
+        } else {
+            done >= planned
+        };
+        if let Some(r) = renderer.as_mut() {
+            let name = format!("{scenario}_{frame:04}.png");
+            let moved: Vec<Vec<f32>> = world
+                .bodies
+                .iter()
+                .map(|b| b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).collect())
+                .collect();
+            r.render_png(&picture(world, &moved, &soft, size), &config.out.join(&name))?;
+            summary.files.push(name);
+        }
+        for (k, pvd) in series.iter_mut().enumerate() {
+            let body = &world.bodies[k];
+            let mut force = vec![Vec3::ZERO; body.len()];
+            let mut colliding = vec![false; body.len()];
+            for (c, pair) in world.contacts.iter().enumerate() {
+                let r = &reports[c];
+                if pair.a == k && r.force_a.len() == body.len() {
+                    force.iter_mut().zip(&r.force_a).for_each(|(f, a)| *f += *a);
+                }
+                if pair.b == k && r.force_b.len() == body.len() {
+                    force.iter_mut().zip(&r.force_b).for_each(|(f, b)| *f += *b);
+                    r.colliding_b.iter().for_each(|&j| colliding[j as usize] = true);
+                }
+            }
+            let displacement: Vec<Vec3> = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| *p - *r).collect();
+            let name = format!("{}_{frame:04}.vtp", world.names[k]);
+            pvd.write_frame(
+                done as f64 * f64::from(built.dt),
+                &name,
+                &BodyFrame {
+                    positions: &body.pos,
+                    triangles: &body.surface.triangles,
+                    displacement: &displacement,
+                    contact_force: &force,
+                    colliding: &colliding,
+                },
+            )?;
+            summary.files.push(name);
+        }
+        if last {
+            summary.settled = file.time.settle && at_rest;
+            for (c, r) in reports.iter().enumerate() {
+                summary.contacts[c].contacts_at_end = r.colliding_b.len();
+            }
+            break;
+        }
+        let target = (done + chunk).min(if file.time.settle { file.time.max_steps } else { planned });
+        let started = Instant::now();
+        while done < target {
+            run.step()?;
+            done += 1;
+            if done.is_multiple_of(16) || done == target {
+                progress(done, planned.max(done));
+            }
+        }
+        stepping += started.elapsed().as_secs_f64();
+        frame += 1;
+    }
+    if file.output.vtk {
+        summary.files.extend(world.names.iter().map(|n| format!("{n}.pvd")));
+    }
+    summary.steps = done;
+    summary.simulated_time = done as f64 * f64::from(built.dt);
+    summary.steps_per_second = if stepping > 0.0 { done as f64 / stepping } else { 0.0 };
+    summary.realtime_factor = if stepping > 0.0 { summary.simulated_time / stepping } else { 0.0 };
+    let path = config.out.join("summary.json");
+    let json = serde_json::to_string_pretty(&summary).map_err(|e| io(&path, e))?;
+    std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
+    summary.files.push("summary.json".into());
+    Ok(summary)
+}
+
+/// Whether every free vertex of every body moves slower than 0.1 % of the scene's size per
+/// second (with the step's velocity), the settling criterion.
+fn resting(world: &World, _dt: f32, size: f32) -> bool {
+    let limit = 1e-3 * size;
+    world.bodies.iter().all(|b| {
+        b.vel.iter().zip(&b.mode).all(|(v, m)| *m != voxcollide_sim::Mode::Free || v.length() <= limit)
+    })
+}
+
+/// Updates the summary's maxima with this frame: displacements, and per contact the
+/// penetration of `b` into `a`'s closed surface (its own surface, independent of the voxel
+/// model).
+fn measure(world: &World, reports: &[ContactReport], summary: &mut FileSummary) -> Result<(), Error> {
+    for (body, s) in world.bodies.iter().zip(summary.bodies.iter_mut()) {
+        let d = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+        s.max_displacement = s.max_displacement.max(d);
+    }
+    for ((pair, s), _r) in world.contacts.iter().zip(summary.contacts.iter_mut()).zip(reports) {
+        let a = &world.bodies[pair.a];
+        let surface = ClosedSurface::new(&a.pos, &a.surface)?;
+        let p = penetration(&surface, &world.bodies[pair.b].pos);
+        s.max_penetration = s.max_penetration.max(p.max_depth);
+        s.penetrating_fraction = s.penetrating_fraction.max(p.fraction);
+    }
+    Ok(())
+}
+
+/// Every body, the soft ones coloured by how far they moved (`moved`, up to a tenth of the
+/// scene), the others in plain colours, seen from the front and a little above.
+fn picture<'a>(world: &'a World, moved: &'a [Vec<f32>], soft: &[bool], size: f32) -> RenderScene<'a> {
+    const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
+    RenderScene {
+        meshes: world
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(k, b)| SceneMesh {
+                positions: &b.pos,
+                triangles: &b.surface.triangles,
+                scalars: soft[k].then(|| moved[k].as_slice()),
+                base_color: COLOURS[k % COLOURS.len()],
+            })
+            .collect(),
+        scalar_range: (0.0, 0.1 * size),
+        clip: None,
+        view_dir: Vec3::new(0.3, 1.0, -0.35).normalize(),
+        up: Vec3::Z,
+    }
+}
