@@ -251,12 +251,17 @@ pub fn run_file(
         };
         if let Some(r) = renderer.as_mut() {
             let name = format!("{scenario}_{frame:04}.png");
-            let moved: Vec<Vec<f32>> = world
+            let shown: Vec<(Vec<Vec3>, Vec<f32>)> = world
                 .bodies
                 .iter()
-                .map(|b| b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).collect())
+                .map(|b| {
+                    let (p, _) = shown_surface(b);
+                    let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
+                    let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
+                    (p.into_owned(), moved)
+                })
                 .collect();
-            r.render_png(&picture(world, &moved, &soft, size), &config.out.join(&name))?;
+            r.render_png(&picture(world, &shown, &soft, size), &config.out.join(&name))?;
             summary.files.push(name);
         }
         for (k, pvd) in series.iter_mut().enumerate() {
@@ -273,19 +278,45 @@ pub fn run_file(
                     r.colliding_b.iter().for_each(|&j| colliding[j as usize] = true);
                 }
             }
-            let displacement: Vec<Vec3> = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| *p - *r).collect();
             let name = format!("{}_{frame:04}.vtp", world.names[k]);
-            pvd.write_frame(
-                done as f64 * f64::from(built.dt),
-                &name,
-                &BodyFrame {
-                    positions: &body.pos,
-                    triangles: &body.surface.triangles,
-                    displacement: &displacement,
-                    contact_force: &force,
-                    colliding: &colliding,
-                },
-            )?;
+            let time = done as f64 * f64::from(built.dt);
+            match &body.embedded {
+                None => {
+                    let displacement: Vec<Vec3> =
+                        body.pos.iter().zip(&body.rest_pos).map(|(p, r)| *p - *r).collect();
+                    pvd.write_frame(
+                        time,
+                        &name,
+                        &BodyFrame {
+                            positions: &body.pos,
+                            triangles: &body.surface.triangles,
+                            displacement: &displacement,
+                            contact_force: &force,
+                            colliding: &colliding,
+                        },
+                    )?;
+                }
+                Some(e) => {
+                    // The user's surface, its values interpolated from the lattice.
+                    let positions = e.positions(&body.pos, &body.rest_pos);
+                    let displacement: Vec<Vec3> =
+                        positions.iter().zip(&e.rest).map(|(p, r)| *p - *r).collect();
+                    let flags: Vec<Vec3> =
+                        colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
+                    let touching: Vec<bool> = e.interpolate(&flags).iter().map(|f| f.x > 0.0).collect();
+                    pvd.write_frame(
+                        time,
+                        &name,
+                        &BodyFrame {
+                            positions: &positions,
+                            triangles: &e.mesh.triangles,
+                            displacement: &displacement,
+                            contact_force: &e.interpolate(&force),
+                            colliding: &touching,
+                        },
+                    )?;
+                }
+            }
             summary.files.push(name);
         }
         if last {
@@ -321,6 +352,15 @@ pub fn run_file(
     Ok(summary)
 }
 
+/// The surface a body is shown and measured by: the user's own where the lattice carries one
+/// (its vertices following their cells), else the body's.
+fn shown_surface(body: &MassSpring) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
+    match &body.embedded {
+        Some(e) => (e.positions(&body.pos, &body.rest_pos).into(), &e.mesh),
+        None => (body.pos.as_slice().into(), &body.surface),
+    }
+}
+
 /// Whether every free vertex of every body moves slower than 0.1 % of the scene's size per
 /// second (with the step's velocity), the settling criterion.
 fn resting(world: &World, _dt: f32, size: f32) -> bool {
@@ -340,7 +380,8 @@ fn measure(world: &World, reports: &[ContactReport], summary: &mut FileSummary) 
     }
     for ((pair, s), _r) in world.contacts.iter().zip(summary.contacts.iter_mut()).zip(reports) {
         let a = &world.bodies[pair.a];
-        let surface = ClosedSurface::new(&a.pos, &a.surface)?;
+        let (positions, mesh) = shown_surface(a);
+        let surface = ClosedSurface::new(&positions, mesh)?;
         let p = penetration(&surface, &world.bodies[pair.b].pos);
         s.max_penetration = s.max_penetration.max(p.max_depth);
         s.penetrating_fraction = s.penetrating_fraction.max(p.fraction);
@@ -348,9 +389,15 @@ fn measure(world: &World, reports: &[ContactReport], summary: &mut FileSummary) 
     Ok(())
 }
 
-/// Every body, the soft ones coloured by how far they moved (`moved`, up to a tenth of the
-/// scene), the others in plain colours, seen from the front and a little above.
-fn picture<'a>(world: &'a World, moved: &'a [Vec<f32>], soft: &[bool], size: f32) -> RenderScene<'a> {
+/// Every body by its shown surface (`shown`: positions and how far each moved), the soft ones
+/// coloured by that distance (up to a tenth of the scene), the others in plain colours, seen
+/// from the front and a little above.
+fn picture<'a>(
+    world: &'a World,
+    shown: &'a [(Vec<Vec3>, Vec<f32>)],
+    soft: &[bool],
+    size: f32,
+) -> RenderScene<'a> {
     const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
     RenderScene {
         meshes: world
@@ -358,9 +405,9 @@ fn picture<'a>(world: &'a World, moved: &'a [Vec<f32>], soft: &[bool], size: f32
             .iter()
             .enumerate()
             .map(|(k, b)| SceneMesh {
-                positions: &b.pos,
-                triangles: &b.surface.triangles,
-                scalars: soft[k].then(|| moved[k].as_slice()),
+                positions: &shown[k].0,
+                triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
+                scalars: soft[k].then(|| shown[k].1.as_slice()),
                 base_color: COLOURS[k % COLOURS.len()],
             })
             .collect(),

@@ -259,3 +259,83 @@ fn a_bad_scene_file_is_named_and_nothing_is_written() {
     assert!(String::from_utf8_lossy(&output.stderr).contains("neither a paper scenario"));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An ASCII STL of a UV sphere of `radius` (rings × segments), outward.
+fn sphere_stl(radius: f32, rings: u32, segments: u32) -> (String, usize) {
+    let pi = std::f32::consts::PI;
+    let at = |r: u32, s: u32| {
+        let (t, p) = (pi * r as f32 / rings as f32, 2.0 * pi * (s % segments) as f32 / segments as f32);
+        match r {
+            0 => [0.0, 0.0, radius],
+            r if r == rings => [0.0, 0.0, -radius],
+            _ => [radius * t.sin() * p.cos(), radius * t.sin() * p.sin(), radius * t.cos()],
+        }
+    };
+    let mut out = String::from("solid sphere\n");
+    let mut facet = |a: [f32; 3], b: [f32; 3], c: [f32; 3]| {
+        out += "facet normal 0 0 0\nouter loop\n";
+        for v in [a, b, c] {
+            out += &format!("vertex {:e} {:e} {:e}\n", v[0], v[1], v[2]);
+        }
+        out += "endloop\nendfacet\n";
+    };
+    for r in 0..rings {
+        for s in 0..segments {
+            let (a, b, c, d) = (at(r, s), at(r + 1, s), at(r + 1, s + 1), at(r, s + 1));
+            if r > 0 {
+                facet(a, b, d);
+            }
+            if r + 1 < rings {
+                facet(b, c, d);
+            }
+        }
+    }
+    out += "endsolid sphere\n";
+    (out, 2 + (rings as usize - 1) * segments as usize)
+}
+
+#[test]
+fn a_soft_body_from_the_users_stl_is_shown_and_written_by_its_own_surface() {
+    let dir = std::env::temp_dir().join(format!("voxcollide-cli-stl-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (stl, vertices) = sphere_stl(10.0, 12, 24);
+    std::fs::write(dir.join("organ.stl"), stl).unwrap();
+    std::fs::write(
+        dir.join("scene.toml"),
+        r#"
+[time]
+steps = 600
+[[body]]
+name = "organ"
+kind = "soft"
+mesh = "organ.stl"
+spacing = 2
+fixed = [{ below = { z = -8 } }]
+[[body]]
+name = "probe"
+kind = "rigid"
+shape = { sphere = 3 }
+spacing = 1.5
+position = [0, 0, 16]
+motion = [{ t = 0.0, position = [0, 0, 16] }, { t = 0.05, position = [0, 0, 12] }]
+[[contact]]
+a = "probe"
+b = "organ"
+[output]
+frames = 2
+"#,
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let output = voxcollide().arg("run").arg(dir.join("scene.toml")).arg("--out").arg(&out).output().unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    // The organ's VTK frames carry the user's sphere (its own vertices), not the lattice.
+    let vtp = std::fs::read_to_string(out.join("organ_0002.vtp")).unwrap();
+    assert!(vtp.contains(&format!("NumberOfPoints=\"{vertices}\"")), "{}", &vtp[..300.min(vtp.len())]);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let organ = &json["bodies"][0];
+    assert!(organ["coverage"].as_f64().unwrap() > 0.5, "{organ}");
+    assert!(organ["vertices"].as_u64().unwrap() > 200, "{organ}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

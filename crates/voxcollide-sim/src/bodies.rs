@@ -693,8 +693,68 @@ pub fn lattice_in_surface(
         uncovered,
         surface_vertices: positions.len(),
     };
+    // The user's surface, carried by the lattice: each vertex in its cell, weighted over the
+    // cell's kept corners (renormalized); one outside every kept cell follows its nearest kept
+    // node within the 3 × 3 × 3 block around it.
+    let mut corners = Vec::with_capacity(positions.len());
+    let mut weights = Vec::with_capacity(positions.len());
+    for p in positions {
+        let q = (*p - origin) / h;
+        let c = q.floor().clamp(Vec3::ZERO, (n - UVec3::ONE).as_vec3());
+        let f = (q - c).clamp(Vec3::ZERO, Vec3::ONE);
+        let (cx, cy, cz) = (c.x as u32, c.y as u32, c.z as u32);
+        let mut corner = [u32::MAX; 8];
+        let mut weight = [0.0f32; 8];
+        let mut total = 0.0;
+        for k in 0..8u32 {
+            let (dx, dy, dz) = (k & 1, k >> 1 & 1, k >> 2 & 1);
+            let (x, y, z) = (cx + dx, cy + dy, cz + dz);
+            if x >= n.x || y >= n.y || z >= n.z {
+                continue;
+            }
+            let v = vertex[idx(x, y, z)];
+            if v == u32::MAX {
+                continue;
+            }
+            let w = (if dx == 1 { f.x } else { 1.0 - f.x })
+                * (if dy == 1 { f.y } else { 1.0 - f.y })
+                * (if dz == 1 { f.z } else { 1.0 - f.z });
+            corner[k as usize] = v;
+            weight[k as usize] = w;
+            total += w;
+        }
+        if total > 1e-6 {
+            weight.iter_mut().for_each(|w| *w /= total);
+        } else {
+            // No kept corner carries it: the nearest kept node around.
+            let r = q.round();
+            let mut best = (f32::MAX, u32::MAX);
+            for d in 0..27i32 {
+                let o = Vec3::new((d % 3 - 1) as f32, (d / 3 % 3 - 1) as f32, (d / 9 - 1) as f32);
+                let g = r + o;
+                if g.cmplt(Vec3::ZERO).any() || g.cmpge(n.as_vec3()).any() {
+                    continue;
+                }
+                let v = vertex[idx(g.x as u32, g.y as u32, g.z as u32)];
+                let dist = (origin + h * g).distance_squared(*p);
+                if v != u32::MAX && dist < best.0 {
+                    best = (dist, v);
+                }
+            }
+            corner = [u32::MAX; 8];
+            weight = [0.0; 8];
+            if best.1 != u32::MAX {
+                corner[0] = best.1;
+                weight[0] = 1.0;
+            }
+        }
+        corners.push(corner);
+        weights.push(weight);
+    }
     let modes = pos.iter().map(|p| mode(*p)).collect();
-    let body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
+    let mut body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
+    body.embedded =
+        Some(crate::body::Embedding { rest: positions.to_vec(), mesh: mesh.clone(), corners, weights });
     Ok((body, report))
 }
 

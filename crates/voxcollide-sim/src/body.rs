@@ -89,6 +89,48 @@ pub struct MassSpring {
     pub tri_offsets: Vec<u32>,
     /// See `tri_offsets`.
     pub tri_adjacency: Vec<u32>,
+    /// The user's own surface carried by the body (a lattice filling a closed surface): what
+    /// pictures, VTK files and penetration use instead of [`surface`](Self::surface); `None`
+    /// for a body whose own surface is the user's.
+    pub embedded: Option<Embedding>,
+}
+
+/// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
+/// lies in (trilinear weights over the cell's kept corners), so the user's surface moves with
+/// the body while the lattice does the physics.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Embedding {
+    /// The surface's vertices at rest.
+    pub rest: Vec<Vec3>,
+    /// Its triangles, over `rest`.
+    pub mesh: TriangleMesh,
+    /// Per surface vertex, up to 8 body vertices (`u32::MAX`: none) and their weights (summing
+    /// to 1).
+    pub corners: Vec<[u32; 8]>,
+    /// The weights of `corners`.
+    pub weights: Vec<[f32; 8]>,
+}
+
+impl Embedding {
+    /// `values` of the body's vertices interpolated at every surface vertex.
+    #[must_use]
+    pub fn interpolate(&self, values: &[Vec3]) -> Vec<Vec3> {
+        self.corners
+            .iter()
+            .zip(&self.weights)
+            .map(|(c, w)| {
+                c.iter().zip(w).filter(|(c, _)| **c != u32::MAX).map(|(c, w)| *w * values[*c as usize]).sum()
+            })
+            .collect()
+    }
+
+    /// The surface's vertices for the body at `pos` (rest `rest_pos`): each moves by its cell's
+    /// interpolated displacement.
+    #[must_use]
+    pub fn positions(&self, pos: &[Vec3], rest_pos: &[Vec3]) -> Vec<Vec3> {
+        let displacement: Vec<Vec3> = pos.iter().zip(rest_pos).map(|(p, r)| *p - *r).collect();
+        self.interpolate(&displacement).iter().zip(&self.rest).map(|(d, r)| *r + *d).collect()
+    }
 }
 
 /// The spring count of an interior vertex of the tissue lattice; vertices with more springs
@@ -211,6 +253,7 @@ impl MassSpring {
             material,
             offsets,
             adjacency,
+            embedded: None,
         })
     }
 

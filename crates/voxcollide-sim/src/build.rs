@@ -476,7 +476,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             })
             .collect()
     });
-    // A vertex faster than 50 scene sizes a second has blown up.
-    let world = World::new(names, bodies, contacts, 50.0 * size, schedule)?;
+    // A vertex that moves a tenth of the scene in one step has blown up.
+    let world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
     Ok(Built { world, dt, steps, notes })
 }

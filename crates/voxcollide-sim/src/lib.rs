@@ -17,7 +17,7 @@ pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
 pub mod scene_file;
 pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
 
-pub use body::{MassSpring, Material, Mode, Spring, StepInputs};
+pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
 pub use cpu::{CpuSim, CpuWorld};
 pub use gpu::{GpuSim, GpuWorld};
 pub use scene::{Kind, Scene, SceneConfig};

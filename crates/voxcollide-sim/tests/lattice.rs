@@ -144,3 +144,32 @@ fn held_vertices_follow_the_rule_on_positions() {
     assert!(!pinned.is_empty() && pinned.len() < body.len());
     assert!(pinned.iter().all(|p| p.z < -5.0));
 }
+
+#[test]
+fn the_users_surface_is_carried_by_the_lattice() {
+    for (shape, mut s, h) in [("kidney", kidney(), 4.0f32), ("breast", breast(), 5.0)] {
+        check_closed(&mut s).unwrap();
+        let (mut body, _) = fill(&s, h).unwrap();
+        let e = body.embedded.clone().expect("a lattice in a surface carries it");
+        assert_eq!(e.rest, s.positions, "{shape}");
+        assert_eq!(e.mesh, s.mesh, "{shape}");
+        // At rest the surface is where the user put it; moved with the lattice, it follows.
+        assert_eq!(e.positions(&body.pos, &body.rest_pos), s.positions, "{shape}");
+        let shift = Vec3::new(3.0, -2.0, 7.5);
+        body.pos.iter_mut().for_each(|p| *p += shift);
+        for (p, r) in e.positions(&body.pos, &body.rest_pos).iter().zip(&s.positions) {
+            assert!((*p - (*r + shift)).length() < 1e-4, "{shape}: {p} vs {}", *r + shift);
+        }
+        // A uniform stretch of the lattice stretches the surface with it (to within a cell at the
+        // boundary, where a cell's missing corners are left out of the weights).
+        let stretch = |p: Vec3| Vec3::new(1.1 * p.x, p.y, p.z);
+        body.pos = body.rest_pos.iter().map(|p| stretch(*p)).collect();
+        let worst = e
+            .positions(&body.pos, &body.rest_pos)
+            .iter()
+            .zip(&s.positions)
+            .map(|(p, r)| p.distance(stretch(*r)))
+            .fold(0.0, f32::max);
+        assert!(worst < 0.1 * h, "{shape}: {worst}");
+    }
+}
