@@ -201,7 +201,14 @@ fn main() -> ExitCode {
             println!("{:<28} {}", "scenario", s.scenario);
             println!("{:<28} {} ({})", "backend", s.backend, s.adapter);
             println!("{:<28} {} tissue (B), {} {} (A)", "vertices", s.vertices_b, s.vertices_a, s.scenario);
-            println!("{:<28} {} × dt {:.2e}, {:.0} steps/s", "steps", s.steps, s.dt, s.steps_per_second);
+            println!(
+                "{:<28} {} × dt {:.2e}, {:.0} steps/s, {:.3} simulated time per second",
+                "steps",
+                s.steps,
+                s.dt,
+                s.steps_per_second,
+                s.steps_per_second * f64::from(s.dt)
+            );
             println!("{:<28} {:.3} (voxel size {})", "max penetration", s.max_penetration, s.voxel_size);
             println!("{:<28} {:.2} %", "penetrating tissue", 100.0 * s.penetrating_fraction);
             println!(
