@@ -136,6 +136,32 @@ fn forces_or_zero(v: &[Vec3], n: usize) -> std::borrow::Cow<'_, [Vec3]> {
     if v.len() == n { v.into() } else { vec![Vec3::ZERO; n].into() }
 }
 
+/// The adapter a run uses — for `backend` and whether pictures are wanted — and, when there is
+/// none, why (for the summary). A fallback to the CPU is said through `note`.
+///
+/// # Errors
+/// [`Error::NoAdapter`] for [`Backend::Gpu`] without an adapter.
+pub(crate) fn context(
+    backend: Backend,
+    pictures: bool,
+    note: &mut dyn FnMut(&str),
+) -> Result<(Option<GpuContext>, String), Error> {
+    let mut without = String::from("no adapter used: --backend cpu, no pictures");
+    let ctx = match backend {
+        Backend::Cpu if !pictures => None,
+        Backend::Gpu => Some(GpuContext::new()?),
+        _ => match GpuContext::new() {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                note(&format!("{e}; running on the CPU and writing no pictures"));
+                without = e.to_string();
+                None
+            }
+        },
+    };
+    Ok((ctx, without))
+}
+
 fn io(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Io { path: path.display().to_string(), message: e.to_string() }
 }
@@ -156,20 +182,7 @@ pub fn run(
     }
     let scene = Scene::new(config.scene)?;
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
-    // Why no adapter is used, when none is.
-    let mut without = String::from("no adapter used: --backend cpu, no pictures");
-    let ctx = match config.backend {
-        Backend::Cpu if config.image.is_none() => None,
-        Backend::Gpu => Some(GpuContext::new()?),
-        _ => match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                note(&format!("{e}; running on the CPU and writing no pictures"));
-                without = e.to_string();
-                None
-            }
-        },
-    };
+    let (ctx, without) = context(config.backend, config.image.is_some(), note)?;
     let (mut sim, backend, adapter) = match (config.backend, &ctx) {
         (Backend::Cpu, _) | (Backend::Auto, None) => (
             Sim::Cpu(Box::new(CpuSim::new(scene.clone())?)),

@@ -15,7 +15,6 @@ use crate::output::{BodyFrame, PvdSeries};
 use crate::render::{Renderer, Scene as RenderScene, SceneMesh};
 use crate::scenario::Backend;
 use voxcollide::error::Error;
-use voxcollide::gpu::GpuContext;
 use voxcollide::report::ContactReport;
 use voxcollide_sim::build::{BodyNote, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
@@ -156,20 +155,8 @@ pub fn run_file(
             note(&format!("{}: {r}", n.name));
         }
     }
-    let mut without = String::from("no adapter used: --backend cpu, no pictures");
     let wants_pictures = file.output.images;
-    let ctx = match config.backend {
-        Backend::Cpu if !wants_pictures => None,
-        Backend::Gpu => Some(GpuContext::new()?),
-        _ => match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                note(&format!("{e}; running on the CPU and writing no pictures"));
-                without = e.to_string();
-                None
-            }
-        },
-    };
+    let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
     let (mut run, backend, adapter) = match (config.backend, &ctx) {
         (Backend::Cpu, _) | (Backend::Auto, None) => (
             Run::Cpu(Box::new(CpuWorld::new(built.world.clone())?)),

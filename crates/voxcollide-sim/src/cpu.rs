@@ -120,11 +120,7 @@ impl CpuSim {
     /// or its speed runs away.
     pub fn step(&mut self) -> Result<(), Error> {
         let result = self.world.step().map_err(|e| with_cause(e, &self.scene));
-        let [tissue, foreign] = &self.world.world.bodies[..] else { unreachable!("a scene has two bodies") };
-        self.scene.tissue.pos.clone_from(&tissue.pos);
-        self.scene.tissue.vel.clone_from(&tissue.vel);
-        self.scene.foreign.pos.clone_from(&foreign.pos);
-        self.scene.foreign.vel.clone_from(&foreign.vel);
+        self.scene.follow(&self.world.world);
         self.report.clone_from(&self.world.reports[0]);
         result
     }

@@ -431,11 +431,7 @@ impl GpuSim {
     /// and the readback's device errors.
     pub fn sync(&mut self) -> Result<ContactReport, Error> {
         let mut reports = self.world.sync().map_err(|e| crate::cpu::with_cause(e, &self.scene))?;
-        let [tissue, foreign] = &self.world.world.bodies[..] else { unreachable!("a scene has two bodies") };
-        self.scene.tissue.pos.clone_from(&tissue.pos);
-        self.scene.tissue.vel.clone_from(&tissue.vel);
-        self.scene.foreign.pos.clone_from(&foreign.pos);
-        self.scene.foreign.vel.clone_from(&foreign.vel);
+        self.scene.follow(&self.world.world);
         Ok(reports.swap_remove(0))
     }
 }

@@ -254,6 +254,17 @@ impl Scene {
         }
     }
 
+    /// Takes the positions and velocities of the scene's world (see [`world`](Self::world)) as
+    /// its own.
+    pub fn follow(&mut self, world: &World) {
+        if let [tissue, foreign] = &world.bodies[..] {
+            self.tissue.pos.clone_from(&tissue.pos);
+            self.tissue.vel.clone_from(&tissue.vel);
+            self.foreign.pos.clone_from(&foreign.pos);
+            self.foreign.vel.clone_from(&foreign.vel);
+        }
+    }
+
     /// The scene as a [`World`]: bodies `tissue` (0) and `foreign body` (1), one contact with
     /// the foreign body as A.
     ///

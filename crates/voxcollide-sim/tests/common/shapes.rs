@@ -36,7 +36,12 @@ pub fn sphere_like(rings: u32, segments: u32, f: impl Fn(f64, f64) -> DVec3) -> 
 
 /// A kidney bean, 120 × 60 × 50 mm, concave on one side (its hilum).
 pub fn kidney() -> Surface {
-    sphere_like(24, 48, |t, p| {
+    kidney_of(24, 48)
+}
+
+/// The kidney bean with `rings` × `segments` (about `2 · rings · segments` triangles).
+pub fn kidney_of(rings: u32, segments: u32) -> Surface {
+    sphere_like(rings, segments, |t, p| {
         let (x, y, z) = (t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
         DVec3::new(60.0 * x, 30.0 * (y + 0.55 * (1.0 - x * x)), 25.0 * z)
     })
