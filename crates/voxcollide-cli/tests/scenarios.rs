@@ -158,10 +158,22 @@ fn a_run_writes_pictures_paraview_files_and_a_summary() {
         "layer_thickness",
         "voxel_size",
         "frames",
+        // DESIGN §8's keys, added to these.
+        "bodies",
+        "contacts",
+        "settled",
+        "simulated_time",
     ] {
         assert!(json.get(key).is_some(), "summary.json lacks {key}");
     }
     assert_eq!(json["frames"].as_array().unwrap().len(), 3);
+    assert_eq!(json["bodies"][0]["name"], "tissue");
+    assert_eq!(json["bodies"][1]["kind"], "shell");
+    assert_eq!(
+        (json["contacts"][0]["a"].as_str(), json["contacts"][0]["b"].as_str()),
+        (Some("implant"), Some("tissue"))
+    );
+    assert!(json["simulated_time"].as_f64().unwrap() > 0.0);
     assert_eq!(json["frames"][2]["step"], 60);
     // Pictures need an adapter; where one is required (CI), the run must have used it.
     if common::gpu_required() {

@@ -27,7 +27,7 @@ use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
-    Auto, BodyKind, BodySpec, DirectionSpec, Fixed, Geometry, SceneFile, SearchSpec, Shape,
+    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, SceneFile, SearchSpec, Shape,
 };
 use crate::world::{ContactPair, World};
 
@@ -151,9 +151,15 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
     let mut note = BodyNote { name: spec.name.clone(), vertices: 0, coverage: None, remarks: Vec::new() };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
-        let c = 2.0 * m.damping * (kspring * mass).sqrt();
+        let critical = 2.0 * (kspring * mass).sqrt();
+        let (c, c_spring) = (m.damping * critical, m.spring_damping.unwrap_or(m.damping) * critical);
         (
-            Material { mass: mass as f32, stiffening: 10.0, spring_damping: c as f32, damping: c as f32 },
+            Material {
+                mass: mass as f32,
+                stiffening: 10.0,
+                spring_damping: c_spring as f32,
+                damping: c as f32,
+            },
             kspring as f32,
         )
     };
@@ -206,6 +212,22 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
                     let n = (size / h).round().max(Vec3::ONE).as_uvec3() + UVec3::ONE;
                     let origin = offset - 0.5 * h * (n - UVec3::ONE).as_vec3();
                     (box_lattice(n, h, origin, kspring, material, |_| Mode::Free)?, kspring)
+                }
+                // A solid cylinder is a polar lattice: rings about `spacing` apart.
+                Geometry::Shape(Shape::Cylinder { radius, height }) if spec.rotation == [0.0; 3] => {
+                    let (radius, height) = (*radius as f32 * scale, *height as f32 * scale);
+                    let rings = ((radius / h).round() as u32).max(2);
+                    // The base below the centre, rounded once (from f64).
+                    let base_z = (f64::from(offset.z) - 0.5 * f64::from(height)) as f32;
+                    let shape = CylinderShape {
+                        base: Vec3::new(offset.x, offset.y, base_z),
+                        radius,
+                        height,
+                        rings,
+                        segments: (6 * rings).max(12),
+                        layers: ((height / h).round() as u32).max(2) + 1,
+                    };
+                    (cylinder(shape, kspring, material)?, kspring)
                 }
                 Geometry::Mesh(path)
                     if path
@@ -266,18 +288,17 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
                     } * scale;
                     let segments =
                         ((std::f32::consts::TAU * radii.max_element() / edge).round() as u32).max(8);
-                    let mut shell = ellipsoid_shell(
-                        Vec3::ZERO,
-                        radii,
-                        (segments / 2).max(3),
-                        segments,
-                        2.0,
-                        kspring,
-                        material,
-                    )?;
-                    for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
-                        *p = rot * *p + offset;
-                    }
+                    let rings = (segments / 2).max(3);
+                    let shell = if spec.rotation == [0.0; 3] {
+                        ellipsoid_shell(offset, radii, rings, segments, 2.0, kspring, material)?
+                    } else {
+                        let mut shell =
+                            ellipsoid_shell(Vec3::ZERO, radii, rings, segments, 2.0, kspring, material)?;
+                        for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
+                            *p = rot * *p + offset;
+                        }
+                        shell
+                    };
                     (shell, kspring)
                 }
                 _ => {
@@ -347,7 +368,7 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
     let lo = body.pos.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
     let hi = body.pos.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
     for (i, p) in body.rest_pos.iter().enumerate() {
-        body.mode[i] = if spec.kind == BodyKind::Rigid {
+        body.mode[i] = if spec.kind == BodyKind::Rigid || held(&spec.driven, *p, lo, hi) {
             Mode::Driven
         } else if held(&spec.fixed, *p, lo, hi) {
             Mode::Pinned
@@ -357,6 +378,16 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
     }
     note.vertices = body.len();
     Ok((body, note, kspring))
+}
+
+/// A body's schedule: keyframes (time, offset from the first, ease), final pressure, ramp and
+/// its ease, and floor.
+struct BodySchedule {
+    keys: Vec<(f64, Vec3, Ease)>,
+    pressure: f32,
+    ramp: f64,
+    ease: Ease,
+    floor: f32,
 }
 
 /// Builds the world of `file`.
@@ -408,8 +439,16 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             },
             anchor: Anchor::FollowA,
         };
-        // Room for the body A to grow (an inflating shell) and move within its own size.
-        let grid = Initializer::new(voxel).margin(4).build(&bodies[c.a].pos)?;
+        // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
+        // grid keeps its dims as it follows A; what leaves it is discarded).
+        let a = &bodies[c.a].pos;
+        let margin = if file.bodies[c.a].inflate.is_some() {
+            let (lo, hi) = a.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+            (0.6 * (hi - lo).max_element() / voxel).ceil() as u32 + 2
+        } else {
+            2
+        };
+        let grid = Initializer::new(voxel).margin(margin).build(a)?;
         contacts.push(ContactPair { a: c.a, b: c.b, grid, params });
     }
     let dt = match file.time.dt {
@@ -435,19 +474,21 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     let size = (extent.1 - extent.0).max_element().max(f32::MIN_POSITIVE);
     let names: Vec<String> = file.bodies.iter().map(|b| b.name.clone()).collect();
     // Per body: its keyframes (time, offset from the first), its final pressure and its ramp.
-    type BodySchedule = (Vec<(f64, Vec3)>, f32, f32);
     let schedule_specs: Vec<BodySchedule> = file
         .bodies
         .iter()
         .map(|b| {
             let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
-            let keys =
-                b.motion.iter().map(|m| (m.t, (DVec3::from_array(m.position) - base).as_vec3())).collect();
-            let (pressure, ramp) = match b.inflate {
-                Some(i) => ((i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32, i.ramp as f32),
-                None => (0.0, 0.0),
+            let keys = b
+                .motion
+                .iter()
+                .map(|m| (m.t, (DVec3::from_array(m.position) - base).as_vec3(), m.ease))
+                .collect();
+            let (pressure, ramp, ease) = match b.inflate {
+                Some(i) => ((i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32, i.ramp, i.ease),
+                None => (0.0, 0.0, Ease::Linear),
             };
-            (keys, pressure, ramp)
+            BodySchedule { keys, pressure, ramp, ease, floor: b.floor.map_or(f32::MIN, |f| f as f32) }
         })
         .collect();
     if let Some(k) = file.bodies.iter().position(|b| b.inflate.is_some_and(|i| i.volume_ml.is_some())) {
@@ -462,17 +503,17 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         let t = (step + 1) as f64 * f64::from(dt);
         schedule_specs
             .iter()
-            .map(|(keys, pressure, ramp)| {
-                let drive = match keys.iter().position(|(kt, _)| *kt >= t) {
-                    None => keys.last().map_or(Vec3::ZERO, |(_, p)| *p),
-                    Some(0) => keys[0].1,
+            .map(|b| {
+                let drive = match b.keys.iter().position(|(kt, _, _)| *kt >= t) {
+                    None => b.keys.last().map_or(Vec3::ZERO, |(_, p, _)| *p),
+                    Some(0) => b.keys[0].1,
                     Some(i) => {
-                        let ((t0, p0), (t1, p1)) = (keys[i - 1], keys[i]);
-                        p0.lerp(p1, ((t - t0) / (t1 - t0)) as f32)
+                        let ((t0, p0, _), (t1, p1, ease)) = (b.keys[i - 1], b.keys[i]);
+                        p0.lerp(p1, ease.at(((t - t0) / (t1 - t0)) as f32))
                     }
                 };
-                let ramped = if *ramp > 0.0 { (t as f32 / ramp).min(1.0) } else { 1.0 };
-                StepInputs { dt, rest_scale: 1.0, drive, pressure: pressure * ramped, floor: f32::MIN }
+                let ramped = if b.ramp > 0.0 { b.ease.at((t / b.ramp) as f32) } else { 1.0 };
+                StepInputs { dt, rest_scale: 1.0, drive, pressure: b.pressure * ramped, floor: b.floor }
             })
             .collect()
     });

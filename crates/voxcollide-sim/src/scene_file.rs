@@ -215,9 +215,12 @@ pub struct MaterialSpec {
     /// Density in kg/m³ (default 1000).
     #[serde(default = "default_density")]
     pub density: f64,
-    /// Damping ratio, `>= 0` (default 0.1).
+    /// Damping ratio, `>= 0` (default 0.1): of the viscous term, and of the springs' own
+    /// damping unless [`spring_damping`](Self::spring_damping) is given.
     #[serde(default = "default_damping")]
     pub damping: f64,
+    /// Damping ratio of the damping along each spring (default: `damping`).
+    pub spring_damping: Option<f64>,
 }
 
 fn default_young() -> f64 {
@@ -240,6 +243,7 @@ impl Default for MaterialSpec {
             poisson: default_poisson(),
             density: default_density(),
             damping: default_damping(),
+            spring_damping: None,
         }
     }
 }
@@ -288,7 +292,31 @@ pub enum Fixed {
     Rim(f64),
 }
 
-/// A rigid body's keyframe.
+/// How a keyframe or a ramp is approached.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Ease {
+    /// At a constant rate (the default).
+    #[default]
+    Linear,
+    /// Smoothstep: `3u² − 2u³`, starting and ending at rest.
+    Smooth,
+}
+
+impl Ease {
+    /// The fraction reached at `u` of the way (clamped to `0..=1`), in `f32` as the simulator's
+    /// schedules compute it.
+    #[must_use]
+    pub fn at(self, u: f32) -> f32 {
+        let u = u.clamp(0.0, 1.0);
+        match self {
+            Ease::Linear => u,
+            Ease::Smooth => u * u * (3.0 - 2.0 * u),
+        }
+    }
+}
+
+/// A keyframe: where a rigid body, or a soft body's driven vertices, are at a time.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Keyframe {
@@ -299,6 +327,9 @@ pub struct Keyframe {
     /// Its rotation at `t` (degrees, x then y then z).
     #[serde(default)]
     pub rotation: [f64; 3],
+    /// How it is approached from the keyframe before.
+    #[serde(default)]
+    pub ease: Ease,
 }
 
 /// A shell's inflation: by pressure or to a volume, ramped.
@@ -312,6 +343,9 @@ pub struct Inflate {
     /// Seconds over which it is ramped (default 1).
     #[serde(default = "default_ramp")]
     pub ramp: f64,
+    /// How it is ramped.
+    #[serde(default)]
+    pub ease: Ease,
 }
 
 fn default_ramp() -> f64 {
@@ -336,6 +370,9 @@ struct RawBody {
     material: Spanned<MaterialSpec>,
     #[serde(default)]
     fixed: Vec<Spanned<Fixed>>,
+    #[serde(default)]
+    driven: Vec<Spanned<Fixed>>,
+    floor: Option<f64>,
     #[serde(default = "unspanned")]
     motion: Spanned<Vec<Keyframe>>,
     inflate: Option<Spanned<Inflate>>,
@@ -462,7 +499,12 @@ pub struct BodySpec {
     pub material: MaterialSpec,
     /// Held vertices.
     pub fixed: Vec<Fixed>,
-    /// Keyframes (rigid bodies), in ascending time.
+    /// Vertices of a soft body that follow `motion` (a rigid body's all do), by the same rules
+    /// as `fixed`.
+    pub driven: Vec<Fixed>,
+    /// A wall: the body's free vertices are kept at `z >= floor` (file units).
+    pub floor: Option<f64>,
+    /// Keyframes (rigid bodies, and soft bodies' driven vertices), in ascending time.
     pub motion: Vec<Keyframe>,
     /// Inflation (shells).
     pub inflate: Option<Inflate>,
@@ -542,18 +584,18 @@ fn key_at(text: &str, offset: usize) -> String {
             table = name.trim().to_string();
         }
         if here {
-            // The key whose value holds the offset: the last `key =` before it on this line.
-            let upto = &line[..offset - line_start];
-            let keys: Vec<&str> = upto
-                .split(['{', ',', '['])
-                .filter_map(|part| part.split_once('=').map(|(k, _)| k.trim()))
-                .filter(|k| !k.is_empty() && !k.contains(['"', ']', '}']))
-                .collect();
-            let key = match (keys.is_empty(), line.split_once('=')) {
-                (false, _) => keys.join("."),
-                (true, Some((k, _))) if !trimmed.starts_with('[') => k.trim().to_string(),
-                _ => String::new(),
-            };
+            // The key whose value holds the offset: the inline tables and arrays open before it
+            // on this line (`a = { b = [{ c = `), then the key being given.
+            let mut key = inline_key(&line[..offset - line_start]);
+            if !trimmed.starts_with('[') {
+                // At a key itself (an unknown one): that key, under what is open before it.
+                if let Some((k, _)) = line[offset - line_start..].split_once('=') {
+                    let k = k.trim();
+                    if !k.is_empty() && !k.contains(['{', '}', '[', ']', ',', '"']) && !key.ends_with(k) {
+                        key = if key.is_empty() { k.to_string() } else { format!("{key}.{k}") };
+                    }
+                }
+            }
             return match (table.is_empty(), key.is_empty()) {
                 (true, _) => key,
                 (false, true) => table,
@@ -563,6 +605,60 @@ fn key_at(text: &str, offset: usize) -> String {
         line_start += line.len();
     }
     table
+}
+
+/// The dotted key at the end of `upto`, the start of a line: `material = { poisson = 0.` gives
+/// `material.poisson`, `fixed = [{ below = {` gives `fixed.below`; quoted text is skipped.
+fn inline_key(upto: &str) -> String {
+    let mut stack: Vec<String> = Vec::new();
+    let mut leaf: Option<String> = None;
+    let mut word = String::new();
+    let mut chars = upto.chars().peekable();
+    let mut pending: Option<String> = None; // a key whose `=` was seen, its value not yet
+    while let Some(c) = chars.next() {
+        match c {
+            '"' | '\'' => {
+                for d in chars.by_ref() {
+                    if d == c {
+                        break;
+                    }
+                }
+                pending = None;
+            }
+            '=' => {
+                pending = Some(word.trim().to_string());
+                leaf = pending.clone();
+                word.clear();
+            }
+            '{' | '[' => {
+                if let Some(k) = pending.take() {
+                    stack.push(k);
+                } else if c == '{' {
+                    stack.push(String::new()); // a table inside an array
+                }
+                leaf = None;
+                word.clear();
+            }
+            '}' | ']' => {
+                stack.pop();
+                leaf = None;
+                word.clear();
+            }
+            ',' => {
+                leaf = None;
+                pending = None;
+                word.clear();
+            }
+            c if c.is_whitespace() && pending.is_some() => {}
+            c => {
+                if pending.is_some() {
+                    pending = None; // the value started: a scalar
+                }
+                word.push(c);
+            }
+        }
+    }
+    stack.iter().filter(|k| !k.is_empty()).cloned().chain(leaf).collect::<Vec<_>>().join(".")
 }
 
 /// The file's error at `span`.
@@ -627,7 +723,13 @@ impl SceneFile {
             let key =
                 message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
                     let context = key_at(text, span.start);
-                    if context.ends_with(unknown) { context } else { format!("{context}.{unknown}") }
+                    if context.ends_with(unknown) {
+                        context
+                    } else if context.is_empty() {
+                        unknown.to_string()
+                    } else {
+                        format!("{context}.{unknown}")
+                    }
                 });
             at(&file, text, span, key.as_deref(), message)
         })?;
@@ -743,19 +845,33 @@ impl SceneFile {
             check_material(&material).map_err(|(what, m)| {
                 at(&file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
             })?;
-            let mut fixed = Vec::with_capacity(b.fixed.len());
-            for f in b.fixed {
-                let span = f.span();
-                let f = f.into_inner();
-                check_fixed(&f).map_err(|m| err(span.clone(), m))?;
-                fixed.push(f);
+            let rules = |list: Vec<Spanned<Fixed>>| -> Result<Vec<Fixed>, Error> {
+                let mut out = Vec::with_capacity(list.len());
+                for f in list {
+                    let span = f.span();
+                    let f = f.into_inner();
+                    check_fixed(&f).map_err(|m| err(span.clone(), m))?;
+                    out.push(f);
+                }
+                Ok(out)
+            };
+            let fixed = rules(b.fixed)?;
+            let driven = rules(b.driven)?;
+            if let Some(f) = b.floor
+                && !f.is_finite()
+            {
+                return Err(at(&file, text, name_span, Some(&key("floor")), "must be finite"));
             }
             let motion_span = b.motion.span();
             let motion = b.motion.into_inner();
-            if !motion.is_empty() && b.kind != BodyKind::Rigid {
+            let moves = b.kind == BodyKind::Rigid || (b.kind == BodyKind::Soft && !driven.is_empty());
+            if !motion.is_empty() && !moves {
                 return Err(err(
                     motion_span,
-                    format!("only a rigid body has `motion`; {name:?} is {:?}", b.kind),
+                    format!(
+                        "only a rigid body, or a soft body with `driven` vertices, has `motion`; {name:?} is {:?}",
+                        b.kind
+                    ),
                 ));
             }
             if motion
@@ -799,6 +915,8 @@ impl SceneFile {
                 scale,
                 material,
                 fixed,
+                driven,
+                floor: b.floor,
                 motion,
                 inflate,
             });
@@ -930,6 +1048,11 @@ fn check_material(m: &MaterialSpec) -> Result<(), (&'static str, String)> {
     }
     if !(m.damping.is_finite() && m.damping >= 0.0) {
         return Err(("damping", format!("{} must be finite and not negative", m.damping)));
+    }
+    if let Some(d) = m.spring_damping
+        && !(d.is_finite() && d >= 0.0)
+    {
+        return Err(("spring_damping", format!("{d} must be finite and not negative")));
     }
     Ok(())
 }

@@ -88,7 +88,10 @@ fn every_key_of_the_contract_is_read() {
             style: ImplantStyle::Anatomical
         })
     );
-    assert_eq!(implant.inflate, Some(Inflate { pressure_kpa: None, volume_ml: Some(300.0), ramp: 1.0 }));
+    assert_eq!(
+        implant.inflate,
+        Some(Inflate { pressure_kpa: None, volume_ml: Some(300.0), ramp: 1.0, ease: Ease::Linear })
+    );
     let probe = &s.bodies[2];
     assert_eq!(probe.motion.len(), 2);
     assert_eq!(probe.motion[1].rotation, [0.0, 10.0, 0.0]);
@@ -119,7 +122,10 @@ fn defaults_are_as_documented() {
     let b = &s.bodies[0];
     assert_eq!(b.geometry, Geometry::Mesh("a/b/t.stl".into()), "relative to the file");
     assert_eq!((b.position, b.rotation, b.scale), ([0.0; 3], [0.0; 3], 1.0));
-    assert_eq!(b.material, MaterialSpec { young_kpa: 3.0, poisson: 0.45, density: 1000.0, damping: 0.1 });
+    assert_eq!(
+        b.material,
+        MaterialSpec { young_kpa: 3.0, poisson: 0.45, density: 1000.0, damping: 0.1, spring_damping: None }
+    );
     assert!(s.contacts.is_empty());
 }
 
@@ -146,7 +152,7 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             "unknown variant `cube`",
         ),
         (with("fixed = [{ below = { z = 1, x = 2 } }]\n"), 6, 10, "body[0].fixed", "exactly one of x, y, z"),
-        (with("fixed = [{ near = 1 }]\n"), 6, 12, "body[0].fixed", "unknown variant `near`"),
+        (with("fixed = [{ near = 1 }]\n"), 6, 12, "body[0].fixed.near", "unknown variant `near`"),
         ("[time]\ndt = \"fast\"\n", 2, 6, "time.dt", "\"auto\" or a number"),
         // Values out of range.
         (with("material = { poisson = 0.5 }\n"), 6, 12, "body[0].material.poisson", "[0, 0.5)"),
