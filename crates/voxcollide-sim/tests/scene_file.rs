@@ -148,7 +148,7 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { cube = 1 }\n",
             4,
             11,
-            "body[0].shape",
+            "body[0].shape.cube",
             "unknown variant `cube`",
         ),
         (with("fixed = [{ below = { z = 1, x = 2 } }]\n"), 6, 10, "body[0].fixed", "exactly one of x, y, z"),
