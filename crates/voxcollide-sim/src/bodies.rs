@@ -800,3 +800,48 @@ pub fn tetrahedral_body(
     body.inv_mass = mass.iter().map(|&m| (1.0 / m) as f32).collect();
     Ok(body)
 }
+
+/// A closed shell of the surface `positions` / `mesh` (outward, as
+/// [`crate::mesh_io::read_surface`] gives it): a spring of stiffness `k` along every edge, and
+/// a bending spring of the same stiffness across every edge, between the two corners opposite
+/// it, so that the shell keeps its shape where a flat edge would fold freely. Pressure acts on
+/// its triangles (an implant or an expander). Its surface is the mesh itself.
+///
+/// # Errors
+/// [`Error::Invalid`] for an edge not shared by exactly two triangles (the surface is not closed
+/// and manifold; `read_surface` refuses such files first), and the errors of
+/// [`MassSpring::new`].
+pub fn shell_from_surface(
+    positions: &[Vec3],
+    mesh: &TriangleMesh,
+    k: f32,
+    material: Material,
+) -> Result<MassSpring, Error> {
+    use std::collections::HashMap;
+    // Each undirected edge and the corners opposite it.
+    let mut opposite: HashMap<(u32, u32), Vec<u32>> = HashMap::with_capacity(3 * mesh.triangles.len() / 2);
+    for t in &mesh.triangles {
+        for (a, b, c) in [(t[0], t[1], t[2]), (t[1], t[2], t[0]), (t[2], t[0], t[1])] {
+            opposite.entry((a.min(b), a.max(b))).or_default().push(c);
+        }
+    }
+    let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(2 * opposite.len());
+    for (&(a, b), across) in &opposite {
+        let [c, d] = across[..] else {
+            return Err(Error::Invalid {
+                what: "shell surface",
+                value: format!("edge {a}–{b} in {} triangles", across.len()),
+                rule: "every edge of a shell must belong to exactly two triangles".into(),
+            });
+        };
+        pairs.push((a, b));
+        if c != d {
+            pairs.push((c.min(d), c.max(d)));
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    let springs = springs_from(positions, pairs, k);
+    let modes = vec![Mode::Free; positions.len()];
+    MassSpring::new(positions.to_vec(), modes, springs, mesh.clone(), material)
+}

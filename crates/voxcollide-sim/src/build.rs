@@ -21,7 +21,8 @@ use glam::{DVec3, Mat3, UVec3, Vec3};
 use voxcollide::{Anchor, ContactParams, Direction, Error, Initializer, Search};
 
 use crate::bodies::{
-    CylinderShape, box_lattice, cylinder, ellipsoid_shell, lattice_in_surface, tetrahedral_body,
+    CylinderShape, box_lattice, cylinder, ellipsoid_shell, lattice_in_surface, shell_from_surface,
+    tetrahedral_body,
 };
 use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::mesh::TriangleMesh;
@@ -302,12 +303,10 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
                     (shell, kspring)
                 }
                 _ => {
-                    return Err(scene_error(
-                        file,
-                        k,
-                        "shape",
-                        "a shell is built from a sphere or an ellipsoid here; shells from meshes come next",
-                    ));
+                    // Any other shape or a surface file: a shell of its surface.
+                    let (surface, remark) = surface(edge)?;
+                    note.remarks.extend(remark);
+                    (shell_from_surface(&surface.positions, &surface.mesh, kspring, material)?, kspring)
                 }
             }
         }

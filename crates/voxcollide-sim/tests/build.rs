@@ -187,3 +187,51 @@ fn a_block_has_the_young_modulus_the_file_gives() {
     eprintln!("E measured {e_measured} vs {e_expected} (internal units)");
     assert!((e_measured - e_expected).abs() < 0.03 * e_expected, "{e_measured} vs {e_expected}");
 }
+
+#[test]
+fn a_shell_from_an_stl_surface_inflates() {
+    let dir = std::env::temp_dir().join(format!("voxcollide-build-shell-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let kidney = common::shapes::kidney();
+    let triangles: Vec<stl_io::Triangle> = kidney
+        .mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| kidney.positions[i as usize]);
+            stl_io::Triangle {
+                normal: stl_io::Normal::new((b - a).cross(c - a).normalize().to_array()),
+                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
+            }
+        })
+        .collect();
+    stl_io::write_stl(&mut std::fs::File::create(dir.join("sac.stl")).unwrap(), triangles.iter()).unwrap();
+    std::fs::write(
+        dir.join("scene.toml"),
+        "[time]\nsteps = 400\n[[body]]\nname = \"sac\"\nkind = \"shell\"\nmesh = \"sac.stl\"\nmaterial = { young_kpa = 50, damping = 0.5 }\ninflate = { pressure_kpa = 0.5, ramp = 0.005 }\n",
+    )
+    .unwrap();
+    let built = build_world(&SceneFile::read(dir.join("scene.toml")).unwrap()).unwrap();
+    let shell = &built.world.bodies[0];
+    assert_eq!(shell.len(), kidney.positions.len(), "the shell is the user's surface");
+    assert!(shell.surface.triangles.len() == kidney.mesh.triangles.len(), "its triangles are the file's");
+    let mesh = shell.surface.clone();
+    // Edges and bending springs: every edge once, and one across each edge.
+    let edges = 3 * kidney.mesh.triangles.len() / 2;
+    assert!(shell.springs.len() > edges && shell.springs.len() <= 2 * edges, "{}", shell.springs.len());
+    let enclosed = |pos: &[Vec3]| {
+        common::shapes::volume(&voxcollide_sim::mesh_io::Surface {
+            positions: pos.to_vec(),
+            mesh: mesh.clone(),
+        })
+    };
+    let v0 = enclosed(&shell.pos);
+    let mut cpu = CpuWorld::new(built.world).unwrap();
+    for _ in 0..built.steps {
+        cpu.step().unwrap();
+    }
+    let v1 = enclosed(&cpu.world.bodies[0].pos);
+    eprintln!("volume {v0:.0} → {v1:.0} mm³");
+    assert!(v1 > 1.01 * v0, "{v0} → {v1}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
