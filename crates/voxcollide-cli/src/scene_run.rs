@@ -229,8 +229,8 @@ pub fn run_file(
     let mut frame = 0u32;
     loop {
         let (world, reports) = run.frame()?;
-        measure(world, &reports, &mut summary)?;
-        let at_rest = done >= planned && resting(world, built.dt, size);
+        measure(world, &mut summary)?;
+        let at_rest = done >= planned && resting(world, size);
         let last = if file.time.settle {
             (done >= planned && at_rest) || done >= file.time.max_steps
         } else {
@@ -349,8 +349,8 @@ fn shown_surface(body: &MassSpring) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollid
 }
 
 /// Whether every free vertex of every body moves slower than 0.1 % of the scene's size per
-/// second (with the step's velocity), the settling criterion.
-fn resting(world: &World, _dt: f32, size: f32) -> bool {
+/// second, the settling criterion.
+fn resting(world: &World, size: f32) -> bool {
     let limit = 1e-3 * size;
     world.bodies.iter().all(|b| {
         b.vel.iter().zip(&b.mode).all(|(v, m)| *m != voxcollide_sim::Mode::Free || v.length() <= limit)
@@ -360,12 +360,12 @@ fn resting(world: &World, _dt: f32, size: f32) -> bool {
 /// Updates the summary's maxima with this frame: displacements, and per contact the
 /// penetration of `b` into `a`'s closed surface (its own surface, independent of the voxel
 /// model).
-fn measure(world: &World, reports: &[ContactReport], summary: &mut FileSummary) -> Result<(), Error> {
+fn measure(world: &World, summary: &mut FileSummary) -> Result<(), Error> {
     for (body, s) in world.bodies.iter().zip(summary.bodies.iter_mut()) {
         let d = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
         s.max_displacement = s.max_displacement.max(d);
     }
-    for ((pair, s), _r) in world.contacts.iter().zip(summary.contacts.iter_mut()).zip(reports) {
+    for (pair, s) in world.contacts.iter().zip(summary.contacts.iter_mut()) {
         let a = &world.bodies[pair.a];
         let (positions, mesh) = shown_surface(a);
         let surface = ClosedSurface::new(&positions, mesh)?;

@@ -518,13 +518,21 @@ pub fn lattice_in_surface(
         // A row whose rays met an edge or a vertex exactly: the winding number decides.
         None => surface.contains(p) || surface.distance(p) <= on,
     };
+    // A node's lattice coordinates and position, from its linear index.
+    let coords = |i: usize| {
+        let i = i as u32;
+        (i % n.x, i / n.x % n.y, i / (n.x * n.y))
+    };
+    let grid_pos = |i: usize| {
+        let (x, y, z) = coords(i);
+        node(x, y, z)
+    };
     // Which nodes are inside, from the crossings of the rows' rays with the surface.
     let inside: Vec<bool> = (0..count)
         .into_par_iter()
         .map(|i| {
-            let i = i as u32;
-            let (x, y, z) = (i % n.x, i / n.x % n.y, i / (n.x * n.y));
-            keeps(node(x, y, z), 2 * y, 2 * z)
+            let (_, y, z) = coords(i);
+            keeps(grid_pos(i), 2 * y, 2 * z)
         })
         .collect();
 
@@ -548,26 +556,17 @@ pub fn lattice_in_surface(
     let candidates: Vec<(usize, usize)> = (0..count)
         .filter(|&i| inside[i])
         .flat_map(|i| {
-            let i32_ = i as u32;
-            let (x, y, z) = (i32_ % n.x, i32_ / n.x % n.y, i32_ / (n.x * n.y));
+            let (x, y, z) = coords(i);
             steps.iter().filter_map(move |&d| at(x, y, z, d).map(|j| (i, j)))
         })
         .filter(|&(_, j)| inside[j])
         .collect();
-    let grid_pos = |i: usize| {
-        let i = i as u32;
-        node(i % n.x, i / n.x % n.y, i / (n.x * n.y))
-    };
     // A spring's middle lies on a row of the half-spacing grid: (y_i + y_j, z_i + z_j) in
     // half-spacings.
-    let half_row = |i: usize| {
-        let i = i as u32;
-        (i / n.x % n.y, i / (n.x * n.y))
-    };
     let kept: Vec<bool> = candidates
         .par_iter()
         .map(|&(i, j)| {
-            let ((yi, zi), (yj, zj)) = (half_row(i), half_row(j));
+            let ((_, yi, zi), (_, yj, zj)) = (coords(i), coords(j));
             keeps(0.5 * (grid_pos(i) + grid_pos(j)), yi + yj, zi + zj)
         })
         .collect();

@@ -82,15 +82,12 @@ fn rotation(degrees: [f64; 3]) -> Mat3 {
 }
 
 /// A closed surface of an ellipsoid with edges of about `edge`, outward.
-fn ellipsoid_surface(radii: Vec3, edge: f32) -> Surface {
+fn ellipsoid_surface(radii: Vec3, edge: f32) -> Result<Surface, Error> {
     let r = radii.max_element();
     let segments = ((std::f32::consts::TAU * r / edge).round() as u32).max(8);
     let rings = (segments / 2).max(3);
-    let shell = ellipsoid_shell(Vec3::ZERO, radii, rings, segments, 2.0, 1.0, unit_material());
-    match shell {
-        Ok(s) => Surface { positions: s.pos, mesh: s.surface },
-        Err(_) => Surface::default(),
-    }
+    let shell = ellipsoid_shell(Vec3::ZERO, radii, rings, segments, 2.0, 1.0, unit_material())?;
+    Ok(Surface { positions: shell.pos, mesh: shell.surface })
 }
 
 /// A closed surface of a cylinder (axis z, base at z = 0), edges of about `edge`.
@@ -169,9 +166,9 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
     let surface = |edge: f32| -> Result<(Surface, Option<String>), Error> {
         let mut remark = None;
         let mut surface = match &spec.geometry {
-            Geometry::Shape(Shape::Sphere(r)) => ellipsoid_surface(Vec3::splat(*r as f32), edge / scale),
+            Geometry::Shape(Shape::Sphere(r)) => ellipsoid_surface(Vec3::splat(*r as f32), edge / scale)?,
             Geometry::Shape(Shape::Ellipsoid(r)) => {
-                ellipsoid_surface(Vec3::from_array(r.map(|v| v as f32)), edge / scale)
+                ellipsoid_surface(Vec3::from_array(r.map(|v| v as f32)), edge / scale)?
             }
             Geometry::Shape(Shape::Cylinder { radius, height }) => {
                 let mut c = cylinder_surface(*radius as f32, *height as f32, edge / scale);

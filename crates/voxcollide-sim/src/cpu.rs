@@ -79,7 +79,7 @@ impl CpuWorld {
         self.step += 1;
         for (k, body) in w.bodies.iter().enumerate() {
             if let Some((_, what)) = body.blow_up(w.v_max) {
-                return Err(blow_up(self.step, &w.names[k], &what, None));
+                return Err(w.blow_up(self.step, k, &what));
             }
         }
         Ok(())
@@ -119,36 +119,9 @@ impl CpuSim {
     /// Collision errors, and [`Error::Simulation`] when a vertex's position stops being finite
     /// or its speed runs away.
     pub fn step(&mut self) -> Result<(), Error> {
-        let result = self.world.step().map_err(|e| with_cause(e, &self.scene));
+        let result = self.world.step();
         self.scene.follow(&self.world.world);
         self.report.clone_from(&self.world.reports[0]);
         result
-    }
-}
-
-/// The error for a blow-up of `body` seen at `step`, with the scene's likely cause where known.
-pub(crate) fn blow_up(step: u64, body: &str, what: &str, scene: Option<&Scene>) -> Error {
-    let cause = match scene {
-        Some(s) => format!(
-            "likely cause: a time step above the integrator's stability bound (dt = {:.3e}) or a \
-             penalty magnitude ({}) too large for the stiffness ({})",
-            s.dt, s.params.magnitude, s.config.stiffness
-        ),
-        None => "likely cause: a time step above the integrator's stability bound, a penalty \
-                 magnitude too large for the bodies' stiffness, or a degenerate body"
-            .into(),
-    };
-    Error::Simulation { step, message: format!("{body}: {what}; {cause}") }
-}
-
-/// A world's blow-up error restated with the scene's parameters.
-pub(crate) fn with_cause(e: Error, scene: &Scene) -> Error {
-    match e {
-        Error::Simulation { step, message } => {
-            let (body, what) = message.split_once(": ").unwrap_or(("", &message));
-            let what = what.split("; likely cause").next().unwrap_or(what);
-            blow_up(step, body, what, Some(scene))
-        }
-        e => e,
     }
 }

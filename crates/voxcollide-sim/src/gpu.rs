@@ -136,8 +136,9 @@ enum ContactSource {
     Zeros(Buffer),
     /// One contact: its force buffer, as it is (`(contact, as_a)`).
     One(usize, bool),
-    /// Several: summed in contact order into this buffer, with one uniform per contact.
-    Sum(Buffer, Vec<Buffer>),
+    /// Several: summed in contact order into this buffer, with one uniform per contact
+    /// (`(contact, as_a, params)`).
+    Sum(Buffer, Vec<(usize, bool, Buffer)>),
 }
 
 /// A world stepping entirely on the GPU: every contact's collision passes (through the
@@ -199,13 +200,21 @@ impl GpuWorld {
                         [(c, as_a)] => ContactSource::One(*c, *as_a),
                         many => ContactSource::Sum(
                             forces_buffer("sim contact sum"),
-                            (0..many.len())
-                                .map(|k| {
-                                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                                        label: Some("sim accumulate params"),
-                                        contents: bytemuck::cast_slice(&[body.n, u32::from(k == 0), 0, 0]),
-                                        usage: BufferUsages::UNIFORM,
-                                    })
+                            many.iter()
+                                .enumerate()
+                                .map(|(k, &(c, as_a))| {
+                                    let params =
+                                        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                                            label: Some("sim accumulate params"),
+                                            contents: bytemuck::cast_slice(&[
+                                                body.n,
+                                                u32::from(k == 0),
+                                                0,
+                                                0,
+                                            ]),
+                                            usage: BufferUsages::UNIFORM,
+                                        });
+                                    (c, as_a, params)
                                 })
                                 .collect(),
                         ),
@@ -314,7 +323,6 @@ impl GpuWorld {
                 Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
             })
         };
-        let contacts_of = self.world.contacts_of();
         let mut accumulate = Vec::with_capacity(self.bodies.len());
         let mut forces = Vec::with_capacity(self.bodies.len());
         let mut integrate = Vec::with_capacity(self.bodies.len());
@@ -323,9 +331,9 @@ impl GpuWorld {
             let contact = match &self.sources[k] {
                 ContactSource::Zeros(zeros) => zeros,
                 ContactSource::One(c, as_a) => force_buffer(*c, *as_a)?,
-                ContactSource::Sum(sum, params) => {
-                    for (&(c, as_a), p) in contacts_of[k].iter().zip(params) {
-                        groups.push(self.accumulate.bind(device, &[p, force_buffer(c, as_a)?, sum]));
+                ContactSource::Sum(sum, parts) => {
+                    for (c, as_a, params) in parts {
+                        groups.push(self.accumulate.bind(device, &[params, force_buffer(*c, *as_a)?, sum]));
                     }
                     sum
                 }
@@ -372,12 +380,7 @@ impl GpuWorld {
             let status: [u32; 2] = bytemuck::pod_read_unaligned(&bytes[2]);
             if status[0] != 0 {
                 let what = format!("vertex {} has a non-finite position or a runaway speed", !status[1]);
-                return Err(crate::cpu::blow_up(
-                    u64::from(!status[0]) + 1,
-                    &self.world.names[k],
-                    &what,
-                    None,
-                ));
+                return Err(self.world.blow_up(u64::from(!status[0]) + 1, k, &what));
             }
             let body = &mut self.world.bodies[k];
             let pos: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[0]);
@@ -430,7 +433,7 @@ impl GpuSim {
     /// [`Error::Simulation`] when a vertex blew up (naming the first step it was seen at),
     /// and the readback's device errors.
     pub fn sync(&mut self) -> Result<ContactReport, Error> {
-        let mut reports = self.world.sync().map_err(|e| crate::cpu::with_cause(e, &self.scene))?;
+        let mut reports = self.world.sync()?;
         self.scene.follow(&self.world.world);
         Ok(reports.swap_remove(0))
     }

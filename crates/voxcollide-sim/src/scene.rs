@@ -282,6 +282,13 @@ impl Scene {
                 vec![t, f]
             }),
         )
+        .map(|w| {
+            w.with_cause(format!(
+                "a time step above the integrator's stability bound (dt = {:.3e}) or a penalty \
+                 magnitude ({}) too large for the stiffness ({})",
+                self.dt, self.params.magnitude, self.config.stiffness
+            ))
+        })
     }
 }
 

@@ -42,6 +42,8 @@ pub struct World {
     pub v_max: f32,
     /// Each body's inputs (time step, drive, pressure, floor) at each step.
     pub schedule: Schedule,
+    /// What a blow-up's error names as its likely cause (see [`with_cause`](Self::with_cause)).
+    pub likely_cause: String,
 }
 
 impl std::fmt::Debug for World {
@@ -93,7 +95,31 @@ impl World {
         if !(v_max.is_finite() && v_max > 0.0) {
             return Err(invalid("v_max", v_max.to_string(), "must be finite and positive".into()));
         }
-        Ok(World { names, bodies, contacts, v_max, schedule })
+        Ok(World {
+            names,
+            bodies,
+            contacts,
+            v_max,
+            schedule,
+            likely_cause: "a time step above the integrator's stability bound, a penalty magnitude \
+                           too large for the bodies' stiffness, or a degenerate body"
+                .into(),
+        })
+    }
+
+    /// The same world whose blow-up errors name `cause` as the likely one.
+    #[must_use]
+    pub fn with_cause(self, cause: String) -> World {
+        World { likely_cause: cause, ..self }
+    }
+
+    /// The error for a blow-up of body `k` seen at `step`: `what` happened, and the likely cause.
+    #[must_use]
+    pub fn blow_up(&self, step: u64, k: usize, what: &str) -> Error {
+        Error::Simulation {
+            step,
+            message: format!("{}: {what}; likely cause: {}", self.names[k], self.likely_cause),
+        }
     }
 
     /// The inputs of every body at `step`.

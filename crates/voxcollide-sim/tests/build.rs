@@ -4,8 +4,6 @@
 
 mod common;
 
-use std::io::Write as _;
-
 use voxcollide::Error;
 use voxcollide::glam::Vec3;
 use voxcollide_sim::build::build_world;
@@ -113,21 +111,7 @@ fn a_soft_body_fills_an_stl_surface() {
     let dir = std::env::temp_dir().join(format!("voxcollide-build-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let kidney = common::shapes::kidney();
-    let mut stl = std::fs::File::create(dir.join("kidney.stl")).unwrap();
-    let triangles: Vec<stl_io::Triangle> = kidney
-        .mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| kidney.positions[i as usize]);
-            stl_io::Triangle {
-                normal: stl_io::Normal::new((b - a).cross(c - a).normalize().to_array()),
-                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
-            }
-        })
-        .collect();
-    stl_io::write_stl(&mut stl, triangles.iter()).unwrap();
-    stl.flush().unwrap();
+    common::shapes::write_stl(&dir.join("kidney.stl"), &kidney);
     let path = dir.join("scene.toml");
     std::fs::write(
         &path,
@@ -193,19 +177,7 @@ fn a_shell_from_an_stl_surface_inflates() {
     let dir = std::env::temp_dir().join(format!("voxcollide-build-shell-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let kidney = common::shapes::kidney();
-    let triangles: Vec<stl_io::Triangle> = kidney
-        .mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| kidney.positions[i as usize]);
-            stl_io::Triangle {
-                normal: stl_io::Normal::new((b - a).cross(c - a).normalize().to_array()),
-                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
-            }
-        })
-        .collect();
-    stl_io::write_stl(&mut std::fs::File::create(dir.join("sac.stl")).unwrap(), triangles.iter()).unwrap();
+    common::shapes::write_stl(&dir.join("sac.stl"), &kidney);
     std::fs::write(
         dir.join("scene.toml"),
         "[time]\nsteps = 400\n[[body]]\nname = \"sac\"\nkind = \"shell\"\nmesh = \"sac.stl\"\nmaterial = { young_kpa = 50, damping = 0.5 }\ninflate = { pressure_kpa = 0.5, ramp = 0.005 }\n",

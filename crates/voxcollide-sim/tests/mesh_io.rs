@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 
-use common::shapes::{breast, kidney, torus, volume};
+use common::shapes::{breast, kidney, torus, volume, write_stl};
 use voxcollide::Error;
 use voxcollide::glam::Vec3;
 use voxcollide_sim::mesh_io::{Surface, read_surface};
@@ -31,24 +31,6 @@ impl Drop for Dir {
 
 fn corners(s: &Surface, t: &[u32; 3]) -> [Vec3; 3] {
     t.map(|i| s.positions[i as usize])
-}
-
-fn write_binary_stl(path: &Path, s: &Surface) {
-    let triangles: Vec<stl_io::Triangle> = s
-        .mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = corners(s, t);
-            let n = (b - a).cross(c - a).normalize_or_zero();
-            stl_io::Triangle {
-                normal: stl_io::Normal::new(n.to_array()),
-                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
-            }
-        })
-        .collect();
-    let mut file = std::fs::File::create(path).unwrap();
-    stl_io::write_stl(&mut file, triangles.iter()).unwrap();
 }
 
 fn write_ascii_stl(path: &Path, s: &Surface) {
@@ -115,7 +97,7 @@ type Writer = fn(&Path, &Surface);
 
 fn formats() -> Vec<(&'static str, Writer)> {
     vec![
-        ("binary.stl", write_binary_stl),
+        ("binary.stl", write_stl),
         ("ascii.stl", write_ascii_stl),
         ("shape.OBJ", write_obj),
         ("ascii.ply", |p, s| write_ply(p, s, false)),
@@ -156,7 +138,7 @@ fn an_inside_out_surface_is_turned_outward_and_says_so() {
     }
     assert!(volume(&surface) < 0.0);
     let path = dir.0.join("inside-out.stl");
-    write_binary_stl(&path, &surface);
+    write_stl(&path, &surface);
     let (read, report) = read_surface(&path).unwrap();
     assert!(report.flipped);
     assert!((report.volume - volume(&kidney())).abs() <= 1e-9 * report.volume);

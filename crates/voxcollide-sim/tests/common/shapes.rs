@@ -143,3 +143,21 @@ pub fn u_shape(base: i32, arm: i32, gap: i32, length: i32, depth: i32) -> Vec<[i
     }
     cells
 }
+
+/// Writes `s` as a binary STL file (every triangle's corners apart, as STL stores them).
+pub fn write_stl(path: &std::path::Path, s: &Surface) {
+    let triangles: Vec<stl_io::Triangle> = s
+        .mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|i| s.positions[i as usize]);
+            stl_io::Triangle {
+                normal: stl_io::Normal::new((b - a).cross(c - a).normalize_or_zero().to_array()),
+                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
+            }
+        })
+        .collect();
+    let mut file = std::fs::File::create(path).unwrap();
+    stl_io::write_stl(&mut file, triangles.iter()).unwrap();
+}
