@@ -8,9 +8,12 @@
 //! inside (back faces, drawn darker). It runs on any adapter, Mesa's lavapipe included: no
 //! optional feature, and only formats WebGPU guarantees for rendering and multisampling.
 //!
+//! A [`Legend`] (the colour map as a labelled bar under a title) is drawn over the read-back
+//! picture on the CPU by [`draw_legend`], with the shader's colour map reproduced there.
+//!
 //! ```no_run
 //! use voxcollide::glam::Vec3;
-//! use voxcollide_cli::render::{Renderer, Scene, SceneMesh};
+//! use voxcollide_cli::render::{Legend, Renderer, Scene, SceneMesh};
 //! let ctx = voxcollide::GpuContext::new()?;
 //! let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
 //! let scene = Scene {
@@ -25,8 +28,9 @@
 //!     view_dir: Vec3::NEG_Z,
 //!     up: Vec3::Y,
 //! };
+//! let legend = Legend::new("displacement (mm)", scene.scalar_range);
 //! let mut renderer = Renderer::new(&ctx, 640, 480)?;
-//! renderer.render_png(&scene, std::path::Path::new("triangle.png"))?;
+//! renderer.render_png_with_legend(&scene, Some(&legend), std::path::Path::new("triangle.png"))?;
 //! # Ok::<(), voxcollide::Error>(())
 //! ```
 
@@ -239,7 +243,26 @@ impl Renderer {
     /// # Errors
     /// As [`render`](Self::render), and [`Error::Io`] when the file cannot be written.
     pub fn render_png(&mut self, scene: &Scene, path: &Path) -> Result<(), Error> {
-        let rgba = self.render(scene)?;
+        self.render_png_with_legend(scene, None, path)
+    }
+
+    /// [`render`](Self::render)s `scene`, [`draw_legend`]s `legend` over it (where the picture
+    /// is large enough), and writes it to `path` as an RGBA PNG. `None` is
+    /// [`render_png`](Self::render_png).
+    ///
+    /// # Errors
+    /// As [`render`](Self::render) and [`draw_legend`] (a non-finite legend range), and
+    /// [`Error::Io`] when the file cannot be written.
+    pub fn render_png_with_legend(
+        &mut self,
+        scene: &Scene,
+        legend: Option<&Legend>,
+        path: &Path,
+    ) -> Result<(), Error> {
+        let mut rgba = self.render(scene)?;
+        if let Some(legend) = legend {
+            draw_legend(&mut rgba, self.width, self.height, legend)?;
+        }
         write_png(path, self.width, self.height, &rgba)
     }
 
@@ -361,6 +384,360 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
     let mut writer = encoder.write_header().map_err(|e| io(e.to_string()))?;
     writer.write_image_data(rgba).map_err(|e| io(e.to_string()))?;
     writer.finish().map_err(|e| io(e.to_string()))
+}
+
+// The colour legend: drawn on the CPU over the read-back picture, so it costs no pipeline.
+
+/// A colour legend: the colour map as a vertical bar, labelled at `lo`, the middle and `hi`,
+/// under a title. Give it the scene's [`scalar_range`](Scene::scalar_range), so that the bar's
+/// colours are the bodies' (shading aside).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Legend {
+    /// What the colours show, with its unit: e.g. `"displacement (mm)"`. Characters the font
+    /// lacks are drawn as `?`; a title too wide for the picture is shortened, ending in `..`.
+    pub title: String,
+    /// The value at the map's low end, the bar's bottom: the scene's `scalar_range.0`.
+    pub lo: f32,
+    /// The value at the map's high end, the bar's top: the scene's `scalar_range.1`. Equal to
+    /// `lo`, the bar is one swatch of the low end with one label, as the bodies are drawn.
+    pub hi: f32,
+}
+
+impl Legend {
+    /// A legend titled `title` for the range `(lo, hi)`, as [`Scene::scalar_range`] takes it.
+    #[must_use]
+    pub fn new(title: impl Into<String>, (lo, hi): (f32, f32)) -> Legend {
+        Legend { title: title.into(), lo, hi }
+    }
+
+    /// The tick labels [`draw_legend`] draws, bottom to top: `lo`, the middle and `hi` to 3
+    /// significant figures (more where 3 would make two of them read the same), or `lo` alone
+    /// when `lo == hi`.
+    #[must_use]
+    pub fn tick_labels(&self) -> Vec<String> {
+        let (lo, hi) = (f64::from(self.lo), f64::from(self.hi));
+        if lo == hi || !lo.is_finite() || !hi.is_finite() {
+            return vec![format_sig(lo, 3)];
+        }
+        let values = [lo, (lo + hi) / 2.0, hi];
+        // f32 carries 9 significant digits: by then the three differ, as the values do.
+        let mut labels = Vec::new();
+        for sig in 3..=9 {
+            labels = values.map(|v| format_sig(v, sig)).to_vec();
+            if labels[0] != labels[1] && labels[1] != labels[2] && labels[0] != labels[2] {
+                break;
+            }
+        }
+        labels
+    }
+}
+
+/// Where [`draw_legend`] drew, in pixels from the picture's top-left corner.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct PixelRect {
+    /// The left column.
+    pub x: u32,
+    /// The top row.
+    pub y: u32,
+    /// Columns covered.
+    pub width: u32,
+    /// Rows covered.
+    pub height: u32,
+}
+
+impl PixelRect {
+    /// Whether the pixel at column `x`, row `y` lies inside.
+    #[must_use]
+    pub fn contains(&self, x: u32, y: u32) -> bool {
+        x >= self.x && x - self.x < self.width && y >= self.y && y - self.y < self.height
+    }
+}
+
+/// Draws `legend` into the top-right corner of `rgba` (RGBA8, sRGB-encoded, top row first, as
+/// [`Renderer::render`] returns it) and returns the panel it covers; pixels outside it are
+/// untouched. The bar holds the shader's colour map, sampled as the shader samples it and
+/// sRGB-encoded as the render target is, from `lo` at the bottom to `hi` at the top; labels
+/// and title are in an 8×8 bitmap font, on a light panel (85 % opaque) that reads over any
+/// background. Font, bar and margins scale with the picture: 1× below 720 rows or columns,
+/// 2× at 1280 × 720, 3× at 1920 × 1080. The pixels under the panel are assumed opaque (the
+/// renderer's are): their colour is blended with the panel's, their alpha composited under it.
+///
+/// Returns `Ok(None)`, drawing nothing, when the picture is too small for the legend even at
+/// 1× with its title shortened: with labels of up to 5 characters, narrower than 74 or lower
+/// than 62 pixels.
+///
+/// ```
+/// use voxcollide_cli::render::{Legend, draw_legend};
+/// let (width, height) = (320, 200);
+/// let mut rgba = vec![231; 4 * width * height];
+/// let legend = Legend::new("displacement (mm)", (0.0, 0.35));
+/// let panel = draw_legend(&mut rgba, width as u32, height as u32, &legend)?.expect("it fits");
+/// assert_eq!(panel.x + panel.width + 6, 320, "6 pixels from the right edge");
+/// # Ok::<(), voxcollide::Error>(())
+/// ```
+///
+/// # Errors
+/// [`Error::Invalid`] when `rgba` is not `width * height * 4` bytes, or `lo` or `hi` is not
+/// finite.
+pub fn draw_legend(
+    rgba: &mut [u8],
+    width: u32,
+    height: u32,
+    legend: &Legend,
+) -> Result<Option<PixelRect>, Error> {
+    let needed = 4 * u64::from(width) * u64::from(height);
+    if rgba.len() as u64 != needed {
+        return Err(Error::Invalid {
+            what: "rgba length",
+            value: rgba.len().to_string(),
+            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
+        });
+    }
+    if !legend.lo.is_finite() || !legend.hi.is_finite() {
+        return Err(Error::Invalid {
+            what: "legend range",
+            value: format!("({}, {})", legend.lo, legend.hi),
+            rule: "both ends must be finite".into(),
+        });
+    }
+    let labels = legend.tick_labels();
+    let Some(layout) = LegendLayout::fit(width, height, &legend.title, &labels) else {
+        return Ok(None);
+    };
+    let mut canvas = Canvas { rgba, width, height };
+    let LegendLayout { scale, panel, title, bar, fill } = layout;
+
+    canvas.blend_rect(panel, PANEL_COLOR, PANEL_ALPHA);
+    let (left, top) = (panel.x + LEGEND_PAD * scale, panel.y + LEGEND_PAD * scale);
+    canvas.text(left, top, scale, &title);
+    canvas.blend_rect(bar, OUTLINE_COLOR, 1.0);
+    // Row r of the fill, from the top, shows t = 1 - r / (rows - 1): the ends are exactly the
+    // map's ends, so the bar's bottom is lo's colour and its top hi's.
+    let single = labels.len() == 1;
+    for r in 0..fill.height {
+        let t = if single { 0.0 } else { 1.0 - r as f32 / (fill.height - 1) as f32 };
+        let row = PixelRect { y: fill.y + r, height: 1, ..fill };
+        canvas.blend_rect(row, viridis_srgb8(t), 1.0);
+    }
+    // Each label is centred on the row its value is drawn in (the swatch's middle for one).
+    let glyph = GLYPH * scale;
+    let x = bar.x + bar.width + LEGEND_GAP * scale;
+    for (k, label) in labels.iter().enumerate() {
+        let centre = if single {
+            fill.y + fill.height / 2
+        } else {
+            let from_top = (fill.height - 1) * (labels.len() - 1 - k) as u32 / (labels.len() - 1) as u32;
+            fill.y + from_top
+        };
+        canvas.text(x, centre.saturating_sub(glyph / 2), scale, label);
+    }
+    Ok(Some(panel))
+}
+
+/// The font's cell: 8 × 8 pixels at 1×.
+const GLYPH: u32 = 8;
+/// Empty space between the panel and the picture's edges, at 1×.
+const LEGEND_MARGIN: u32 = 6;
+/// Empty space inside the panel around its content, at 1×.
+const LEGEND_PAD: u32 = 4;
+/// Between the title and the bar, and between the bar and its labels, at 1×.
+const LEGEND_GAP: u32 = 4;
+/// The bar's width, outline included, at 1×; also the swatch's height when `lo == hi`.
+const BAR_WIDTH: u32 = 10;
+/// The bar's outline, at 1×.
+const BAR_OUTLINE: u32 = 1;
+/// The bar's target height: this share of the picture's, within what fits.
+const BAR_SHARE: f32 = 0.3;
+/// Pictures this many pixels (the shorter side) per step of the legend's scale: 1× up to
+/// 719, 2× at 720 (1280 × 720), 3× at 1080 (1920 × 1080); 4× at most.
+const SCALE_STEP: u32 = 360;
+const MAX_SCALE: u32 = 4;
+/// Near white, 85 % opaque: dark text reads on it over a black picture (where the panel is
+/// sRGB 211) as over a white one.
+const PANEL_COLOR: [u8; 3] = [248, 248, 248];
+const PANEL_ALPHA: f32 = 0.85;
+const TEXT_COLOR: [u8; 3] = [20, 20, 20];
+/// Mid grey: it bounds the bar's yellow top against the light panel without reading as text.
+const OUTLINE_COLOR: [u8; 3] = [110, 110, 110];
+
+/// Where the parts of a legend go in a picture.
+struct LegendLayout {
+    scale: u32,
+    panel: PixelRect,
+    /// The title as drawn: shortened to fit, or empty.
+    title: String,
+    /// The bar with its outline.
+    bar: PixelRect,
+    /// The colours inside the outline.
+    fill: PixelRect,
+}
+
+impl LegendLayout {
+    /// The largest layout, at most at the picture's scale, that fits `width × height` with its
+    /// margins; `None` when none does. `labels` are the tick labels, bottom to top.
+    fn fit(width: u32, height: u32, title: &str, labels: &[String]) -> Option<LegendLayout> {
+        let top_scale = (width.min(height) / SCALE_STEP).clamp(1, MAX_SCALE);
+        (1..=top_scale).rev().find_map(|scale| LegendLayout::at(scale, width, height, title, labels))
+    }
+
+    fn at(scale: u32, width: u32, height: u32, title: &str, labels: &[String]) -> Option<LegendLayout> {
+        let [glyph, margin, pad, gap, bar_w, outline] =
+            [GLYPH, LEGEND_MARGIN, LEGEND_PAD, LEGEND_GAP, BAR_WIDTH, BAR_OUTLINE].map(|u| u * scale);
+        let inner_w = width.checked_sub(2 * (margin + pad))?;
+        let inner_h = height.checked_sub(2 * (margin + pad))?;
+        let chars = |s: &str| s.chars().count() as u32;
+        let label_w = labels.iter().map(|l| chars(l)).max().unwrap_or(0) * glyph;
+        let body_w = bar_w + gap + label_w;
+        if body_w > inner_w {
+            return None;
+        }
+        // The title, shortened to the width there is ("displacem.."), or dropped below 3 glyphs.
+        let room = (inner_w / glyph) as usize;
+        let title: String = if title.chars().count() <= room {
+            title.into()
+        } else if room >= 3 {
+            title.chars().take(room - 2).chain("..".chars()).collect()
+        } else {
+            String::new()
+        };
+        let title_h = if title.is_empty() { 0 } else { glyph + gap };
+
+        let single = labels.len() <= 1;
+        // Labels are centred on the bar's top and bottom rows: half a glyph sticks out at each
+        // end. Three labels need the fill's half-height to exceed a glyph, by 2 pixels at 1×.
+        let (overhang, min_fill) =
+            if single { (0, bar_w - 2 * outline) } else { (glyph / 2, 2 * glyph + 4 * scale) };
+        let room_h = inner_h.checked_sub(title_h + 2 * overhang)?;
+        let target = ((height as f32 * BAR_SHARE) as u32).max(min_fill + 2 * outline);
+        let bar_h = if single { bar_w } else { target.min(room_h) };
+        if bar_h < min_fill + 2 * outline || bar_h > room_h {
+            return None;
+        }
+
+        let content_w = body_w.max(chars(&title) * glyph);
+        let panel_w = content_w + 2 * pad;
+        let panel_h = title_h + 2 * overhang + bar_h + 2 * pad;
+        let panel = PixelRect { x: width - margin - panel_w, y: margin, width: panel_w, height: panel_h };
+        let bar = PixelRect {
+            x: panel.x + pad,
+            y: panel.y + pad + title_h + overhang,
+            width: bar_w,
+            height: bar_h,
+        };
+        let fill = PixelRect {
+            x: bar.x + outline,
+            y: bar.y + outline,
+            width: bar_w - 2 * outline,
+            height: bar_h - 2 * outline,
+        };
+        Some(LegendLayout { scale, panel, title, bar, fill })
+    }
+}
+
+/// An RGBA8 picture being drawn on; every write is clipped to it.
+struct Canvas<'a> {
+    rgba: &'a mut [u8],
+    width: u32,
+    height: u32,
+}
+
+impl Canvas<'_> {
+    /// Blends `color` over `rect` (clipped to the picture) with opacity `alpha`, in sRGB bytes
+    /// as a viewer composites.
+    fn blend_rect(&mut self, rect: PixelRect, color: [u8; 3], alpha: f32) {
+        let x_end = rect.x.saturating_add(rect.width).min(self.width);
+        let y_end = rect.y.saturating_add(rect.height).min(self.height);
+        for y in rect.y.min(y_end)..y_end {
+            let row = 4 * (y as usize * self.width as usize);
+            for x in rect.x.min(x_end)..x_end {
+                let px = &mut self.rgba[row + 4 * x as usize..][..4];
+                for (c, &s) in px[..3].iter_mut().zip(&color) {
+                    *c = (f32::from(*c) + (f32::from(s) - f32::from(*c)) * alpha).round() as u8;
+                }
+                px[3] = (f32::from(px[3]) + (255.0 - f32::from(px[3])) * alpha).round() as u8;
+            }
+        }
+    }
+
+    /// Draws `text` with its top-left corner at `(x, y)`, each font pixel `scale × scale`.
+    fn text(&mut self, x: u32, y: u32, scale: u32, text: &str) {
+        for (i, c) in text.chars().enumerate() {
+            let left = x.saturating_add((i as u32).saturating_mul(GLYPH * scale));
+            for (row, bits) in glyph(c).iter().enumerate() {
+                for col in 0..GLYPH {
+                    // The font's rows are bytes with the leftmost pixel in the lowest bit.
+                    if bits & (1 << col) != 0 {
+                        let cell = PixelRect {
+                            x: left.saturating_add(col * scale),
+                            y: y.saturating_add(row as u32 * scale),
+                            width: scale,
+                            height: scale,
+                        };
+                        self.blend_rect(cell, TEXT_COLOR, 1.0);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The 8×8 bitmap of `c`: ASCII, Latin-1 (`µ`, `²`, `°`) and Greek, else `?`.
+fn glyph(c: char) -> [u8; 8] {
+    use font8x8::{BASIC_FONTS, GREEK_FONTS, LATIN_FONTS, UnicodeFonts};
+    BASIC_FONTS
+        .get(c)
+        .or_else(|| LATIN_FONTS.get(c))
+        .or_else(|| GREEK_FONTS.get(c))
+        .or_else(|| BASIC_FONTS.get('?'))
+        .unwrap_or_default()
+}
+
+/// `v` to `sig` significant figures, trailing zeros dropped: `0.35`, `-1.2`, `1000`, and
+/// `1.5e-5` or `2.5e6` outside 0.001..100000.
+fn format_sig(v: f64, sig: usize) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return if v == 0.0 { "0".into() } else { v.to_string() };
+    }
+    let trim = |s: String| {
+        if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
+    };
+    let exponent = v.abs().log10().floor() as i32;
+    if (-3..5).contains(&exponent) {
+        let decimals = (sig as i32 - 1 - exponent).max(0) as usize;
+        trim(format!("{v:.decimals$}"))
+    } else {
+        let s = format!("{v:.prec$e}", prec = sig.saturating_sub(1));
+        match s.split_once('e') {
+            Some((mantissa, exp)) => format!("{}e{exp}", trim(mantissa.to_string())),
+            None => s,
+        }
+    }
+}
+
+/// The coefficients of `viridis` in `shaders/render.wgsl`, `c0` to `c6` (keep in sync: a test
+/// reads them from the shader and compares).
+#[allow(clippy::excessive_precision, reason = "the shader's digits, as written there")]
+const VIRIDIS: [[f32; 3]; 7] = [
+    [0.2777273272234177, 0.005407344544966578, 0.3340998053353061],
+    [0.1050930431085774, 1.404613529898575, 1.384590162594685],
+    [-0.3308618287255563, 0.214847559468213, 0.09509516302823659],
+    [-4.634230498983486, -5.799100973351585, -19.33244095627987],
+    [6.228269936347081, 14.17993336680509, 56.69055260068105],
+    [4.776384997670288, -13.74514537774601, -65.35303263337234],
+    [-5.435455855934631, 4.645852612178535, 26.3124352495832],
+];
+
+/// The shader's colour map at `t` (clamped to `0..=1`) as the picture holds it: `viridis` in
+/// f32, evaluated in the same (Horner) order, clamped, and sRGB-encoded to bytes. The shader
+/// decodes the map's sRGB to linear and the target encodes it back; that round trip is the
+/// identity but for rounding.
+fn viridis_srgb8(t: f32) -> [u8; 3] {
+    let t = t.clamp(0.0, 1.0);
+    let [c0, c1, c2, c3, c4, c5, c6] = VIRIDIS;
+    std::array::from_fn(|i| {
+        let v = c0[i] + t * (c1[i] + t * (c2[i] + t * (c3[i] + t * (c4[i] + t * (c5[i] + t * c6[i])))));
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    })
 }
 
 /// The GPU objects of a [`Renderer`], built inside one error scope.

@@ -1,14 +1,17 @@
 //! The offscreen renderer on real meshes: a colour-mapped, shaded sphere, cut-aways, a dented
-//! tissue slab under a cylinder written as PNG, and bad inputs as typed errors.
+//! tissue slab under a cylinder written as PNG, and bad inputs as typed errors; and the colour
+//! legend drawn over a picture on the CPU (those tests need no adapter).
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
 
 use std::path::PathBuf;
 
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 use voxcollide::Error;
 use voxcollide::glam::Vec3;
-use voxcollide_cli::render::{Renderer, SHADER, Scene, SceneMesh, write_png};
+use voxcollide_cli::render::{Legend, PixelRect, Renderer, SHADER, Scene, SceneMesh, draw_legend, write_png};
 
 /// The background, sRGB-encoded: linear 0.8.
 const BACKGROUND: u8 = 231;
@@ -454,4 +457,313 @@ fn bad_inputs_are_typed_errors() {
     let path = std::env::temp_dir().join("voxcollide_render_no_such_dir").join("x.png");
     let e = failing.render_png(&s, &path).unwrap_err();
     assert!(matches!(e, Error::Io { .. }), "{e}");
+}
+
+// The legend.
+
+/// The picture sizes the legend is made for, from the smallest to full HD.
+const LEGEND_SIZES: [(u32, u32); 4] = [(320, 200), (640, 400), (1280, 720), (1920, 1080)];
+
+fn displacement(range: (f32, f32)) -> Legend {
+    Legend::new("displacement (mm)", range)
+}
+
+/// A picture of one colour.
+fn filled(width: u32, height: u32, rgb: [u8; 3]) -> Vec<u8> {
+    [rgb[0], rgb[1], rgb[2], 255].repeat((width * height) as usize)
+}
+
+/// The coefficients `c0`..`c6` of `viridis`, read from the shader's source.
+fn shader_viridis_coefficients() -> Vec<[f64; 3]> {
+    let body = SHADER.split("fn viridis(").nth(1).expect("render.wgsl has fn viridis");
+    let body = &body[..body.find("\n}").expect("fn viridis ends")];
+    let coefficients: Vec<[f64; 3]> = (0..)
+        .map_while(|k| {
+            let line = body.lines().find(|l| l.trim_start().starts_with(&format!("let c{k} =")))?;
+            let args = line.split_once("vec3<f32>(")?.1.split_once(')')?.0;
+            let v: Vec<f64> = args.split(',').map(|a| a.trim().parse().unwrap()).collect();
+            Some([v[0], v[1], v[2]])
+        })
+        .collect();
+    assert_eq!(coefficients.len(), 7, "viridis in render.wgsl: {body}");
+    coefficients
+}
+
+/// The shader's colour map at `t` as the render target stores it: sRGB-encoded bytes.
+fn shader_viridis(c: &[[f64; 3]], t: f64) -> [u8; 3] {
+    std::array::from_fn(|i| {
+        let v = c.iter().rev().fold(0.0, |acc, ck| acc * t + ck[i]);
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    })
+}
+
+/// The largest difference of two colours in any channel.
+fn colour_diff(a: [u8; 4], b: [u8; 3]) -> u8 {
+    (0..3).map(|i| a[i].abs_diff(b[i])).max().unwrap()
+}
+
+/// Saturated: the bar's colours, never the panel's, the text's or the outline's greys.
+fn is_colourful(p: [u8; 4]) -> bool {
+    p[..3].iter().max().unwrap() - p[..3].iter().min().unwrap() > 40
+}
+
+/// The text's near-black grey.
+fn is_dark_grey(p: [u8; 4]) -> bool {
+    p[..3].iter().all(|&c| c < 64) && p[..3].iter().max().unwrap() - p[..3].iter().min().unwrap() < 8
+}
+
+/// The bounding box of the colourful pixels inside `panel`: the bar's colours.
+fn find_fill(rgba: &[u8], width: u32, panel: PixelRect) -> PixelRect {
+    let (mut x0, mut y0, mut x1, mut y1) = (u32::MAX, u32::MAX, 0, 0);
+    for y in panel.y..panel.y + panel.height {
+        for x in panel.x..panel.x + panel.width {
+            if is_colourful(pixel(rgba, width, x, y)) {
+                (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+            }
+        }
+    }
+    assert!(x0 <= x1, "no bar in the panel {panel:?}");
+    PixelRect { x: x0, y: y0, width: x1 - x0 + 1, height: y1 - y0 + 1 }
+}
+
+#[test]
+fn the_legend_bar_is_the_shaders_colour_map_from_lo_to_hi() {
+    let c = shader_viridis_coefficients();
+    for (w, h) in LEGEND_SIZES {
+        let mut rgba = filled(w, h, [BACKGROUND; 3]);
+        let panel = draw_legend(&mut rgba, w, h, &displacement((0.0, 0.35))).unwrap().expect("it fits");
+        let fill = find_fill(&rgba, w, panel);
+        assert!(fill.height > 3 * fill.width && fill.width >= 6, "{w}×{h}: the bar {fill:?} is not vertical");
+        // Every pixel of the bar's fill is the map, the bottom row lo (t = 0), the top hi (t = 1).
+        for r in 0..fill.height {
+            let t = 1.0 - f64::from(r) / f64::from(fill.height - 1);
+            let expected = shader_viridis(&c, t);
+            for x in fill.x..fill.x + fill.width {
+                let got = pixel(&rgba, w, x, fill.y + r);
+                assert!(
+                    colour_diff(got, expected) <= 1 && got[3] == 255,
+                    "{w}×{h}: bar row {r} of {} (t = {t:.3}), column {x}: {got:?}, the shader's map gives {expected:?}",
+                    fill.height
+                );
+            }
+        }
+        write_png(&temp_png(&format!("legend_{w}x{h}")), w, h, &rgba).unwrap();
+        let bottom = pixel(&rgba, w, fill.x, fill.y + fill.height - 1);
+        let top = pixel(&rgba, w, fill.x, fill.y);
+        println!("{w}×{h}: panel {panel:?}, bar {fill:?}, bottom {bottom:?}, top {top:?}");
+        // The ends are viridis' violet and yellow (#440154 and #fde725 but for the fit's error).
+        assert!(colour_diff(bottom, [68, 1, 84]) <= 4, "{w}×{h}: bottom {bottom:?}");
+        assert!(colour_diff(top, [253, 231, 37]) <= 4, "{w}×{h}: top {top:?}");
+    }
+}
+
+#[test]
+fn the_legend_labels_and_title_are_dark_text_on_a_light_panel() {
+    for (w, h) in LEGEND_SIZES {
+        for background in [[0, 0, 0], [255, 255, 255], [BACKGROUND; 3], [40, 200, 90]] {
+            let mut rgba = filled(w, h, background);
+            let panel = draw_legend(&mut rgba, w, h, &displacement((-0.35, 0.35))).unwrap().expect("it fits");
+            let fill = find_fill(&rgba, w, panel);
+            let dark = |x0: u32, x1: u32, y0: u32, y1: u32| {
+                let mut n = 0;
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        n += usize::from(is_dark_grey(pixel(&rgba, w, x, y)));
+                    }
+                }
+                n
+            };
+            let right = panel.x + panel.width;
+            // Labels right of the bar (its outline aside), about its top, middle and bottom rows;
+            // the title above it.
+            let band =
+                |centre: u32| dark(fill.x + fill.width + 2, right, centre - fill.width, centre + fill.width);
+            let (top, middle, bottom) =
+                (band(fill.y), band(fill.y + fill.height / 2), band(fill.y + fill.height - 1));
+            let title = dark(panel.x, right, panel.y, fill.y - fill.width);
+            let at = format!("{w}×{h} on {background:?}");
+            assert!(
+                top > 20 && middle > 20 && bottom > 20,
+                "{at}: dark label pixels {top} {middle} {bottom}"
+            );
+            assert!(title > 100, "{at}: {title} dark title pixels");
+            // The panel's background is light whatever lies under it.
+            let light = (panel.y..panel.y + panel.height)
+                .flat_map(|y| (panel.x..right).map(move |x| (x, y)))
+                .map(|(x, y)| pixel(&rgba, w, x, y))
+                .filter(|p| !is_colourful(*p) && !is_dark_grey(*p))
+                .filter(|p| p[..3].iter().all(|&c| c > 200))
+                .count();
+            let area = (panel.width * panel.height) as usize;
+            assert!(light * 10 > area * 6, "{at}: only {light} of {area} panel pixels are light");
+        }
+    }
+}
+
+#[test]
+fn the_legend_leaves_the_picture_outside_its_panel_untouched() {
+    let seed = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut heights = Vec::new();
+    for (w, h) in LEGEND_SIZES {
+        let before: Vec<u8> = (0..w * h * 4).map(|_| rng.random::<u8>()).collect();
+        let mut rgba = before.clone();
+        let panel = draw_legend(&mut rgba, w, h, &displacement((0.0, 0.35))).unwrap().expect("it fits");
+        let at = format!("{w}×{h} (seed {seed})");
+        // In the top-right corner, a few pixels off the edges; a small share of the picture.
+        assert!(panel.x + panel.width <= w && panel.y + panel.height <= h, "{at}: {panel:?} is outside");
+        assert!(
+            w - (panel.x + panel.width) <= w / 40 + 6 && panel.y <= h / 40 + 6,
+            "{at}: {panel:?} is not in the corner"
+        );
+        assert!(panel.x > w / 2, "{at}: {panel:?} reaches the left half");
+        let share = f64::from(panel.width * panel.height) / f64::from(w * h);
+        assert!((0.01..0.25).contains(&share), "{at}: {panel:?} covers {share} of the picture");
+        let mut changed = 0;
+        for y in 0..h {
+            for x in 0..w {
+                let (a, b) = (pixel(&before, w, x, y), pixel(&rgba, w, x, y));
+                if panel.contains(x, y) {
+                    changed += usize::from(a != b);
+                } else {
+                    assert_eq!(a, b, "{at}: pixel ({x}, {y}) outside the panel {panel:?} changed");
+                }
+            }
+        }
+        assert!(
+            changed * 10 > (panel.width * panel.height) as usize * 9,
+            "{at}: {changed} panel pixels changed"
+        );
+        heights.push(panel.height);
+    }
+    // Scaled with the picture: taller at each size, and the font larger at full HD.
+    assert!(heights.windows(2).all(|p| p[0] < p[1]), "panel heights {heights:?}");
+    assert!(heights[3] > 3 * heights[0], "panel heights {heights:?}");
+}
+
+#[test]
+fn equal_range_ends_draw_one_swatch_with_one_label() {
+    let c = shader_viridis_coefficients();
+    let legend = displacement((0.25, 0.25));
+    assert_eq!(legend.tick_labels(), ["0.25"]);
+    let (w, h) = (320, 200);
+    let mut rgba = filled(w, h, [BACKGROUND; 3]);
+    let panel = draw_legend(&mut rgba, w, h, &legend).unwrap().expect("it fits");
+    let fill = find_fill(&rgba, w, panel);
+    assert!(fill.height <= fill.width + 1, "one value is a swatch, not a bar: {fill:?}");
+    let low = shader_viridis(&c, 0.0);
+    for y in fill.y..fill.y + fill.height {
+        for x in fill.x..fill.x + fill.width {
+            let p = pixel(&rgba, w, x, y);
+            assert!(colour_diff(p, low) <= 1, "({x}, {y}): {p:?}, the map's low end is {low:?}");
+        }
+    }
+}
+
+#[test]
+fn tick_labels_read_to_three_significant_figures() {
+    let cases: [((f32, f32), &[&str]); 9] = [
+        ((0.0, 0.35), &["0", "0.175", "0.35"]),
+        ((-1.0, 1.0), &["-1", "0", "1"]),
+        ((0.0, 12.3456), &["0", "6.17", "12.3"]),
+        ((0.0, 2.5e-5), &["0", "1.25e-5", "2.5e-5"]),
+        ((1.0e6, 3.0e6), &["1e6", "2e6", "3e6"]),
+        ((0.35, 0.0), &["0.35", "0.175", "0"]),
+        // Three figures would read 1000, 1000, 1000: as many as tell them apart.
+        ((1000.0, 1000.5), &["1000", "1000.2", "1000.5"]),
+        ((0.001, 0.002), &["0.001", "0.0015", "0.002"]),
+        ((7.0, 7.0), &["7"]),
+    ];
+    for (range, expected) in cases {
+        assert_eq!(displacement(range).tick_labels(), expected, "range {range:?}");
+    }
+}
+
+#[test]
+fn bad_legend_inputs_are_typed_errors() {
+    let (w, h) = (320, 200);
+    let mut rgba = filled(w, h, [BACKGROUND; 3]);
+    let short = draw_legend(&mut rgba[4..], w, h, &displacement((0.0, 1.0)));
+    assert!(matches!(short, Err(Error::Invalid { what: "rgba length", .. })), "{short:?}");
+    let long = draw_legend(&mut rgba, w, h - 1, &displacement((0.0, 1.0)));
+    assert!(matches!(long, Err(Error::Invalid { what: "rgba length", .. })), "{long:?}");
+    for range in [(f32::NAN, 1.0), (0.0, f32::INFINITY), (f32::NEG_INFINITY, f32::NAN)] {
+        let e = draw_legend(&mut rgba, w, h, &displacement(range));
+        assert!(matches!(e, Err(Error::Invalid { what: "legend range", .. })), "{range:?}: {e:?}");
+    }
+    assert!(rgba == filled(w, h, [BACKGROUND; 3]), "a rejected legend drew something");
+}
+
+#[test]
+fn tiny_pictures_skip_or_shrink_the_legend_without_panicking() {
+    let legend = displacement((0.0, 0.35));
+    let mut tiny = filled(16, 16, [BACKGROUND; 3]);
+    assert_eq!(draw_legend(&mut tiny, 16, 16, &legend).unwrap(), None);
+    assert!(tiny == filled(16, 16, [BACKGROUND; 3]), "a skipped legend drew something");
+    assert_eq!(draw_legend(&mut [], 0, 0, &legend).unwrap(), None);
+    assert_eq!(draw_legend(&mut [], 0, 100, &legend).unwrap(), None);
+
+    // Every size from a pixel to a small picture, strips included, with titles short, long and
+    // outside the font: what is drawn stays inside the picture and the reported panel.
+    let long = "the displacement of the tissue under the implant, normal to its surface (µm²·°)";
+    let sides = [1, 2, 5, 16, 40, 60, 64, 75, 80, 90, 100, 120, 200, 320];
+    let mut drawn = 0;
+    for title in ["", "x", "displacement (mm)", long, "变形 (mm)"] {
+        for range in [(0.0, 0.35), (-1.5e-7, 2.5e9), (3.0, 3.0)] {
+            for w in sides {
+                for h in sides {
+                    let before = filled(w, h, [BACKGROUND; 3]);
+                    let mut rgba = before.clone();
+                    let legend = Legend::new(title, range);
+                    let Some(panel) = draw_legend(&mut rgba, w, h, &legend).unwrap() else {
+                        assert!(rgba == before, "{w}×{h}: a skipped legend drew something");
+                        continue;
+                    };
+                    drawn += 1;
+                    assert!(panel.x + panel.width <= w && panel.y + panel.height <= h, "{w}×{h}: {panel:?}");
+                    for (i, (a, b)) in before.chunks(4).zip(rgba.chunks(4)).enumerate() {
+                        let (x, y) = (i as u32 % w, i as u32 / w);
+                        assert!(
+                            a == b || panel.contains(x, y),
+                            "{w}×{h} {title:?}: ({x}, {y}) outside {panel:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+    assert!(drawn > 100, "only {drawn} of the sizes got a legend");
+    // At the smallest picture size meant for it the long title is shortened, not the legend lost.
+    let mut rgba = filled(320, 200, [BACKGROUND; 3]);
+    let panel = draw_legend(&mut rgba, 320, 200, &Legend::new(long, (0.0, 0.35))).unwrap();
+    assert!(panel.is_some_and(|p| p.width <= 320 - 12), "{panel:?}");
+}
+
+#[test]
+fn render_png_with_legend_writes_the_picture_with_its_legend() {
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (320, 200);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 24, 48);
+    let s = scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), Vec3::NEG_Z);
+    let legend = Legend::new("x (m)", s.scalar_range);
+    let plain = renderer.render(&s).unwrap();
+
+    let path = temp_png("sphere_legend");
+    renderer.render_png_with_legend(&s, Some(&legend), &path).unwrap();
+    let (dw, dh, rgba) = decode(&path);
+    assert_eq!((dw, dh), (w, h));
+    let mut expected = plain.clone();
+    let panel = draw_legend(&mut expected, w, h, &legend).unwrap().expect("it fits");
+    assert!(rgba == expected, "the file is not the render with draw_legend's legend");
+    assert!(rgba != plain, "no legend was drawn");
+    // The sphere's own colours are untouched outside the panel: its centre, for one.
+    assert!(!panel.contains(w / 2, h / 2));
+    assert_eq!(pixel(&rgba, w, w / 2, h / 2), pixel(&plain, w, w / 2, h / 2));
+
+    let path = temp_png("sphere_no_legend");
+    renderer.render_png_with_legend(&s, None, &path).unwrap();
+    assert_eq!(decode(&path).2, plain, "without a legend it is render_png");
+    let bad = renderer.render_png_with_legend(&s, Some(&Legend::new("x", (0.0, f32::NAN))), &path);
+    assert!(matches!(bad, Err(Error::Invalid { what: "legend range", .. })), "{bad:?}");
 }

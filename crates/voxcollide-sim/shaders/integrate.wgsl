@@ -1,5 +1,5 @@
 // Simulation pass 2: semi-implicit Euler for free vertices (kept above the floor), rest
-// positions for pinned ones, rest + drive for driven ones; a non-finite position or a runaway
+// positions for pinned ones, (turn ·) rest + drive for driven ones; a non-finite position or a runaway
 // speed records the first step and vertex where it happened. CPU twin: MassSpring::integrate.
 
 @group(0) @binding(0) var<uniform> sim: SimParams;
@@ -30,7 +30,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         x = rest;
         v = vec3<f32>(0.0);
     } else {
-        let target_pos = rest + sim.drive.xyz;
+        var target_pos = rest + sim.drive.xyz;
+        if sim.turn_x.w != 0.0 {
+            target_pos = sim.turn_x.xyz * rest.x + sim.turn_y.xyz * rest.y + sim.turn_z.xyz * rest.z
+                + sim.drive.xyz;
+        }
         v = (target_pos - x) / sim.dt;
         x = target_pos;
     }

@@ -9,6 +9,9 @@ const MODE_DRIVEN: u32 = 2u;
 
 struct SimParams {
     drive: vec4<f32>,      // xyz: offset of driven vertices from their rest positions
+    turn_x: vec4<f32>,     // xyz: the columns of their rotation; turn_x.w: 1 if turned at all
+    turn_y: vec4<f32>,
+    turn_z: vec4<f32>,
     dt: f32,
     rest_scale: f32,
     pressure: f32,

@@ -844,3 +844,147 @@ pub fn shell_from_surface(
     let modes = vec![Mode::Free; positions.len()];
     MassSpring::new(positions.to_vec(), modes, springs, mesh.clone(), material)
 }
+
+/// A breast implant's outline by the numbers a catalogue gives: volume, base width and
+/// projection, round or anatomical. All lengths in one unit, the volume in its cube.
+///
+/// The base is a disc of diameter `base` in the plane `z = −projection/2`, centred on the z
+/// axis; the dome rises to `z = +projection/2`. Its height over the base at a point a fraction
+/// `ρ` of the way from the apex's foot to the rim is `projection · (1 − ρ²)^α`, so that the
+/// volume is `π (base/2)² · projection / (α + 1)`: the exponent `α` follows from the three
+/// numbers ([`ImplantShape::exponent`]). `α = 1/2` is a half ellipsoid, a small `α` a full disc
+/// with a rounded edge, a large one a steep cone. A round implant's apex is over the centre; an
+/// anatomical (teardrop) one's is a quarter of the radius below it (towards −y, the lower pole),
+/// so the lower pole is full and the upper one slopes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ImplantShape {
+    /// The enclosed volume.
+    pub volume: f64,
+    /// The base's diameter.
+    pub base: f64,
+    /// The height of the dome over the base.
+    pub projection: f64,
+    /// Teardrop instead of round.
+    pub anatomical: bool,
+}
+
+/// The largest profile exponent [`ImplantShape::exponent`] accepts: a dome of `1/(α+1)` of its
+/// cylinder, beyond which the outline is a spike rather than an implant.
+pub const MAX_IMPLANT_EXPONENT: f64 = 10.0;
+
+impl ImplantShape {
+    /// The profile exponent `α = π (base/2)² · projection / volume − 1`.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] when the sizes are not positive and finite, when the volume is not
+    /// less than the cylinder of that base and projection (no dome holds it), or when it is
+    /// less than `1/(MAX_IMPLANT_EXPONENT + 1)` of it.
+    pub fn exponent(&self) -> Result<f64, Error> {
+        let sizes = [self.volume, self.base, self.projection];
+        if !sizes.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(Error::Invalid {
+                what: "implant",
+                value: format!("{self:?}"),
+                rule: "volume, base and projection must be positive".into(),
+            });
+        }
+        let cylinder = std::f64::consts::PI * (0.5 * self.base).powi(2) * self.projection;
+        let alpha = cylinder / self.volume - 1.0;
+        if alpha <= 0.0 || alpha > MAX_IMPLANT_EXPONENT {
+            return Err(Error::Invalid {
+                what: "implant volume",
+                value: format!("{}", self.volume),
+                rule: format!(
+                    "a dome of base {} and projection {} holds between {:.4} and {:.4} (less than its cylinder, more than 1/{} of it)",
+                    self.base,
+                    self.projection,
+                    cylinder / (MAX_IMPLANT_EXPONENT + 1.0),
+                    cylinder,
+                    MAX_IMPLANT_EXPONENT + 1.0
+                ),
+            });
+        }
+        Ok(alpha)
+    }
+}
+
+/// The closed, outward surface of `shape` with edges of about `edge`: a fan of rings from the
+/// apex down the dome to the rim and across the flat base to its centre. The rings are spaced
+/// evenly in `asin ρ` on the dome, closer near the rim where it turns down.
+///
+/// # Errors
+/// Those of [`ImplantShape::exponent`], and [`Error::Invalid`] for an edge that is not positive
+/// or gives over 4 million vertices.
+pub fn implant_surface(shape: ImplantShape, edge: f64) -> Result<(Vec<Vec3>, TriangleMesh), Error> {
+    let alpha = shape.exponent()?;
+    let r = 0.5 * shape.base;
+    let p = shape.projection;
+    let rings_for = |length: f64| (length / edge).round().clamp(1.0, 1e6) as u32;
+    if !(edge.is_finite() && edge > 0.0) {
+        return Err(Error::Invalid {
+            what: "implant edge",
+            value: edge.to_string(),
+            rule: "must be positive".into(),
+        });
+    }
+    let segments = rings_for(std::f64::consts::TAU * r).max(12);
+    let dome = rings_for(0.5 * std::f64::consts::PI * r.max(p)).max(3);
+    let flat = rings_for(r).max(2);
+    let count = u64::from(segments) * u64::from(dome + flat) + 2;
+    if count > 4_000_000 {
+        return Err(Error::Invalid {
+            what: "implant edge",
+            value: edge.to_string(),
+            rule: format!("gives {count} vertices; at most 4,000,000"),
+        });
+    }
+    // The foot of the apex, and the distance from it to the rim along direction θ.
+    let foot = if shape.anatomical { DVec3::new(0.0, -0.25 * r, 0.0) } else { DVec3::ZERO };
+    let reach = |dir: DVec3| {
+        // |foot + t dir| = r, t > 0.
+        let b = foot.dot(dir);
+        -b + (b * b - foot.length_squared() + r * r).sqrt()
+    };
+    let at = |rho: f64, theta: f64, z: f64| {
+        let dir = DVec3::new(theta.cos(), theta.sin(), 0.0);
+        let xy = foot + rho * reach(dir) * dir;
+        DVec3::new(xy.x, xy.y, z - 0.5 * p).as_vec3()
+    };
+    // Rings from the apex: the dome's (ρ = sin φ), the rim, the base's inward.
+    let mut rings: Vec<(f64, f64)> = (1..dome)
+        .map(|i| {
+            let rho = (0.5 * std::f64::consts::PI * f64::from(i) / f64::from(dome)).sin();
+            (rho, p * (1.0 - rho * rho).max(0.0).powf(alpha))
+        })
+        .collect();
+    rings.push((1.0, 0.0));
+    rings.extend((1..flat).rev().map(|j| (f64::from(j) / f64::from(flat), 0.0)));
+    let mut pos = vec![at(0.0, 0.0, p)];
+    for &(rho, z) in &rings {
+        for s in 0..segments {
+            pos.push(at(rho, std::f64::consts::TAU * f64::from(s) / f64::from(segments), z));
+        }
+    }
+    let bottom = pos.len() as u32;
+    pos.push(at(0.0, 0.0, 0.0));
+    let ring = |k: u32, s: u32| 1 + k * segments + s % segments;
+    let last = rings.len() as u32 - 1;
+    let rim = dome - 1; // the index of the rim ring
+    // Outward: up and away from the apex's axis on the dome, down on the base.
+    let up = Vec3::new(0.0, 0.0, p as f32);
+    let foot32 = foot.as_vec3();
+    let dome_out = |q: Vec3| Vec3::new(q.x - foot32.x, q.y - foot32.y, 0.0) + up;
+    let down = Vec3::NEG_Z;
+    let mut mesh = TriangleMesh::default();
+    for s in 0..segments {
+        let (a, b) = (ring(0, s), ring(0, s + 1));
+        tri(&mut mesh, &pos, [0, a, b], dome_out(pos[a as usize]));
+        for k in 0..last {
+            let q = [ring(k, s), ring(k + 1, s), ring(k + 1, s + 1), ring(k, s + 1)];
+            let outward = if k < rim { dome_out(pos[q[0] as usize]) } else { down };
+            quad(&mut mesh, &pos, q, outward);
+        }
+        tri(&mut mesh, &pos, [bottom, ring(last, s + 1), ring(last, s)], down);
+    }
+    Ok((pos, mesh))
+}

@@ -2,7 +2,7 @@
 //! its surface, and the CPU force and integration steps (the CPU twins of `shaders/forces.wgsl`
 //! and `shaders/integrate.wgsl`).
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
 use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
@@ -144,8 +144,11 @@ pub struct StepInputs {
     pub dt: f32,
     /// Rest lengths are `rest * rest_scale` (an inflating implant grows it).
     pub rest_scale: f32,
-    /// Driven vertices sit at `rest_pos + drive`.
+    /// Driven vertices sit at `rest_pos + drive`, or `turn · rest_pos + drive` when `turn` is
+    /// not the identity.
     pub drive: Vec3,
+    /// The rotation of driven vertices ([`Mat3::IDENTITY`] for none: a pure translation).
+    pub turn: Mat3,
     /// Pressure inside the closed surface, pushing every surface triangle outward (an
     /// inflating implant); 0 for none.
     pub pressure: f32,
@@ -269,6 +272,20 @@ impl MassSpring {
         self.pos.is_empty()
     }
 
+    /// The volume its surface encloses at its current positions (positive for outward
+    /// triangles), in cubic length units, summed in `f64`.
+    #[must_use]
+    pub fn enclosed_volume(&self) -> f64 {
+        self.surface
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|v| self.pos[v as usize].as_dvec3());
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+
     /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`.
     #[must_use]
     pub fn stable_dt(&self, s_max: f32) -> f32 {
@@ -335,7 +352,7 @@ impl MassSpring {
                     self.vel[i] = Vec3::ZERO;
                 }
                 Mode::Driven => {
-                    let target = self.rest_pos[i] + inputs.drive;
+                    let target = driven_target(inputs, self.rest_pos[i]);
                     self.vel[i] = (target - self.pos[i]) / inputs.dt;
                     self.pos[i] = target;
                 }
@@ -355,6 +372,18 @@ impl MassSpring {
                 None
             }
         })
+    }
+}
+
+/// Where a driven vertex resting at `rest` is put by `inputs`: `rest + drive`, or
+/// `turn · rest + drive` (column by column, left to right, as `shaders/integrate.wgsl` does).
+#[must_use]
+pub fn driven_target(inputs: &StepInputs, rest: Vec3) -> Vec3 {
+    if inputs.turn == Mat3::IDENTITY {
+        rest + inputs.drive
+    } else {
+        let m = inputs.turn;
+        m.x_axis * rest.x + m.y_axis * rest.y + m.z_axis * rest.z + inputs.drive
     }
 }
 

@@ -21,14 +21,15 @@ use glam::{DVec3, Mat3, UVec3, Vec3};
 use voxcollide::{Anchor, ContactParams, Direction, Error, Initializer, Search};
 
 use crate::bodies::{
-    CylinderShape, box_lattice, cylinder, ellipsoid_shell, lattice_in_surface, shell_from_surface,
-    tetrahedral_body,
+    CylinderShape, ImplantShape, box_lattice, cylinder, ellipsoid_shell, implant_surface, lattice_in_surface,
+    shell_from_surface, tetrahedral_body,
 };
 use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
-    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, SceneFile, SearchSpec, Shape,
+    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, SceneFile, SearchSpec,
+    Shape,
 };
 use crate::world::{ContactPair, World};
 
@@ -135,10 +136,7 @@ fn held(fixed: &[Fixed], p: Vec3, lo: Vec3, hi: Vec3) -> bool {
 }
 
 /// The body of `spec`, in file units, with its material's spring constant for spacing `h`.
-fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32), Error> {
-    if let Geometry::Shape(Shape::Implant { .. }) = spec.geometry {
-        return Err(scene_error(file, k, "shape", "the implant shape is not built yet (issue 13)"));
-    }
+fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32), Error> {
     let s = file.metres();
     let m = &spec.material;
     let rot = rotation(spec.rotation);
@@ -185,7 +183,35 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
                     mesh: b.surface,
                 }
             }
-            Geometry::Shape(Shape::Implant { .. }) => unreachable!("refused above"),
+            Geometry::Shape(Shape::Implant { volume_ml, base_mm, projection_mm, style }) => {
+                // mm and mL into file units.
+                let mm = 1e-3 / s;
+                let shape = ImplantShape {
+                    volume: volume_ml * 1e-6 / s.powi(3),
+                    base: base_mm * mm,
+                    projection: projection_mm * mm,
+                    anatomical: *style == ImplantStyle::Anatomical,
+                };
+                let (positions, mesh) = implant_surface(shape, f64::from(edge / scale))?;
+                let made = Surface { positions, mesh };
+                let volume: f64 = made
+                    .mesh
+                    .triangles
+                    .iter()
+                    .map(|t| {
+                        let [a, b, c] = t.map(|v| made.positions[v as usize].as_dvec3());
+                        a.dot(b.cross(c)) / 6.0
+                    })
+                    .sum();
+                remark = Some(format!(
+                    "a {} implant of {volume_ml} mL, base {base_mm} mm, projection {projection_mm} mm (profile exponent {:.3}): its {} triangles enclose {:.1} mL",
+                    if shape.anatomical { "anatomical" } else { "round" },
+                    shape.exponent()?,
+                    made.mesh.triangles.len(),
+                    volume * s.powi(3) * 1e6
+                ));
+                made
+            }
             Geometry::Mesh(path) => {
                 let (surface, report) = read_surface(path)?;
                 if report.flipped {
@@ -376,14 +402,50 @@ fn body(file: &SceneFile, k: usize, spec: &BodySpec) -> Result<(MassSpring, Body
     Ok((body, note, kspring))
 }
 
-/// A body's schedule: keyframes (time, offset from the first, ease), final pressure, ramp and
-/// its ease, and floor.
+/// A body's schedule: keyframes (time, offset from the first, rotation in degrees, ease) about
+/// its pivot, final pressure or volume ratio, ramp and its ease, and floor.
 struct BodySchedule {
-    keys: Vec<(f64, Vec3, Ease)>,
+    keys: Vec<(f64, Vec3, DVec3, Ease)>,
+    pivot: Vec3,
     pressure: f32,
+    /// The final volume over the first, for a shell inflated to a volume.
+    growth: Option<f64>,
     ramp: f64,
     ease: Ease,
     floor: f32,
+}
+
+impl BodySchedule {
+    /// The translation and rotation (degrees) of the keyframes at `t`: linear (or eased)
+    /// between them, each Euler angle on its own, held after the last.
+    fn pose(&self, t: f64) -> (Vec3, DVec3) {
+        match self.keys.iter().position(|(kt, ..)| *kt >= t) {
+            None => self.keys.last().map_or((Vec3::ZERO, DVec3::ZERO), |(_, p, r, _)| (*p, *r)),
+            Some(0) => (self.keys[0].1, self.keys[0].2),
+            Some(i) => {
+                let ((t0, p0, r0, _), (t1, p1, r1, ease)) = (self.keys[i - 1], self.keys[i]);
+                let u = ease.at(((t - t0) / (t1 - t0)) as f32);
+                (p0.lerp(p1, u), r0.lerp(r1, f64::from(u)))
+            }
+        }
+    }
+
+    fn inputs(&self, t: f64, dt: f32) -> StepInputs {
+        let (offset, degrees) = self.pose(t);
+        let first = self.keys.first().map_or(DVec3::ZERO, |k| k.2);
+        // Driven vertices rest where the first keyframe has them; they turn about the body's
+        // position by the rotation since then.
+        let (drive, turn) = if degrees == first {
+            (offset, Mat3::IDENTITY)
+        } else {
+            let turn = rotation(degrees.to_array()) * rotation(first.to_array()).transpose();
+            (offset + self.pivot - turn * self.pivot, turn)
+        };
+        let ramped = if self.ramp > 0.0 { self.ease.at((t / self.ramp) as f32) } else { 1.0 };
+        // To a volume: rest lengths grow by the cube root of the volume reached so far.
+        let rest_scale = self.growth.map_or(1.0, |g| (1.0 + (g - 1.0) * f64::from(ramped)).cbrt() as f32);
+        StepInputs { dt, rest_scale, drive, turn, pressure: self.pressure * ramped, floor: self.floor }
+    }
 }
 
 /// Builds the world of `file`.
@@ -396,8 +458,8 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     let mut bodies = Vec::with_capacity(file.bodies.len());
     let mut notes = Vec::with_capacity(file.bodies.len());
     let mut stiffness = Vec::with_capacity(file.bodies.len());
-    for (k, spec) in file.bodies.iter().enumerate() {
-        let (body, note, kspring) = body(file, k, spec).map_err(|e| match e {
+    for spec in &file.bodies {
+        let (body, note, kspring) = body(file, spec).map_err(|e| match e {
             Error::Invalid { what, value, rule } => {
                 Error::Invalid { what, value: format!("{value} (body {:?})", spec.name), rule }
             }
@@ -438,9 +500,22 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
         // grid keeps its dims as it follows A; what leaves it is discarded).
         let a = &bodies[c.a].pos;
-        let margin = if file.bodies[c.a].inflate.is_some() {
+        let growth = match file.bodies[c.a].inflate {
+            None => 0.0,
+            Some(i) => match i.volume_ml {
+                // To a volume: its linear growth, and a fifth of its size more.
+                Some(ml) => {
+                    ((ml * 1e-6 / s.powi(3)) / bodies[c.a].enclosed_volume().max(f64::MIN_POSITIVE))
+                        .cbrt()
+                        .clamp(1.0, 10.0) as f32
+                        - 0.8
+                }
+                None => 0.6,
+            },
+        };
+        let margin = if growth > 0.0 {
             let (lo, hi) = a.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
-            (0.6 * (hi - lo).max_element() / voxel).ceil() as u32 + 2
+            (growth * (hi - lo).max_element() / voxel).ceil() as u32 + 2
         } else {
             2
         };
@@ -469,49 +544,52 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
     let size = (extent.1 - extent.0).max_element().max(f32::MIN_POSITIVE);
     let names: Vec<String> = file.bodies.iter().map(|b| b.name.clone()).collect();
-    // Per body: its keyframes (time, offset from the first), its final pressure and its ramp.
-    let schedule_specs: Vec<BodySchedule> = file
-        .bodies
-        .iter()
-        .map(|b| {
-            let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
-            let keys = b
-                .motion
-                .iter()
-                .map(|m| (m.t, (DVec3::from_array(m.position) - base).as_vec3(), m.ease))
-                .collect();
-            let (pressure, ramp, ease) = match b.inflate {
-                Some(i) => ((i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32, i.ramp, i.ease),
-                None => (0.0, 0.0, Ease::Linear),
-            };
-            BodySchedule { keys, pressure, ramp, ease, floor: b.floor.map_or(f32::MIN, |f| f as f32) }
-        })
-        .collect();
-    if let Some(k) = file.bodies.iter().position(|b| b.inflate.is_some_and(|i| i.volume_ml.is_some())) {
-        return Err(scene_error(
-            file,
-            k,
-            "inflate",
-            "inflating to a volume comes with issue 13; give pressure_kpa",
-        ));
+    // Per body: its keyframes (time, offset from the first, rotation), its final pressure or
+    // volume and its ramp.
+    let mut schedule_specs = Vec::with_capacity(file.bodies.len());
+    for (k, b) in file.bodies.iter().enumerate() {
+        let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
+        let keys = b
+            .motion
+            .iter()
+            .map(|m| {
+                (m.t, (DVec3::from_array(m.position) - base).as_vec3(), DVec3::from_array(m.rotation), m.ease)
+            })
+            .collect();
+        let (mut pressure, mut growth, mut ramp, mut ease) = (0.0, None, 0.0, Ease::Linear);
+        if let Some(i) = b.inflate {
+            (ramp, ease) = (i.ramp, i.ease);
+            pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
+            if let Some(ml) = i.volume_ml {
+                let start = bodies[k].enclosed_volume();
+                let target = ml * 1e-6 / s.powi(3);
+                if !(start > 0.0 && target > 0.0) {
+                    return Err(scene_error(
+                        file,
+                        k,
+                        "inflate.volume_ml",
+                        format!(
+                            "the shell encloses {start:.4e} cubic {}; inflating to a volume needs a closed, outward shell and a positive volume",
+                            file.units.symbol()
+                        ),
+                    ));
+                }
+                growth = Some(target / start);
+            }
+        }
+        schedule_specs.push(BodySchedule {
+            keys,
+            pivot: Vec3::from_array(b.position.map(|v| v as f32)),
+            pressure,
+            growth,
+            ramp,
+            ease,
+            floor: b.floor.map_or(f32::MIN, |f| f as f32),
+        });
     }
     let schedule = std::sync::Arc::new(move |step: u64| {
         let t = (step + 1) as f64 * f64::from(dt);
-        schedule_specs
-            .iter()
-            .map(|b| {
-                let drive = match b.keys.iter().position(|(kt, _, _)| *kt >= t) {
-                    None => b.keys.last().map_or(Vec3::ZERO, |(_, p, _)| *p),
-                    Some(0) => b.keys[0].1,
-                    Some(i) => {
-                        let ((t0, p0, _), (t1, p1, ease)) = (b.keys[i - 1], b.keys[i]);
-                        p0.lerp(p1, ease.at(((t - t0) / (t1 - t0)) as f32))
-                    }
-                };
-                let ramped = if b.ramp > 0.0 { b.ease.at((t / b.ramp) as f32) } else { 1.0 };
-                StepInputs { dt, rest_scale: 1.0, drive, pressure: b.pressure * ramped, floor: b.floor }
-            })
-            .collect()
+        schedule_specs.iter().map(|b| b.inputs(t, dt)).collect()
     });
     // A vertex that moves a tenth of the scene in one step has blown up.
     let world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;

@@ -29,6 +29,10 @@ pub const INTEGRATE: &str =
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 struct GpuSimParams {
     drive: [f32; 4],
+    /// The columns of `turn`; `turn_x[3]` is 1 where driven vertices are turned, 0 where not.
+    turn_x: [f32; 4],
+    turn_y: [f32; 4],
+    turn_z: [f32; 4],
     dt: f32,
     rest_scale: f32,
     pressure: f32,
@@ -42,7 +46,7 @@ struct GpuSimParams {
     step: u32,
     _pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 64);
+const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 112);
 
 /// One body's device buffers.
 struct GpuBody {
@@ -88,7 +92,11 @@ impl GpuBody {
         GpuBody {
             n: body.len() as u32,
             tri_base,
-            params: init("sim params", &[0; 64], BufferUsages::UNIFORM | BufferUsages::COPY_DST),
+            params: init(
+                "sim params",
+                &[0; std::mem::size_of::<GpuSimParams>()],
+                BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            ),
             pos: init("sim pos", bytemuck::cast_slice(&pos), storage | BufferUsages::VERTEX),
             vel: init("sim vel", bytemuck::cast_slice(&vel), storage),
             info: init("sim info", bytemuck::cast_slice(&info), storage),
@@ -105,6 +113,13 @@ impl GpuBody {
         let m = &body.material;
         GpuSimParams {
             drive: inputs.drive.extend(0.0).to_array(),
+            turn_x: inputs
+                .turn
+                .x_axis
+                .extend(f32::from(u8::from(inputs.turn != glam::Mat3::IDENTITY)))
+                .to_array(),
+            turn_y: inputs.turn.y_axis.extend(0.0).to_array(),
+            turn_z: inputs.turn.z_axis.extend(0.0).to_array(),
             dt: inputs.dt,
             rest_scale: inputs.rest_scale,
             pressure: inputs.pressure,

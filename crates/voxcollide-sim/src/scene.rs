@@ -307,8 +307,14 @@ struct SceneSchedule {
 impl SceneSchedule {
     fn at(&self, step: u64) -> (StepInputs, StepInputs) {
         let progress = smoothstep((step + 1) as f32 / (ACTIVE_FRACTION * self.steps as f32));
-        let tissue =
-            StepInputs { dt: self.dt, rest_scale: 1.0, drive: Vec3::ZERO, pressure: 0.0, floor: f32::MIN };
+        let tissue = StepInputs {
+            dt: self.dt,
+            rest_scale: 1.0,
+            drive: Vec3::ZERO,
+            turn: glam::Mat3::IDENTITY,
+            pressure: 0.0,
+            floor: f32::MIN,
+        };
         let foreign = match self.kind {
             Kind::Cylinder => {
                 StepInputs { drive: Vec3::new(0.0, 0.0, -self.press_depth * progress), ..tissue }

@@ -358,7 +358,7 @@ struct RawBody {
     name: Spanned<String>,
     kind: BodyKind,
     mesh: Option<Spanned<String>>,
-    shape: Option<Shape>,
+    shape: Option<Spanned<Shape>>,
     spacing: Option<Spanned<f64>>,
     #[serde(default)]
     position: [f64; 3],
@@ -784,8 +784,9 @@ impl SceneFile {
             let geometry = match (b.mesh, b.shape) {
                 (Some(mesh), None) => Geometry::Mesh(dir.join(mesh.into_inner())),
                 (None, Some(shape)) => {
-                    check_shape(&shape)
-                        .map_err(|m| at(&file, text, name_span.clone(), Some(&key("shape")), m))?;
+                    let span = shape.span();
+                    let shape = shape.into_inner();
+                    check_shape(&shape).map_err(|(k, m)| at(&file, text, span, Some(&key(k)), m))?;
                     Geometry::Shape(shape)
                 }
                 (Some(mesh), Some(_)) => {
@@ -1023,17 +1024,38 @@ fn nth_table(text: &str, name: &str, k: usize) -> Option<usize> {
     Some(from)
 }
 
-fn check_shape(shape: &Shape) -> Result<(), String> {
+/// A shape's sizes: positive, and an implant's volume one that its base and projection hold.
+/// The error's key below `body[k]`, and its message.
+fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
     let positive = |v: &[f64]| v.iter().all(|x| x.is_finite() && *x > 0.0);
     let ok = match shape {
         Shape::Box(s) | Shape::Ellipsoid(s) => positive(s),
         Shape::Sphere(r) => positive(&[*r]),
         Shape::Cylinder { radius, height } => positive(&[*radius, *height]),
         Shape::Implant { volume_ml, base_mm, projection_mm, .. } => {
+            if positive(&[*volume_ml, *base_mm, *projection_mm]) {
+                // The catalogue's units, mL (1000 mm³) and mm, whatever the file's.
+                let dome = crate::bodies::ImplantShape {
+                    volume: 1e3 * volume_ml,
+                    base: *base_mm,
+                    projection: *projection_mm,
+                    anatomical: false,
+                };
+                if dome.exponent().is_err() {
+                    let cylinder_ml = std::f64::consts::PI * (0.5 * base_mm).powi(2) * projection_mm / 1e3;
+                    let least = cylinder_ml / (crate::bodies::MAX_IMPLANT_EXPONENT + 1.0);
+                    return Err((
+                        "shape.implant.volume_ml",
+                        format!(
+                            "an implant of base {base_mm} mm and projection {projection_mm} mm holds more than {least:.1} mL and less than {cylinder_ml:.1} mL (its cylinder)"
+                        ),
+                    ));
+                }
+            }
             positive(&[*volume_ml, *base_mm, *projection_mm])
         }
     };
-    if ok { Ok(()) } else { Err(format!("{shape:?}: every size must be positive")) }
+    if ok { Ok(()) } else { Err(("shape", format!("{shape:?}: every size must be positive"))) }
 }
 
 fn check_material(m: &MaterialSpec) -> Result<(), (&'static str, String)> {

@@ -132,20 +132,86 @@ fn a_soft_body_fills_an_stl_surface() {
 }
 
 #[test]
-fn what_is_not_built_yet_says_so() {
-    for (text, says) in [
-        (
-            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 300, base_mm = 110, projection_mm = 45 } }\nspacing = 3\n",
-            "implant shape",
-        ),
-        (
-            "[[body]]\nname = \"s\"\nkind = \"shell\"\nshape = { sphere = 10 }\nspacing = 3\ninflate = { volume_ml = 300 }\n",
-            "volume",
-        ),
-    ] {
-        let err = build_world(&SceneFile::parse("x.toml", text).unwrap()).unwrap_err();
-        assert!(matches!(&err, Error::SceneFile { .. }) && err.to_string().contains(says), "{err}");
+fn implants_have_their_catalogue_volume_base_and_projection() {
+    // Round and anatomical implants of three sizes, each as a shell (its surface) at 2 mm
+    // edges, and one as a soft lattice and a rigid body: the surface encloses the catalogue's
+    // volume to within the polygon's shortfall, spans the base and the projection, and an
+    // anatomical one's apex sits below the centre (−y).
+    for (ml, base, projection) in [(300.0, 115.0, 40.0), (250.0, 110.0, 35.0), (450.0, 130.0, 52.0)] {
+        for style in ["round", "anatomical"] {
+            let text = format!(
+                "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = {ml}, base_mm = {base}, projection_mm = {projection}, style = \"{style}\" }} }}\nspacing = 2\nposition = [0, 0, 100]\n"
+            );
+            let built = build_world(&SceneFile::parse("implant.toml", &text).unwrap()).unwrap();
+            let shell = &built.world.bodies[0];
+            let volume_ml = shell.enclosed_volume() * 1e-3;
+            let (lo, hi) = shell.pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+            let apex = shell.pos.iter().max_by(|a, b| a.z.total_cmp(&b.z)).unwrap();
+            eprintln!(
+                "{style} {ml} mL: {volume_ml:.1} mL, {lo} .. {hi}, apex {apex}: {:?}",
+                built.notes[0].remarks
+            );
+            assert!((volume_ml - ml).abs() < 0.03 * ml && volume_ml < ml, "{volume_ml} mL for {ml}");
+            assert!(((hi.x - lo.x) - base as f32).abs() < 0.01 * base as f32, "base {}", hi.x - lo.x);
+            assert!(
+                ((hi.z - lo.z) - projection as f32).abs() < 0.01 * projection as f32,
+                "projection {}",
+                hi.z - lo.z
+            );
+            assert!((0.5 * (lo.z + hi.z) - 100.0).abs() < 0.01, "centred on its position");
+            let r = 0.5 * base as f32;
+            if style == "round" {
+                assert!(apex.y.abs() < 0.05 * r, "{apex}");
+            } else {
+                assert!((apex.y + 0.25 * r).abs() < 0.05 * r, "{apex}");
+            }
+            assert!(built.notes[0].remarks.iter().any(|m| m.contains("mL")), "{:?}", built.notes[0].remarks);
+        }
     }
+    for kind in ["soft", "rigid"] {
+        let text = format!(
+            "[[body]]\nname = \"i\"\nkind = \"{kind}\"\nshape = {{ implant = {{ volume_ml = 300, base_mm = 115, projection_mm = 40 }} }}\nspacing = 4\n"
+        );
+        let built = build_world(&SceneFile::parse("implant.toml", &text).unwrap()).unwrap();
+        assert!(built.world.bodies[0].len() > 200, "{kind}: {}", built.world.bodies[0].len());
+    }
+}
+
+#[test]
+fn an_implant_no_dome_can_hold_is_refused_by_its_key() {
+    // A 100 mm base and 30 mm projection hold at most its cylinder, 235.6 mL.
+    for (ml, says) in [(400.0, "less than 235.6 mL"), (10.0, "more than 21.4 mL")] {
+        let text = format!(
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = {ml}, base_mm = 100, projection_mm = 30 }} }}\nspacing = 2\n"
+        );
+        let err = SceneFile::parse("implant.toml", &text).unwrap_err();
+        let Error::SceneFile { line, key, message, .. } = &err else { panic!("{err}") };
+        assert_eq!((*line, key.as_str()), (4, "body[0].shape.implant.volume_ml"), "{err}");
+        assert!(message.contains(says), "{err}");
+    }
+}
+
+#[test]
+fn a_shell_inflates_to_its_target_volume() {
+    // A free sphere of 20 mm radius (33.5 mL, 32.9 mL as its polygon) filled to 60 mL over
+    // 0.2 s, then held there: its rest lengths grow by the cube root, so it settles at 60 mL,
+    // within the polygon's shortfall; and a pressure-free shell with no inflate stays put.
+    let text = "[time]\nduration = 0.5\n[[body]]\nname = \"balloon\"\nkind = \"shell\"\nshape = { sphere = 20 }\nspacing = 3\nmaterial = { young_kpa = 50, damping = 0.3 }\ninflate = { volume_ml = 60, ramp = 0.2 }\n";
+    let built = build_world(&SceneFile::parse("balloon.toml", text).unwrap()).unwrap();
+    let start = built.world.bodies[0].enclosed_volume() * 1e-3;
+    let mut cpu = CpuWorld::new(built.world).unwrap();
+    let mut half = 0.0;
+    for step in 0..built.steps {
+        cpu.step().unwrap();
+        if step == (0.1 / f64::from(built.dt)) as u64 {
+            half = cpu.world.bodies[0].enclosed_volume() * 1e-3;
+        }
+    }
+    let end = cpu.world.bodies[0].enclosed_volume() * 1e-3;
+    eprintln!("{start:.2} mL → {half:.2} mL at 0.1 s → {end:.2} mL after {} steps", built.steps);
+    assert!((start - 32.9).abs() < 0.5, "{start}");
+    assert!(half > start + 5.0 && half < 55.0, "half way: {half}");
+    assert!((end - 60.0).abs() < 0.02 * 60.0, "{end} mL");
 }
 
 #[test]

@@ -166,8 +166,8 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
         ),
         (
             "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [1, 0, 1] }\nspacing = 1\n",
-            2,
-            8,
+            4,
+            9,
             "body[0].shape",
             "every size must be positive",
         ),
