@@ -267,11 +267,12 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
             );
             for b in &s.bodies {
                 println!(
-                    "{:<28} {} vertices, moved up to {:.3} {}",
+                    "{:<28} {} vertices, moved up to {:.3} {}{}",
                     format!("body {} ({})", b.name, b.kind),
                     b.vertices,
                     b.max_displacement,
-                    s.units
+                    s.units,
+                    b.volume_ml.map_or(String::new(), |v| format!(", {v:.1} mL inside at the end"))
                 );
             }
             for c in &s.contacts {
@@ -284,7 +285,13 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     c.contacts_at_end
                 );
             }
-            println!("{:<28} {}", "settled", s.settled);
+            println!(
+                "{:<28} {} (over the last frame a vertex moved at most {:.3} of its spacing; at rest: {})",
+                "settled",
+                s.settled,
+                s.last_frame_motion,
+                voxcollide_cli::scene_run::REST_TOLERANCE
+            );
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
             ExitCode::SUCCESS
         }

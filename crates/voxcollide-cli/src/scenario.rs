@@ -8,7 +8,7 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::output::{BodyFrame, PvdSeries};
-use crate::render::{Renderer, Scene as RenderScene, SceneMesh};
+use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide::error::Error;
 use voxcollide::gpu::GpuContext;
 use voxcollide::report::ContactReport;
@@ -247,7 +247,9 @@ pub fn run(
             let file = format!("{name}_{frame:04}.png");
             let moved: Vec<f32> =
                 scene.tissue.pos.iter().zip(&scene.tissue.rest_pos).map(|(p, r)| p.distance(*r)).collect();
-            r.render_png(&picture(scene, &moved), &config.out.join(&file))?;
+            let shown = picture(scene, &moved);
+            let legend = Legend::new("tissue displacement (layer units)", shown.scalar_range);
+            r.render_png_with_legend(&shown, Some(&legend), &config.out.join(&file))?;
             summary.files.push(file);
         }
         if let Some((tissue, foreign)) = series.as_mut() {

@@ -12,7 +12,7 @@ use glam::Vec3;
 use serde::Serialize;
 
 use crate::output::{BodyFrame, PvdSeries};
-use crate::render::{Renderer, Scene as RenderScene, SceneMesh};
+use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use crate::scenario::Backend;
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
@@ -33,6 +33,9 @@ pub struct BodySummary {
     /// The largest distance of one of its vertices from where it started, over the run (file
     /// units).
     pub max_displacement: f32,
+    /// For a shell: the volume it encloses at the end, in mL.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_ml: Option<f64>,
     /// For a lattice in a surface: the fraction of the surface's volume it covers.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<f64>,
@@ -77,9 +80,13 @@ pub struct FileSummary {
     pub steps_per_second: f64,
     /// Simulated seconds per wall-clock second.
     pub realtime_factor: f64,
-    /// Whether the bodies came to rest (`[time] settle`: every free vertex slower than 0.1 %
-    /// of the scene's size per second at a frame after the schedule); false without settling.
+    /// Whether the bodies came to rest (`[time] settle`: over one frame interval after the
+    /// schedule, no free vertex moved more than [`REST_TOLERANCE`] of its body's spacing);
+    /// false without settling.
     pub settled: bool,
+    /// The farthest a free vertex moved over the last frame interval, in spacings of its body:
+    /// what `settled` is judged by (at rest at most [`REST_TOLERANCE`]).
+    pub last_frame_motion: f32,
     /// Per body.
     pub bodies: Vec<BodySummary>,
     /// Per contact.
@@ -227,10 +234,17 @@ pub fn run_file(
     let mut stepping = 0.0f64;
     let mut done = 0u64;
     let mut frame = 0u32;
+    let mut before: Option<Vec<Vec<Vec3>>> = None;
+    let spacings: Vec<f32> = world.bodies.iter().map(mean_spring).collect();
     loop {
         let (world, reports) = run.frame()?;
         measure(world, &mut summary)?;
-        let at_rest = done >= planned && resting(world, size);
+        let motion = before.as_deref().map_or(f32::INFINITY, |was| frame_motion(world, was, &spacings));
+        if std::env::var_os("VOXCOLLIDE_DEBUG_SETTLE").is_some() {
+            eprintln!("step {done}: motion {motion}");
+        }
+        let at_rest = done >= planned && motion <= REST_TOLERANCE;
+        before = Some(world.bodies.iter().map(|b| b.pos.clone()).collect());
         let last = if file.time.settle {
             (done >= planned && at_rest) || done >= file.time.max_steps
         } else {
@@ -248,7 +262,9 @@ pub fn run_file(
                     (p.into_owned(), moved)
                 })
                 .collect();
-            r.render_png(&picture(world, &shown, &soft, size), &config.out.join(&name))?;
+            let scene = picture(world, &shown, &soft, size);
+            let legend = Legend::new(format!("displacement ({})", summary.units), scene.scalar_range);
+            r.render_png_with_legend(&scene, Some(&legend), &config.out.join(&name))?;
             summary.files.push(name);
         }
         for (k, pvd) in series.iter_mut().enumerate() {
@@ -308,6 +324,12 @@ pub fn run_file(
         }
         if last {
             summary.settled = file.time.settle && at_rest;
+            for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
+                if spec.kind == BodyKind::Shell {
+                    out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
+                }
+            }
+            summary.last_frame_motion = if motion.is_finite() { motion } else { 0.0 };
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
@@ -348,13 +370,40 @@ fn shown_surface(body: &MassSpring) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollid
     }
 }
 
-/// Whether every free vertex of every body moves slower than 0.1 % of the scene's size per
-/// second, the settling criterion.
-fn resting(world: &World, size: f32) -> bool {
-    let limit = 1e-3 * size;
-    world.bodies.iter().all(|b| {
-        b.vel.iter().zip(&b.mode).all(|(v, m)| *m != voxcollide_sim::Mode::Free || v.length() <= limit)
-    })
+/// The settling criterion's tolerance: the bodies are at rest when, over one frame interval
+/// after the schedule (its duration over `[output] frames`), no free vertex moved farther than
+/// this fraction of its body's spacing (the mean rest length of its springs). That is finer
+/// than the model resolves a contact — a penalty contact's vertices chatter by a few
+/// hundredths of a spacing from step to step, however long the run — and a shape that changes
+/// by less per frame is the final one for planning.
+pub const REST_TOLERANCE: f32 = 0.05;
+
+/// A body's spacing: the mean rest length of its springs (1 without springs).
+fn mean_spring(b: &MassSpring) -> f32 {
+    if b.springs.is_empty() {
+        1.0
+    } else {
+        (b.springs.iter().map(|s| f64::from(s.rest)).sum::<f64>() / b.springs.len() as f64) as f32
+    }
+}
+
+/// The farthest any free vertex of any body is from where it was at the last frame, in
+/// spacings of its body.
+fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
+    world
+        .bodies
+        .iter()
+        .zip(before)
+        .zip(spacings)
+        .flat_map(|((b, was), h)| {
+            b.pos
+                .iter()
+                .zip(was)
+                .zip(&b.mode)
+                .filter(|(_, m)| **m == voxcollide_sim::Mode::Free)
+                .map(move |((p, q), _)| p.distance(*q) / h)
+        })
+        .fold(0.0, f32::max)
 }
 
 /// Updates the summary's maxima with this frame: displacements, and per contact the

@@ -12,6 +12,7 @@
 @group(0) @binding(6) var<storage, read> springs: array<vec2<f32>>;   // (rest, k)
 @group(0) @binding(7) var<storage, read> triangles: array<vec4<u32>>;
 @group(0) @binding(8) var<storage, read_write> acc: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> fill: array<f32>;             // [0]: the pressure of a fill
 
 fn spring_force(x: vec3<f32>, v: vec3<f32>, y: vec3<f32>, w: vec3<f32>, rest: f32, k: f32) -> vec3<f32> {
     let d = y - x;
@@ -41,14 +42,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let s = springs[adjacency[2u * e + 1u]];
         f += spring_force(x, v, pos[j].xyz, vel[j].xyz, s.x * sim.rest_scale, s.y);
     }
-    if sim.pressure != 0.0 {
+    var pressure = sim.pressure;
+    if sim.fill_volume > 0.0 {
+        pressure = fill[0];
+    }
+    if pressure != 0.0 {
         let tris = vec2<u32>(offsets[i].y, offsets[i + 1u].y);
         for (var e = tris.x; e < tris.y; e++) {
             let t = triangles[adjacency[sim.tri_base + e]];
             let a = pos[t.x].xyz;
             let b = pos[t.y].xyz;
             let c = pos[t.z].xyz;
-            f += (sim.pressure / 6.0) * cross3(b - a, c - a);
+            f += (pressure / 6.0) * cross3(b - a, c - a);
         }
     }
     acc[i] = vec4<f32>(f * vel[i].w, 0.0);

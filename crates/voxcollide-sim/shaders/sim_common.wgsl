@@ -23,7 +23,11 @@ struct SimParams {
     n: u32,
     tri_base: u32,         // where the triangle lists start in `adjacency`
     step: u32,
-    _pad: u32,
+    tri_count: u32,
+    fill_volume: f32,      // > 0: a fill of this volume (the pressure is the volume pass's)
+    fill_bulk: f32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 fn item_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {

@@ -137,6 +137,9 @@ impl Embedding {
 /// get proportionally more mass.
 pub const REFERENCE_DEGREE: f32 = 18.0;
 
+/// The lanes of the volume sum (the `volume` pass's workgroup size).
+pub const VOLUME_LANES: usize = 256;
+
 /// What changes from step to step: the time step, the growth of rest lengths and the drive.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StepInputs {
@@ -152,6 +155,14 @@ pub struct StepInputs {
     /// Pressure inside the closed surface, pushing every surface triangle outward (an
     /// inflating implant); 0 for none.
     pub pressure: f32,
+    /// A fill of this volume inside the closed surface (a shell filled to a volume; 0 for
+    /// none): the pressure becomes `pressure + fill_bulk · (fill_volume − V) / fill_volume`
+    /// for the volume `V` the surface encloses at the start of the step
+    /// ([`MassSpring::fill_volume_now`]), so that the fill holds its volume against a load as a
+    /// nearly incompressible liquid would, with the bulk modulus `fill_bulk`.
+    pub fill_volume: f32,
+    /// The fill's bulk modulus (pressure units); used only with `fill_volume`.
+    pub fill_bulk: f32,
     /// Free vertices are kept at `z >= floor` (the chest wall); `f32::MIN` for none.
     pub floor: f32,
 }
@@ -272,6 +283,39 @@ impl MassSpring {
         self.pos.is_empty()
     }
 
+    /// The pressure on its surface this step: `inputs.pressure`, plus a fill's response to the
+    /// volume now (see [`StepInputs::fill_volume`]). CPU twin of `shaders/volume.wgsl`.
+    #[must_use]
+    pub fn pressure(&self, inputs: &StepInputs) -> f32 {
+        if inputs.fill_volume > 0.0 {
+            let v = self.fill_volume_now();
+            inputs.pressure + inputs.fill_bulk * (inputs.fill_volume - v) / inputs.fill_volume
+        } else {
+            inputs.pressure
+        }
+    }
+
+    /// The volume its surface encloses, summed in `f32` exactly as `shaders/volume.wgsl` does
+    /// it: each triangle's `dot(a, cross(b, c)) / 6` added, in order, to the partial sum of its
+    /// index modulo [`VOLUME_LANES`], and the partial sums then added pairwise (lane `i` and
+    /// `i + half`, halving).
+    #[must_use]
+    pub fn fill_volume_now(&self) -> f32 {
+        let mut partial = [0.0f32; VOLUME_LANES];
+        for (j, t) in self.surface.triangles.iter().enumerate() {
+            let [a, b, c] = t.map(|v| self.pos[v as usize]);
+            partial[j % VOLUME_LANES] += dot(a, cross(b, c)) / 6.0;
+        }
+        let mut half = VOLUME_LANES / 2;
+        while half > 0 {
+            for i in 0..half {
+                partial[i] += partial[i + half];
+            }
+            half /= 2;
+        }
+        partial[0]
+    }
+
     /// The volume its surface encloses at its current positions (positive for outward
     /// triangles), in cubic length units, summed in `f64`.
     #[must_use]
@@ -307,6 +351,7 @@ impl MassSpring {
     pub fn forces(&self, inputs: &StepInputs, contact: &[Vec3], out: &mut Vec<Vec3>) {
         out.clear();
         let m = &self.material;
+        let pressure = self.pressure(inputs);
         out.extend((0..self.len()).map(|i| {
             let (x, v) = (self.pos[i], self.vel[i]);
             let mut f = contact[i] - m.damping * v;
@@ -322,12 +367,12 @@ impl MassSpring {
                     m,
                 );
             }
-            if inputs.pressure != 0.0 {
+            if pressure != 0.0 {
                 // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.
                 for &t in &self.tri_adjacency[self.tri_offsets[i] as usize..self.tri_offsets[i + 1] as usize]
                 {
                     let [a, b, c] = self.surface.triangles[t as usize].map(|v| self.pos[v as usize]);
-                    f += (inputs.pressure / 6.0) * cross(b - a, c - a);
+                    f += (pressure / 6.0) * cross(b - a, c - a);
                 }
             }
             f

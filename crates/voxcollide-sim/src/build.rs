@@ -410,6 +410,8 @@ struct BodySchedule {
     pressure: f32,
     /// The final volume over the first, for a shell inflated to a volume.
     growth: Option<f64>,
+    /// And its fill: the first volume, the final one, and the fill's bulk modulus.
+    fill: Option<(f64, f64, f32)>,
     ramp: f64,
     ease: Ease,
     floor: f32,
@@ -444,8 +446,38 @@ impl BodySchedule {
         let ramped = if self.ramp > 0.0 { self.ease.at((t / self.ramp) as f32) } else { 1.0 };
         // To a volume: rest lengths grow by the cube root of the volume reached so far.
         let rest_scale = self.growth.map_or(1.0, |g| (1.0 + (g - 1.0) * f64::from(ramped)).cbrt() as f32);
-        StepInputs { dt, rest_scale, drive, turn, pressure: self.pressure * ramped, floor: self.floor }
+        let (fill_volume, fill_bulk) = self.fill.map_or((0.0, 0.0), |(start, end, bulk)| {
+            ((start + (end - start) * f64::from(ramped)) as f32, bulk)
+        });
+        StepInputs {
+            dt,
+            rest_scale,
+            drive,
+            turn,
+            pressure: self.pressure * ramped,
+            fill_volume,
+            fill_bulk,
+            floor: self.floor,
+        }
     }
+}
+
+/// The bulk modulus of a shell's fill: stiff enough to hold the volume against the tissue (a
+/// 1 % deficit raises the pressure by 1 % of it), soft enough that the pressure's response to
+/// the shell swelling as a whole, `bulk · A · a / V` per vertex for a surface of area `A`,
+/// vertex area `a = A / N` and volume `V`, stays at half the stiffness `k` of its springs, so
+/// that the springs' stability bound still holds: `bulk = k V N / (2 A²)`.
+fn fill_bulk(shell: &MassSpring, k: f32) -> f32 {
+    let area: f64 = shell
+        .surface
+        .triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| shell.pos[v as usize].as_dvec3());
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum();
+    (0.5 * f64::from(k) * shell.enclosed_volume() * shell.len() as f64 / (area * area)) as f32
 }
 
 /// Builds the world of `file`.
@@ -556,7 +588,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
                 (m.t, (DVec3::from_array(m.position) - base).as_vec3(), DVec3::from_array(m.rotation), m.ease)
             })
             .collect();
-        let (mut pressure, mut growth, mut ramp, mut ease) = (0.0, None, 0.0, Ease::Linear);
+        let (mut pressure, mut growth, mut fill, mut ramp, mut ease) = (0.0, None, None, 0.0, Ease::Linear);
         if let Some(i) = b.inflate {
             (ramp, ease) = (i.ramp, i.ease);
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
@@ -575,6 +607,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
                     ));
                 }
                 growth = Some(target / start);
+                fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k])));
             }
         }
         schedule_specs.push(BodySchedule {
@@ -582,6 +615,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             pivot: Vec3::from_array(b.position.map(|v| v as f32)),
             pressure,
             growth,
+            fill,
             ramp,
             ease,
             floor: b.floor.map_or(f32::MIN, |f| f as f32),

@@ -15,8 +15,8 @@ use voxcollide::gpu::{GpuCollision, GpuContext, scoped};
 use voxcollide::report::ContactReport;
 
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
-pub const SHADERS: [(&str, &str); 3] =
-    [("accumulate", ACCUMULATE), ("forces", FORCES), ("integrate", INTEGRATE)];
+pub const SHADERS: [(&str, &str); 4] =
+    [("accumulate", ACCUMULATE), ("volume", VOLUME), ("forces", FORCES), ("integrate", INTEGRATE)];
 /// Pass 1: forces over mass.
 pub const FORCES: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/forces.wgsl"));
@@ -44,9 +44,12 @@ struct GpuSimParams {
     n: u32,
     tri_base: u32,
     step: u32,
-    _pad: u32,
+    tri_count: u32,
+    fill_volume: f32,
+    fill_bulk: f32,
+    _pad: [u32; 2],
 }
-const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 112);
+const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 128);
 
 /// One body's device buffers.
 struct GpuBody {
@@ -62,6 +65,8 @@ struct GpuBody {
     triangles: Buffer,
     acc: Buffer,
     status: Buffer,
+    /// A fill's pressure and volume, written by the `volume` pass.
+    fill: Buffer,
 }
 
 impl GpuBody {
@@ -106,6 +111,7 @@ impl GpuBody {
             triangles: init("sim triangles", bytemuck::cast_slice(&triangles), storage),
             acc: init("sim acc", &vec![0; 16 * body.len()], storage),
             status: init("sim status", &[0; 8], storage),
+            fill: init("sim fill", &[0; 16], storage),
         }
     }
 
@@ -131,7 +137,10 @@ impl GpuBody {
             n: self.n,
             tri_base: self.tri_base,
             step: step.min(u64::from(u32::MAX - 1)) as u32,
-            _pad: 0,
+            tri_count: body.surface.triangles.len() as u32,
+            fill_volume: inputs.fill_volume,
+            fill_bulk: inputs.fill_bulk,
+            _pad: [0; 2],
         }
     }
 }
@@ -141,6 +150,7 @@ impl GpuBody {
 struct Bound {
     /// Per body with two or more contacts: one `accumulate` group per contact, in order.
     accumulate: Vec<Vec<wgpu::BindGroup>>,
+    volume: Vec<wgpu::BindGroup>,
     forces: Vec<wgpu::BindGroup>,
     integrate: Vec<wgpu::BindGroup>,
 }
@@ -169,6 +179,7 @@ pub struct GpuWorld {
     forces: Kernel,
     integrate: Kernel,
     accumulate: Kernel,
+    volume: Kernel,
     bodies: Vec<GpuBody>,
     sources: Vec<ContactSource>,
     bound: Option<Bound>,
@@ -179,6 +190,9 @@ pub struct GpuWorld {
 /// The `accumulate` pass: one body's contact forces from several contacts.
 pub const ACCUMULATE: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/accumulate.wgsl"));
+/// The `volume` pass: a filled body's enclosed volume and the fill's pressure.
+pub const VOLUME: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/volume.wgsl"));
 
 impl GpuWorld {
     /// Uploads `world` to the device of `ctx`.
@@ -196,7 +210,7 @@ impl GpuWorld {
             .collect::<Result<Vec<_>, _>>()?;
         use Slot::{Read, ReadWrite, Uniform};
         let contacts_of = world.contacts_of();
-        let (forces, integrate, accumulate, bodies, sources) = scoped(device, || {
+        let (forces, integrate, accumulate, volume, bodies, sources) = scoped(device, || {
             let bodies: Vec<GpuBody> = world.bodies.iter().map(|b| GpuBody::new(device, b)).collect();
             let sources = contacts_of
                 .iter()
@@ -241,7 +255,7 @@ impl GpuWorld {
                     device,
                     "voxcollide forces",
                     FORCES,
-                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite],
+                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite, Read],
                 ),
                 Kernel::new(
                     device,
@@ -250,6 +264,7 @@ impl GpuWorld {
                     &[Uniform, ReadWrite, ReadWrite, Read, Read, ReadWrite],
                 ),
                 Kernel::new(device, "voxcollide accumulate", ACCUMULATE, &[Uniform, Read, ReadWrite]),
+                Kernel::new(device, "voxcollide volume", VOLUME, &[Uniform, Read, Read, ReadWrite]),
                 bodies,
                 sources,
             )
@@ -261,6 +276,7 @@ impl GpuWorld {
             forces,
             integrate,
             accumulate,
+            volume,
             bodies,
             sources,
             bound: None,
@@ -318,6 +334,11 @@ impl GpuWorld {
                     self.accumulate.dispatch(&mut pass, group, body.n, self.max_per_dim);
                 }
             }
+            for (group, inputs) in bound.volume.iter().zip(&inputs) {
+                if inputs.fill_volume > 0.0 {
+                    self.volume.dispatch_one(&mut pass, group);
+                }
+            }
             for (group, body) in bound.forces.iter().zip(&self.bodies) {
                 self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
             }
@@ -341,6 +362,7 @@ impl GpuWorld {
         let mut accumulate = Vec::with_capacity(self.bodies.len());
         let mut forces = Vec::with_capacity(self.bodies.len());
         let mut integrate = Vec::with_capacity(self.bodies.len());
+        let mut volume = Vec::with_capacity(self.bodies.len());
         for (k, b) in self.bodies.iter().enumerate() {
             let mut groups = Vec::new();
             let contact = match &self.sources[k] {
@@ -366,12 +388,14 @@ impl GpuWorld {
                     &b.springs,
                     &b.triangles,
                     &b.acc,
+                    &b.fill,
                 ],
             ));
+            volume.push(self.volume.bind(device, &[&b.params, &b.pos, &b.triangles, &b.fill]));
             integrate
                 .push(self.integrate.bind(device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status]));
         }
-        Ok(Bound { accumulate, forces, integrate })
+        Ok(Bound { accumulate, volume, forces, integrate })
     }
 
     /// Reads every body's positions and velocities back into [`world`](Self::world), checks

@@ -313,6 +313,8 @@ impl SceneSchedule {
             drive: Vec3::ZERO,
             turn: glam::Mat3::IDENTITY,
             pressure: 0.0,
+            fill_volume: 0.0,
+            fill_bulk: 0.0,
             floor: f32::MIN,
         };
         let foreign = match self.kind {
