@@ -286,10 +286,11 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 );
             }
             println!(
-                "{:<28} {} (over the last frame a vertex moved at most {:.3} of its spacing; at rest: {})",
+                "{:<28} {} (over the last {:.3} s a vertex moved at most {:.3} of its spacing; at rest: {})",
                 "settled",
                 s.settled,
-                s.last_frame_motion,
+                s.rest_window,
+                s.rest_motion,
                 voxcollide_cli::scene_run::REST_TOLERANCE
             );
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());

@@ -80,13 +80,17 @@ pub struct FileSummary {
     pub steps_per_second: f64,
     /// Simulated seconds per wall-clock second.
     pub realtime_factor: f64,
-    /// Whether the bodies came to rest (`[time] settle`: over one frame interval after the
-    /// schedule, no free vertex moved more than [`REST_TOLERANCE`] of its body's spacing);
-    /// false without settling.
+    /// Whether the bodies came to rest (`[time] settle`: over a settling window after the
+    /// schedule, no vertex that is not held moved more than [`REST_TOLERANCE`] of its body's
+    /// spacing); false without settling.
     pub settled: bool,
-    /// The farthest a free vertex moved over the last frame interval, in spacings of its body:
-    /// what `settled` is judged by (at rest at most [`REST_TOLERANCE`]).
-    pub last_frame_motion: f32,
+    /// The farthest a vertex moved over the last settling window (or, without settling, the
+    /// last frame), in spacings of its body: what `settled` is judged by (at rest: at most
+    /// [`REST_TOLERANCE`]).
+    pub rest_motion: f32,
+    /// The settling window, in seconds: twice the time an elastic wave takes to cross the
+    /// largest deformable body ([`settling_window`]).
+    pub rest_window: f64,
     /// Per body.
     pub bodies: Vec<BodySummary>,
     /// Per contact.
@@ -234,17 +238,18 @@ pub fn run_file(
     let mut stepping = 0.0f64;
     let mut done = 0u64;
     let mut frame = 0u32;
-    let mut before: Option<Vec<Vec<Vec3>>> = None;
+    // Where the vertices were at the last frame, and its step.
+    let mut before: Option<(u64, Vec<Vec<Vec3>>)> = None;
+    let window = settling_window(world, built.dt);
+    summary.rest_window = window as f64 * f64::from(built.dt);
     let spacings: Vec<f32> = world.bodies.iter().map(mean_spring).collect();
     loop {
         let (world, reports) = run.frame()?;
         measure(world, &mut summary)?;
-        let motion = before.as_deref().map_or(f32::INFINITY, |was| frame_motion(world, was, &spacings));
-        if std::env::var_os("VOXCOLLIDE_DEBUG_SETTLE").is_some() {
-            eprintln!("step {done}: motion {motion}");
-        }
-        let at_rest = done >= planned && motion <= REST_TOLERANCE;
-        before = Some(world.bodies.iter().map(|b| b.pos.clone()).collect());
+        let motion = before.as_ref().map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &spacings));
+        let long_enough = before.as_ref().is_some_and(|(at, _)| done - at >= window);
+        let at_rest = done >= planned && long_enough && motion <= REST_TOLERANCE;
+        before = Some((done, world.bodies.iter().map(|b| b.pos.clone()).collect()));
         let last = if file.time.settle {
             (done >= planned && at_rest) || done >= file.time.max_steps
         } else {
@@ -329,13 +334,15 @@ pub fn run_file(
                     out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
                 }
             }
-            summary.last_frame_motion = if motion.is_finite() { motion } else { 0.0 };
+            summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
             break;
         }
-        let target = (done + chunk).min(if file.time.settle { file.time.max_steps } else { planned });
+        // Past the schedule, frames a settling window apart.
+        let next = if done >= planned { chunk.max(window) } else { chunk };
+        let target = (done + next).min(if file.time.settle { file.time.max_steps } else { planned });
         let started = Instant::now();
         while done < target {
             run.step()?;
@@ -370,13 +377,36 @@ fn shown_surface(body: &MassSpring) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollid
     }
 }
 
-/// The settling criterion's tolerance: the bodies are at rest when, over one frame interval
-/// after the schedule (its duration over `[output] frames`), no free vertex moved farther than
-/// this fraction of its body's spacing (the mean rest length of its springs). That is finer
-/// than the model resolves a contact — a penalty contact's vertices chatter by a few
-/// hundredths of a spacing from step to step, however long the run — and a shape that changes
-/// by less per frame is the final one for planning.
+/// The settling criterion's tolerance: the bodies are at rest when, over a settling window
+/// after the schedule ([`settling_window`]), no vertex that is not held (free, or driven by
+/// keyframes) moved farther than this fraction of its body's spacing (the mean rest length of
+/// its springs). That is finer than the model resolves a contact — a penalty contact's
+/// vertices chatter by a few hundredths of a spacing from step to step, however long the run,
+/// which is why speeds at an instant cannot be the test — and a shape that changes by less
+/// over the time its body needs to respond is the final one for planning.
 pub const REST_TOLERANCE: f32 = 0.05;
+
+/// The settling window in steps: twice the time an elastic wave takes to cross the largest
+/// deformable body, `2 · extent / c` with the lattice's wave speed `c = h · √(k/m)` (its mean
+/// spring length, stiffness and vertex mass) — the time over which a body still adjusting to
+/// its load must show it. At least one step.
+pub fn settling_window(world: &World, dt: f32) -> u64 {
+    let seconds = world
+        .bodies
+        .iter()
+        .filter(|b| b.mode.contains(&voxcollide_sim::Mode::Free) && !b.springs.is_empty())
+        .map(|b| {
+            let n = b.springs.len() as f64;
+            let h = b.springs.iter().map(|s| f64::from(s.rest)).sum::<f64>() / n;
+            let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / n;
+            let m = b.inv_mass.iter().map(|w| 1.0 / f64::from(*w)).sum::<f64>() / b.len() as f64;
+            let (lo, hi) = b.rest_pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+            2.0 * f64::from((hi - lo).max_element()) / (h * (k / m).sqrt())
+        })
+        .filter(|t| t.is_finite())
+        .fold(0.0, f64::max);
+    ((seconds / f64::from(dt)).ceil() as u64).max(1)
+}
 
 /// A body's spacing: the mean rest length of its springs (1 without springs).
 fn mean_spring(b: &MassSpring) -> f32 {
@@ -387,7 +417,7 @@ fn mean_spring(b: &MassSpring) -> f32 {
     }
 }
 
-/// The farthest any free vertex of any body is from where it was at the last frame, in
+/// The farthest any vertex that is not pinned is from where it was at the last frame, in
 /// spacings of its body.
 fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
     world
@@ -400,7 +430,7 @@ fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
                 .iter()
                 .zip(was)
                 .zip(&b.mode)
-                .filter(|(_, m)| **m == voxcollide_sim::Mode::Free)
+                .filter(|(_, m)| **m != voxcollide_sim::Mode::Pinned)
                 .map(move |((p, q), _)| p.distance(*q) / h)
         })
         .fold(0.0, f32::max)

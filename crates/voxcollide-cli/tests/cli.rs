@@ -339,3 +339,53 @@ frames = 2
     assert!(organ["vertices"].as_u64().unwrap() > 200, "{organ}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn settling_goes_on_past_the_schedule_until_the_bodies_rest() {
+    // The shipped indentation (a ball held 3 mm into a block, settle = true) comes to rest, and
+    // says by how much it moved over its last frame; the same scene without settling stops at
+    // its schedule, and with a cap of one frame past it is reported unsettled.
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let text = std::fs::read_to_string(scenes.join("indentation.toml")).unwrap();
+    let dir = std::env::temp_dir().join(format!("voxcollide-cli-settle-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |name: &str, text: &str| {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &path,
+            text.replace("[output]\nframes = 8", "[output]\nframes = 8\nimages = false\nvtk = false"),
+        )
+        .unwrap();
+        let out = dir.join(name);
+        let output = voxcollide()
+            .args(["run", "--backend", "cpu"])
+            .arg(&path)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        (json, String::from_utf8_lossy(&output.stdout).into_owned())
+    };
+    let (settled, stdout) = run("settled", &text);
+    assert!(stdout.contains("settled                      true"), "{stdout}");
+    assert_eq!(settled["settled"], serde_json::Value::Bool(true));
+    let motion = settled["rest_motion"].as_f64().unwrap();
+    assert!(motion > 0.0 && motion <= 0.05, "{motion}");
+    let schedule = 3576;
+    let steps = settled["steps"].as_u64().unwrap();
+    assert!(steps >= schedule, "{steps}");
+    let (plain, _) = run("plain", &text.replace("settle = true", "settle = false"));
+    assert_eq!((plain["settled"].as_bool(), plain["steps"].as_u64()), (Some(false), Some(schedule)));
+    // Capped before a settling window has passed since the schedule: unsettled, and said so.
+    let (capped, _) = run(
+        "capped",
+        &text.replace("duration = 0.4", "duration = 0.05").replace("max_steps = 8000", "max_steps = 500"),
+    );
+    assert_eq!(capped["settled"].as_bool(), Some(false), "{capped}");
+    assert!(capped["rest_window"].as_f64().unwrap() > 0.01, "{capped}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
