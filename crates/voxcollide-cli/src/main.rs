@@ -89,8 +89,11 @@ enum BackendArg {
 
 #[derive(clap::Args, Debug)]
 struct RunArgs {
-    /// A paper scenario (`implant`, `cylinder`) or a scene file (`FILE.toml`, DESIGN §8; the
-    /// options below but --backend, --out and --image are the paper scenarios' own).
+    /// A paper scenario (`implant`, `cylinder`: at the defaults below, the shipped
+    /// `scenes/implant.toml` and `scenes/cylinder.toml`, built into the command; other values
+    /// of --steps, --resolution, --stiffness, --pressure, --magnitude or --voxel-size run the
+    /// built-in generator) or a scene file (`FILE.toml`, DESIGN §8; the options below but
+    /// --backend, --out and --image are the paper scenarios' own).
     scene: String,
     /// Where to run.
     #[arg(long, value_enum, default_value = "auto")]

@@ -12,7 +12,9 @@ use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide::error::Error;
 use voxcollide::gpu::GpuContext;
 use voxcollide::report::ContactReport;
+use voxcollide_sim::build::build_world;
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
+use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{CpuSim, GpuSim, Kind, Scene, SceneConfig};
 
 /// Which backend runs the simulation.
@@ -110,6 +112,29 @@ pub struct Summary {
     pub settled: bool,
     /// Simulated seconds.
     pub simulated_time: f64,
+    /// The shipped scene file the run followed (`scenes/implant.toml`, `scenes/cylinder.toml`)
+    /// at the scenario's defaults; absent when other options made the built-in generator run.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scene_file: Option<String>,
+}
+
+/// A paper scene's shipped scene file, relative to the repository's root.
+#[must_use]
+pub fn shipped_path(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Implant => "scenes/implant.toml",
+        Kind::Cylinder => "scenes/cylinder.toml",
+    }
+}
+
+/// The text of a paper scene's shipped scene file ([`shipped_path`]), built into the command
+/// so that `run implant` runs anywhere, as `run scenes/implant.toml` does from the root.
+#[must_use]
+pub fn shipped(kind: Kind) -> &'static str {
+    match kind {
+        Kind::Implant => include_str!("../../../scenes/implant.toml"),
+        Kind::Cylinder => include_str!("../../../scenes/cylinder.toml"),
+    }
 }
 
 /// A simulation on one of the two backends.
@@ -189,18 +214,44 @@ pub fn run(
         return Err(Error::Invalid { what: "frames", value: "0".into(), rule: "must be at least 1".into() });
     }
     let scene = Scene::new(config.scene)?;
+    // At its defaults, a paper scene runs as its shipped scene file describes it (proven the
+    // same to the bit by voxcollide-sim's tests/shipped_scenes.rs); other options have only the
+    // built-in generator.
+    let shipped = if config.scene == SceneConfig::new(config.scene.kind) {
+        let (path, text) = (shipped_path(config.scene.kind), shipped(config.scene.kind));
+        let built = build_world(&SceneFile::parse(path, text)?)?;
+        Some((path, built.world))
+    } else {
+        None
+    };
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let (ctx, without) = context(config.backend, config.image.is_some(), note)?;
     let (mut sim, backend, adapter) = match (config.backend, &ctx) {
         (Backend::Cpu, _) | (Backend::Auto, None) => (
-            Sim::Cpu(Box::new(CpuSim::new(scene.clone())?)),
+            Sim::Cpu(Box::new(match &shipped {
+                Some((_, world)) => CpuSim::with_world(scene.clone(), world.clone())?,
+                None => CpuSim::new(scene.clone())?,
+            })),
             "cpu",
             ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
         ),
-        (_, Some(ctx)) => (Sim::Gpu(Box::new(GpuSim::new(ctx, scene.clone())?)), "gpu", ctx.adapter_name()),
+        (_, Some(ctx)) => (
+            Sim::Gpu(Box::new(match &shipped {
+                Some((_, world)) => GpuSim::with_world(ctx, scene.clone(), world.clone())?,
+                None => GpuSim::new(ctx, scene.clone())?,
+            })),
+            "gpu",
+            ctx.adapter_name(),
+        ),
         (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
     };
-    note(&format!("{} on the {backend} backend ({adapter})", config.scene.kind.name()));
+    let source = match &shipped {
+        Some((path, _)) => format!("the shipped {path}"),
+        None => {
+            format!("the built-in generator, for options other than {}'s", shipped_path(config.scene.kind))
+        }
+    };
+    note(&format!("{} on the {backend} backend ({adapter}), from {source}", config.scene.kind.name()));
     let mut renderer = match (&ctx, config.image) {
         (Some(ctx), Some((w, h))) => Some(Renderer::new(ctx, w, h)?),
         _ => None,
@@ -226,6 +277,7 @@ pub fn run(
         magnitude: scene.params.magnitude,
         stiffness: config.scene.stiffness,
         dt: scene.dt,
+        scene_file: shipped.as_ref().map(|(path, _)| (*path).to_string()),
         ..Summary::default()
     };
     let mut stepping = 0.0f64;

@@ -233,3 +233,56 @@ fn a_blow_up_stops_the_run_naming_the_step() {
         assert!(!summary.exists(), "a blown-up run must not leave a summary of NaN");
     }
 }
+
+#[test]
+fn at_their_defaults_the_paper_scenes_run_their_shipped_files() {
+    // `run implant` and `run cylinder` at their defaults follow scenes/implant.toml and
+    // scenes/cylinder.toml, and give the built-in generator's figures to the bit (100 steps of
+    // the 1200-step schedule here: the same world, so the same frames); other options run the
+    // built-in generator and say so by leaving `scene_file` out.
+    for kind in [Kind::Implant, Kind::Cylinder] {
+        let config = RunConfig {
+            scene: SceneConfig::new(kind),
+            backend: Backend::Cpu,
+            out: out_dir(&format!("shipped-{}", kind.name())),
+            frames: 12,
+            image: None,
+            vtk: false,
+        };
+        let mut notes = Vec::new();
+        let mut steps = 0;
+        let shipped = run(&config, &mut |done| steps = done, &mut |n| notes.push(n.to_string())).unwrap();
+        let path = format!("scenes/{}.toml", kind.name());
+        assert_eq!(shipped.scene_file.as_deref(), Some(path.as_str()));
+        assert!(notes.iter().any(|n| n.contains(&format!("the shipped {path}"))), "{notes:?}");
+        // The built-in generator stepped alongside: the same tissue at every frame's step.
+        let mut builtin = CpuSim::new(Scene::new(config.scene).unwrap()).unwrap();
+        let mut done = 0;
+        for f in &shipped.frames {
+            while done < f.step {
+                builtin.step().unwrap();
+                done += 1;
+            }
+            let moved = builtin
+                .scene
+                .tissue
+                .pos
+                .iter()
+                .zip(&builtin.scene.tissue.rest_pos)
+                .map(|(p, r)| p.distance(*r))
+                .fold(0.0, f32::max);
+            assert_eq!(
+                moved.to_bits(),
+                f.max_tissue_displacement.to_bits(),
+                "{} frame {}",
+                kind.name(),
+                f.frame
+            );
+            assert_eq!(builtin.report.colliding_b.len(), f.colliding, "{} frame {}", kind.name(), f.frame);
+        }
+        let other = RunConfig { scene: SceneConfig { steps: 100, ..config.scene }, ..config.clone() };
+        let s = run(&other, &mut |_| {}, &mut |_| {}).unwrap();
+        assert_eq!(s.scene_file, None);
+        std::fs::remove_dir_all(&config.out).unwrap();
+    }
+}

@@ -106,6 +106,17 @@ impl CpuSim {
         Ok(CpuSim { scene, world, report: ContactReport::default() })
     }
 
+    /// Starts `scene` as `world` steps it: the world of a scene file that stands for it
+    /// ([`Scene::check_world`]), such as the shipped `scenes/implant.toml`.
+    ///
+    /// # Errors
+    /// Those of [`Scene::check_world`] and of [`CpuWorld::new`].
+    pub fn with_world(scene: Scene, world: World) -> Result<CpuSim, Error> {
+        scene.check_world(&world)?;
+        let world = CpuWorld::new(world)?;
+        Ok(CpuSim { scene, world, report: ContactReport::default() })
+    }
+
     /// Steps taken so far.
     #[must_use]
     pub fn steps_done(&self) -> u64 {

@@ -450,6 +450,16 @@ impl GpuSim {
         Ok(GpuSim { scene, world })
     }
 
+    /// Uploads `scene` as `world` steps it (see [`crate::CpuSim::with_world`]).
+    ///
+    /// # Errors
+    /// Those of [`Scene::check_world`] and of [`GpuWorld::new`].
+    pub fn with_world(ctx: &GpuContext, scene: Scene, world: World) -> Result<GpuSim, Error> {
+        scene.check_world(&world)?;
+        let world = GpuWorld::new(ctx, world)?;
+        Ok(GpuSim { scene, world })
+    }
+
     /// Steps taken so far.
     #[must_use]
     pub fn steps_done(&self) -> u64 {

@@ -265,6 +265,31 @@ impl Scene {
         }
     }
 
+    /// Checks that `world` can stand for this scene: two bodies, the tissue and the foreign
+    /// body in that order, with their vertex counts, and one contact of the foreign body (A)
+    /// against the tissue (B) — as the shipped `scenes/implant.toml` and `scenes/cylinder.toml`
+    /// build. Only the shapes are checked; the springs, materials and schedule are the world's.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] naming what differs.
+    pub fn check_world(&self, world: &World) -> Result<(), Error> {
+        let counts: Vec<usize> = world.bodies.iter().map(MassSpring::len).collect();
+        let pairs: Vec<(usize, usize)> = world.contacts.iter().map(|c| (c.a, c.b)).collect();
+        if counts != [self.tissue.len(), self.foreign.len()] || pairs != [(1, 0)] {
+            return Err(Error::Invalid {
+                what: "scene world",
+                value: format!("bodies of {counts:?} vertices, contacts (a, b) {pairs:?}"),
+                rule: format!(
+                    "the {} scene has a tissue of {} and a foreign body of {} vertices, in contact (1, 0)",
+                    self.config.kind.name(),
+                    self.tissue.len(),
+                    self.foreign.len()
+                ),
+            });
+        }
+        Ok(())
+    }
+
     /// The scene as a [`World`]: bodies `tissue` (0) and `foreign body` (1), one contact with
     /// the foreign body as A.
     ///
