@@ -137,6 +137,10 @@ impl Embedding {
 /// get proportionally more mass.
 pub const REFERENCE_DEGREE: f32 = 18.0;
 
+/// Vertices per parallel task of the force and integration loops: below this a body runs on
+/// one thread.
+const PAR_CHUNK: usize = 2048;
+
 /// The lanes of the volume sum (the `volume` pass's workgroup size).
 pub const VOLUME_LANES: usize = 256;
 
@@ -349,10 +353,12 @@ impl MassSpring {
     /// The force on every vertex (springs, damping and `contact`), summed per vertex over its
     /// springs in adjacency order. CPU twin of `shaders/forces.wgsl`.
     pub fn forces(&self, inputs: &StepInputs, contact: &[Vec3], out: &mut Vec<Vec3>) {
+        use rayon::prelude::*;
         out.clear();
         let m = &self.material;
         let pressure = self.pressure(inputs);
-        out.extend((0..self.len()).map(|i| {
+        // Each vertex's sum is its own, in its own order: the same on any number of threads.
+        out.par_extend((0..self.len()).into_par_iter().with_min_len(PAR_CHUNK).map(|i| {
             let (x, v) = (self.pos[i], self.vel[i]);
             let mut f = contact[i] - m.damping * v;
             for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
@@ -379,44 +385,49 @@ impl MassSpring {
         }));
     }
 
-    /// One integration step with the forces `f`. CPU twin of `shaders/integrate.wgsl`.
-    #[allow(clippy::needless_range_loop)] // one index over five arrays, as the shader has it
+    /// One integration step with the forces `f`. CPU twin of `shaders/integrate.wgsl`; each
+    /// vertex on its own, so on every core.
     pub fn integrate(&mut self, inputs: &StepInputs, f: &[Vec3]) {
-        for i in 0..self.len() {
-            match self.mode[i] {
+        use rayon::prelude::*;
+        let (mode, rest_pos, inv_mass) = (&self.mode, &self.rest_pos, &self.inv_mass);
+        self.pos.par_iter_mut().zip(self.vel.par_iter_mut()).enumerate().with_min_len(PAR_CHUNK).for_each(
+            |(i, (pos, vel))| match mode[i] {
                 Mode::Free => {
-                    self.vel[i] += inputs.dt * (f[i] * self.inv_mass[i]);
-                    self.pos[i] += inputs.dt * self.vel[i];
-                    if self.pos[i].z < inputs.floor {
-                        self.pos[i].z = inputs.floor;
-                        self.vel[i].z = self.vel[i].z.max(0.0);
+                    *vel += inputs.dt * (f[i] * inv_mass[i]);
+                    *pos += inputs.dt * *vel;
+                    if pos.z < inputs.floor {
+                        pos.z = inputs.floor;
+                        vel.z = vel.z.max(0.0);
                     }
                 }
                 Mode::Pinned => {
-                    self.pos[i] = self.rest_pos[i];
-                    self.vel[i] = Vec3::ZERO;
+                    *pos = rest_pos[i];
+                    *vel = Vec3::ZERO;
                 }
                 Mode::Driven => {
-                    let target = driven_target(inputs, self.rest_pos[i]);
-                    self.vel[i] = (target - self.pos[i]) / inputs.dt;
-                    self.pos[i] = target;
+                    let target = driven_target(inputs, rest_pos[i]);
+                    *vel = (target - *pos) / inputs.dt;
+                    *pos = target;
                 }
-            }
-        }
+            },
+        );
     }
 
     /// The first vertex whose position is not finite or whose speed exceeds `v_max`.
     #[must_use]
     pub fn blow_up(&self, v_max: f32) -> Option<(usize, String)> {
-        self.pos.iter().zip(&self.vel).enumerate().find_map(|(i, (p, v))| {
-            if !p.is_finite() || !v.is_finite() {
-                Some((i, format!("vertex {i} has a non-finite position or velocity")))
-            } else if v.length() > v_max {
-                Some((i, format!("vertex {i} moves at {:.3e}, above the limit {v_max:.3e}", v.length())))
-            } else {
-                None
-            }
-        })
+        use rayon::prelude::*;
+        self.pos.par_iter().zip(&self.vel).enumerate().with_min_len(PAR_CHUNK).find_map_first(
+            |(i, (p, v))| {
+                if !p.is_finite() || !v.is_finite() {
+                    Some((i, format!("vertex {i} has a non-finite position or velocity")))
+                } else if v.length() > v_max {
+                    Some((i, format!("vertex {i} moves at {:.3e}, above the limit {v_max:.3e}", v.length())))
+                } else {
+                    None
+                }
+            },
+        )
     }
 }
 
