@@ -8,7 +8,8 @@
 //! pascals. So:
 //! - a lattice of spacing `h` whose axis and face-diagonal springs have stiffness `k` behaves,
 //!   for small strains, as a cubic material with `C11 = 3k/h` and `C12 = C44 = k/h`: Young's
-//!   modulus `2.5 k/h` and Poisson's ratio 1/4, whatever the file's ν. Hence
+//!   modulus `2.5 k/h` and Poisson's ratio 1/4, whatever the file's ν (a body whose file gives
+//!   another ν says so in its notes). Hence
 //!   `k = 0.4 · E · h`, with `E = young_kpa · 10³ · s` (internal stress units).
 //! - a vertex of a lattice carries the mass of its cell, `density · (h·s)³` kg; a tetrahedral
 //!   mesh lumps a quarter of each tetrahedron's mass at each corner; a shell vertex carries
@@ -399,6 +400,12 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         };
     }
     note.vertices = body.len();
+    if spec.kind != BodyKind::Rigid && (m.poisson - 0.25).abs() > 1e-9 {
+        note.remarks.push(format!(
+            "poisson = {}: a spring network has its own Poisson ratio (1/4 for a cubic lattice); Young's modulus is matched, the ratio is not",
+            m.poisson
+        ));
+    }
     Ok((body, note, kspring))
 }
 
@@ -556,7 +563,13 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     }
     let dt = match file.time.dt {
         Auto::Value(dt) => dt as f32,
-        Auto::Auto => bodies.iter().map(|b| b.stable_dt(0.3)).fold(f32::MAX, f32::min),
+        // Only bodies that move by their springs bound the step: a rigid body's vertices are
+        // all driven, and its material is only nominal.
+        Auto::Auto => bodies
+            .iter()
+            .filter(|b| b.mode.contains(&Mode::Free))
+            .map(|b| b.stable_dt(0.3))
+            .fold(f32::MAX, f32::min),
     };
     if !(dt.is_finite() && dt > 0.0) {
         return Err(Error::Invalid {
