@@ -1,6 +1,10 @@
-//! `voxcollide bench`: every backend on DESIGN §7's workloads, against a k-d tree baseline
-//! (`kiddo`: build over A, then each B vertex's nearest A vertex within the radius, on the same
-//! threads), as medians of repeated steps.
+//! `voxcollide bench`: every backend on DESIGN §7's workloads — `lattice(N)` (x fastest),
+//! `z_fastest(N)`, `shuffled(N)`, `paper(N)` and `paper_shuffled(N)` — each against a
+//! baseline that answers its own question, as medians of repeated steps:
+//! - `Search::Neighbours` (lattice, z_fastest, shuffled): a k-d tree (`kiddo`: build over A,
+//!   then each B vertex's nearest A vertex within the radius, on the same threads);
+//! - `Search::Voxel` (paper): a hash map of A's voxels (`std::collections::HashMap`: build
+//!   over A, then each B vertex's nearest A vertex in its own voxel, on the same threads).
 
 use std::time::Instant;
 
@@ -14,26 +18,29 @@ use voxcollide::error::Error;
 use voxcollide::gpu::{GpuCollision, GpuContext};
 use voxcollide::parallel::ParallelCpuCollision;
 use voxcollide::params::Search;
-use voxcollide::workload::{Workload, lattice, paper};
+use voxcollide::workload::{Workload, lattice, paper, shuffled, z_fastest};
 
 /// One measured case.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BenchRow {
-    /// `lattice` or `paper`.
+    /// `lattice`, `z_fastest`, `shuffled`, `paper` or `paper_shuffled`.
     pub workload: String,
     /// The size asked for (vertices per body, about).
     pub size: usize,
     /// Vertices per body.
     pub vertices: usize,
-    /// `cpu_reference`, `parallel_cpu`, `gpu_resident`, `gpu_step` or `kdtree_kiddo`.
+    /// `cpu_reference`, `parallel_cpu`, `gpu_resident`, `gpu_step`, or the baseline
+    /// (`kdtree_kiddo`, `voxel_hashmap`).
     pub backend: String,
     /// Median milliseconds per step.
     pub median_ms: f64,
     /// Vertices of both bodies per second at the median.
     pub vertices_per_second: f64,
+    /// The workload's baseline: `kdtree_kiddo` or `voxel_hashmap`.
+    pub baseline: String,
     /// The baseline's median over this one's, on the same workload and size: above 1 is faster
-    /// than the k-d tree.
-    pub speedup_vs_kdtree: Option<f64>,
+    /// than the baseline.
+    pub speedup_vs_baseline: Option<f64>,
     /// Steps timed.
     pub samples: usize,
     /// The adapter (GPU rows) or `cpu`.
@@ -152,30 +159,35 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     let threads = rayon::current_num_threads();
     let mut rows = Vec::new();
     for &size in &config.sizes {
-        for (name, make) in
-            [("lattice", lattice as fn(usize, u64) -> Result<Workload, Error>), ("paper", paper)]
-        {
+        for (name, make) in WORKLOADS {
             let w = make(size, voxcollide::workload::DEFAULT_SEED)?;
             let n = w.a.len();
             let mut measured: Vec<(String, f64, String, usize, usize)> = Vec::new();
             let mut passes = Vec::new();
-            // The baseline: the same answer as lattice(N) (nearest A within the radius).
-            let radius = match lattice(1, 0)?.params.search {
-                Search::Neighbours { radius } => radius,
-                Search::Voxel => 0.9,
-            };
             let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
             let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
-            let (ms, colliding) = time(config.samples, || {
-                let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
-                    what: "k-d tree",
-                    value: format!("{e:?}"),
-                    rule: "kiddo could not build it".into(),
-                })?;
-                let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
-                Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
-            })?;
-            measured.push(("kdtree_kiddo".into(), ms, "cpu".into(), threads, colliding));
+            let baseline = match w.params.search {
+                // The same answer as the workload: nearest A within the radius.
+                Search::Neighbours { radius } => {
+                    let (ms, colliding) = time(config.samples, || {
+                        let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
+                            what: "k-d tree",
+                            value: format!("{e:?}"),
+                            rule: "kiddo could not build it".into(),
+                        })?;
+                        let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
+                        Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
+                    })?;
+                    measured.push(("kdtree_kiddo".into(), ms, "cpu".into(), threads, colliding));
+                    "kdtree_kiddo"
+                }
+                // The same answer as the workload: nearest A in B's own voxel.
+                Search::Voxel => {
+                    let (ms, colliding) = time(config.samples, || Ok(voxel_hashmap(&w)))?;
+                    measured.push(("voxel_hashmap".into(), ms, "cpu".into(), threads, colliding));
+                    "voxel_hashmap"
+                }
+            };
             if config.reference {
                 let mut cpu = CpuCollision::new(w.grid, w.params)?;
                 let (ms, c) = time(config.samples, || Ok(cpu.step(&w.a, &w.b)?.colliding_b.len()))?;
@@ -237,14 +249,15 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                         .collect();
                 }
             }
-            let baseline = measured[0].1;
+            let baseline_ms = measured[0].1;
             for (backend, ms, device, threads, colliding) in measured {
                 let backend_is_resident = backend == "gpu_resident";
                 let row = BenchRow {
                     workload: name.into(),
                     size,
                     vertices: n,
-                    speedup_vs_kdtree: Some(baseline / ms),
+                    baseline: baseline.into(),
+                    speedup_vs_baseline: Some(baseline_ms / ms),
                     vertices_per_second: (2 * n) as f64 / (ms / 1e3),
                     median_ms: ms,
                     backend,
@@ -262,23 +275,65 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     Ok(rows)
 }
 
+/// The workloads, by name: DESIGN §7's in three orders, and the paper's rule in two.
+pub const WORKLOADS: [(&str, fn(usize, u64) -> Result<Workload, Error>); 5] = [
+    ("lattice", lattice),
+    ("z_fastest", z_fastest),
+    ("shuffled", shuffled),
+    ("paper", paper),
+    ("paper_shuffled", paper_shuffled),
+];
+
+/// `paper(N)`'s rule on `shuffled(N)`'s order.
+fn paper_shuffled(n: usize, seed: u64) -> Result<Workload, Error> {
+    let mut w = shuffled(n, seed)?;
+    w.params.search = Search::Voxel;
+    Ok(w)
+}
+
+/// The paper workloads' baseline: a hash map from voxel to A's vertices, built over A, then per
+/// B vertex (in parallel) the nearest A vertex of its own voxel, ties to the lower index — what
+/// `Search::Voxel` asks. Returns the B vertices that found one.
+fn voxel_hashmap(w: &Workload) -> usize {
+    use rayon::prelude::*;
+    use std::collections::HashMap;
+    let grid = &w.grid;
+    let mut voxels: HashMap<glam::UVec3, Vec<u32>> = HashMap::with_capacity(w.a.len());
+    for (i, p) in w.a.iter().enumerate() {
+        if let Some(v) = grid.voxel_of(*p) {
+            voxels.entry(v).or_default().push(i as u32);
+        }
+    }
+    w.b.par_iter()
+        .filter_map(|p| {
+            let list = voxels.get(&grid.voxel_of(*p)?)?;
+            let nearest = list
+                .iter()
+                .map(|&i| (w.a[i as usize].distance_squared(*p), i))
+                .min_by(|x, y| x.0.total_cmp(&y.0).then(x.1.cmp(&y.1)));
+            // The partner is the answer: keep the search from being optimised away.
+            std::hint::black_box(nearest)
+        })
+        .count()
+}
+
 /// The rows as a plain-text table.
 #[must_use]
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<8} {:>9} {:<14} {:>11} {:>12} {:>9} {:>8}  {}\n",
-        "workload", "vertices", "backend", "median ms", "vertices/s", "vs kd-tree", "threads", "device"
+        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>8}  {}\n",
+        "workload", "vertices", "backend", "median ms", "vertices/s", "vs baseline", "threads", "device"
     );
     for r in rows {
         let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };
         out += &format!(
-            "{:<8} {:>9} {:<14} {:>11.3} {:>12.3e} {:>9.2}x {:>8}  {}\n",
+            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>8}  {}\n",
             r.workload,
             r.vertices,
             r.backend,
             r.median_ms,
             r.vertices_per_second,
-            r.speedup_vs_kdtree.unwrap_or(f64::NAN),
+            r.speedup_vs_baseline.unwrap_or(f64::NAN),
             threads,
             r.device
         );

@@ -105,7 +105,7 @@ fn bench_prints_every_backend_and_writes_json() {
     let rows = rows.as_array().unwrap();
     assert!(rows.len() >= 6, "{rows:?}");
     // Every backend finds the same contacts as the reference on the same workload.
-    for workload in ["lattice", "paper"] {
+    for workload in ["lattice", "z_fastest", "shuffled", "paper", "paper_shuffled"] {
         let counts: Vec<u64> = rows
             .iter()
             .filter(|r| r["workload"] == workload && r["backend"] != "kdtree_kiddo")
@@ -121,6 +121,16 @@ fn bench_prints_every_backend_and_writes_json() {
         lattice_kdtree["colliding"], lattice_ref["colliding"],
         "the baseline answers the same question"
     );
+    // Every order of the lattice finds the same contacts, and the paper's baseline is its own.
+    let count = |w: &str, b: &str| {
+        rows.iter().find(|r| r["workload"] == w && r["backend"] == b).map(|r| r["colliding"].clone())
+    };
+    for w in ["z_fastest", "shuffled"] {
+        assert_eq!(count(w, "parallel_cpu"), count("lattice", "parallel_cpu"), "{w}");
+    }
+    assert_eq!(count("paper", "voxel_hashmap"), count("paper", "cpu_reference"));
+    assert_eq!(count("paper_shuffled", "voxel_hashmap"), count("paper", "cpu_reference"));
+    assert!(rows.iter().all(|r| r["speedup_vs_baseline"].as_f64().is_some_and(|s| s > 0.0)));
 
     let output = voxcollide().args(["bench", "--sizes", "0"]).output().unwrap();
     assert!(!output.status.success());
@@ -163,7 +173,7 @@ fn bench_times_every_gpu_pass_when_asked() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
-    assert_eq!(stdout.matches("passes, ms: bounds").count(), 2, "{stdout}");
+    assert_eq!(stdout.matches("passes, ms: bounds").count(), voxcollide_cli::bench::WORKLOADS.len(), "{stdout}");
     let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     for row in rows.as_array().unwrap() {
         let passes = row.get("passes");

@@ -36,18 +36,21 @@ fn chunk(n: usize) -> usize {
 }
 
 /// The three nearest candidates in `(d2, index)` order.
+/// `i`: the A vertex's index (the tie-break of the reference's order); `k`: where it sits in
+/// the bins (where its position and its force accumulator are).
 #[derive(Clone, Copy, Debug)]
 struct Nearest {
     d: [f32; 3],
     i: [u32; 3],
+    k: [u32; 3],
     n: usize,
 }
 
 impl Nearest {
-    const EMPTY: Nearest = Nearest { d: [0.0; 3], i: [0; 3], n: 0 };
+    const EMPTY: Nearest = Nearest { d: [0.0; 3], i: [0; 3], k: [0; 3], n: 0 };
 
     #[inline]
-    fn insert(&mut self, d: f32, i: u32) {
+    fn insert(&mut self, d: f32, i: u32, slot_k: u32) {
         let before = |k: usize| self.d[k] < d || (self.d[k] == d && self.i[k] < i);
         let mut k = 0;
         while k < self.n && before(k) {
@@ -60,10 +63,12 @@ impl Nearest {
         while j > k {
             self.d[j] = self.d[j - 1];
             self.i[j] = self.i[j - 1];
+            self.k[j] = self.k[j - 1];
             j -= 1;
         }
         self.d[k] = d;
         self.i[k] = i;
+        self.k[k] = slot_k;
         self.n = (self.n + 1).min(3);
     }
 }
@@ -128,8 +133,28 @@ struct Bins {
     /// Per A vertex: its slot (`u32::MAX`: discarded) and its voxel.
     slot_of: Vec<u32>,
     voxel_of_a: Vec<UVec3>,
+    /// Per A vertex: where it sits in `index`/`pos`/`voxel` (`u32::MAX`: discarded).
+    k_of: Vec<u32>,
     /// Scratch of the counting sort.
     cursor: Vec<u32>,
+}
+
+/// B's vertices in the order of A's slots, so that consecutive probes read the same bins
+/// whatever order B comes in.
+#[derive(Debug, Default)]
+struct Order {
+    /// Per B vertex: its slot (`u32::MAX`: outside the grid or not finite).
+    slot_of: Vec<u32>,
+    /// B's indices in slot order (those outside the grid last), and their positions.
+    index: Vec<u32>,
+    pos: Vec<Vec3>,
+    /// Per B vertex: where it sits in `index`.
+    k_of: Vec<u32>,
+    /// Per sorted B vertex: its force and whether it collides.
+    force: Vec<Vec3>,
+    hit: Vec<bool>,
+    /// Scratch of the counting sort: per slot, where its B vertices start.
+    start: Vec<u32>,
 }
 
 /// The multi-threaded CPU backend. Reports equal [`CpuCollision`](crate::CpuCollision)'s.
@@ -141,8 +166,9 @@ pub struct ParallelCpuCollision {
     grid: VoxelGrid,
     params: ContactParams,
     bins: Bins,
+    order: Order,
+    /// Fixed-point force accumulators of A, three per binned vertex in bin order.
     fixed: Vec<AtomicI64>,
-    hit: Vec<bool>,
 }
 
 impl ParallelCpuCollision {
@@ -152,7 +178,13 @@ impl ParallelCpuCollision {
     /// [`Error::Magnitude`] or [`Error::Radius`] when `params` are invalid for `grid`.
     pub fn new(grid: VoxelGrid, params: ContactParams) -> Result<ParallelCpuCollision, Error> {
         params.validate(&grid)?;
-        Ok(ParallelCpuCollision { grid, params, bins: Bins::default(), fixed: Vec::new(), hit: Vec::new() })
+        Ok(ParallelCpuCollision {
+            grid,
+            params,
+            bins: Bins::default(),
+            order: Order::default(),
+            fixed: Vec::new(),
+        })
     }
 
     /// The grid as built.
@@ -177,55 +209,60 @@ impl ParallelCpuCollision {
         check_body(Body::B, b)?;
         let grid = step_grid(&self.grid, self.params.anchor, a)?;
         let binned = self.bin(&grid, a);
-        // The accumulators are left at zero by the previous step's resolve (which swaps them out).
-        self.fixed.truncate(3 * a.len());
-        self.fixed.resize_with(3 * a.len(), || AtomicI64::new(0));
-        // Every entry is written by the probe below, hit or not.
-        report.force_b.resize(b.len(), Vec3::ZERO);
-        self.hit.resize(b.len(), false);
+        self.sort_b(&grid, b);
+        // The accumulators are left at zero by the previous step's resolve.
+        self.fixed.truncate(3 * binned as usize);
+        self.fixed.resize_with(3 * binned as usize, || AtomicI64::new(0));
 
         let m = self.params.magnitude;
-        let probe = Probe {
-            grid: &grid,
-            params: &self.params,
-            bins: &self.bins,
-            a,
-            fixed: &self.fixed,
-            scale: 65536.0 / m,
-        };
+        let probe = Probe { grid: &grid, params: &self.params, bins: &self.bins, fixed: &self.fixed, scale: 65536.0 / m };
+        // Probe in A's slot order, B's vertices sorted so; the forces go back to B's order after.
+        let order = &mut self.order;
         let size = chunk(b.len());
-        report.force_b.par_chunks_mut(size).zip(self.hit.par_chunks_mut(size)).enumerate().for_each(
-            |(c, (forces, hits))| {
-                for (k, (f, hit)) in forces.iter_mut().zip(hits.iter_mut()).enumerate() {
-                    let force = probe.probe(b[c * size + k]);
+        order.force.resize(b.len(), Vec3::ZERO);
+        order.hit.resize(b.len(), false);
+        order.force.par_chunks_mut(size).zip(order.hit.par_chunks_mut(size)).zip(order.pos.par_chunks(size)).for_each(
+            |((forces, hits), pos)| {
+                for ((f, hit), p) in forces.iter_mut().zip(hits.iter_mut()).zip(pos) {
+                    let force = probe.probe(*p);
                     *hit = force.is_some();
                     *f = force.unwrap_or(Vec3::ZERO);
                 }
             },
         );
+        report.force_b.resize(b.len(), Vec3::ZERO);
+        let (force, k_of) = (&order.force, &order.k_of);
+        report.force_b.par_chunks_mut(size).enumerate().for_each(|(c, out)| {
+            for (j, f) in out.iter_mut().enumerate() {
+                *f = force[k_of[c * size + j] as usize];
+            }
+        });
 
-        // Back to f32, leaving every accumulator at zero for the next step; the first overflow
-        // in (vertex, axis) order is the error, as on the CPU.
+        // Back to f32 in A's order; the first overflow in (vertex, axis) order is the error, as
+        // on the CPU. Then every accumulator back to zero for the next step.
         let unit = m / 65536.0;
         report.force_a.resize(a.len(), Vec3::ZERO);
         let size = chunk(a.len());
+        let (fixed, k_of) = (&self.fixed, &self.bins.k_of);
         let overflow = report
             .force_a
             .par_chunks_mut(size)
-            .zip(self.fixed.par_chunks_mut(3 * size))
             .enumerate()
-            .filter_map(|(c, (forces, counts))| {
+            .filter_map(|(c, forces)| {
                 let mut first = None;
-                for (k, f) in forces.iter_mut().enumerate() {
+                for (n, f) in forces.iter_mut().enumerate() {
+                    let i = c * size + n;
+                    let k = k_of[i];
+                    if k == u32::MAX {
+                        *f = Vec3::ZERO;
+                        continue;
+                    }
                     let mut out = [0.0f32; 3];
-                    for axis in 0..3 {
-                        // Exclusive access here: a plain read and clear, no locked instruction.
-                        let count = std::mem::take(counts[3 * k + axis].get_mut());
+                    for (axis, o) in out.iter_mut().enumerate() {
+                        let count = fixed[3 * k as usize + axis].load(Ordering::Relaxed);
                         match i32::try_from(count) {
-                            Ok(c) => out[axis] = c as f32 * unit,
-                            Err(_) => {
-                                first = first.or(Some((3 * (c * size + k) + axis, count)));
-                            }
+                            Ok(c) => *o = c as f32 * unit,
+                            Err(_) => first = first.or(Some((3 * i + axis, count))),
                         }
                     }
                     *f = Vec3::from_array(out);
@@ -233,11 +270,13 @@ impl ParallelCpuCollision {
                 first
             })
             .min_by_key(|(k, _)| *k);
+        self.fixed.par_chunks_mut(CHUNK).for_each(|c| c.iter_mut().for_each(|a| *a.get_mut() = 0));
         if let Some((k, count)) = overflow {
             return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
         }
         report.colliding_b.clear();
-        report.colliding_b.extend(self.hit.iter().enumerate().filter(|(_, h)| **h).map(|(j, _)| j as u32));
+        let (hit, k_of) = (&self.order.hit, &self.order.k_of);
+        report.colliding_b.extend((0..b.len() as u32).filter(|&j| hit[k_of[j as usize] as usize]));
         report.binned_a = binned;
         report.discarded_a = a.len() as u32 - binned;
         report.grid_center = grid.center();
@@ -286,6 +325,8 @@ impl ParallelCpuCollision {
         bins.index.resize(n, 0);
         bins.pos.resize(n, Vec3::ZERO);
         bins.voxel.resize(n, UVec3::ZERO);
+        bins.k_of.clear();
+        bins.k_of.resize(a.len(), u32::MAX);
         for (i, &s) in bins.slot_of.iter().enumerate() {
             if s != u32::MAX {
                 let k = bins.cursor[s as usize] as usize;
@@ -293,9 +334,46 @@ impl ParallelCpuCollision {
                 bins.index[k] = i as u32;
                 bins.pos[k] = a[i];
                 bins.voxel[k] = bins.voxel_of_a[i];
+                bins.k_of[i] = k as u32;
             }
         }
         binned
+    }
+
+    /// Counting sort of B by the slot of A's table its voxel falls in (stable), those outside
+    /// the grid last: probing in this order, neighbouring probes read neighbouring bins.
+    fn sort_b(&mut self, grid: &VoxelGrid, b: &[Vec3]) {
+        let (dense, mask) = (self.bins.dense, self.bins.mask);
+        let slots = self.bins.start.len() - 1;
+        let order = &mut self.order;
+        order.slot_of.clear();
+        order.slot_of.resize(b.len(), u32::MAX);
+        order.slot_of.par_iter_mut().zip(b.par_iter()).with_min_len(CHUNK).for_each(|(s, p)| {
+            if let Some(q) = voxel_of(grid, *p) {
+                *s = slot(dense, mask, q);
+            }
+        });
+        // Slot `slots` holds those outside the grid.
+        order.start.clear();
+        order.start.resize(slots + 2, 0);
+        for &s in &order.slot_of {
+            let s = if s == u32::MAX { slots } else { s as usize };
+            order.start[s + 1] += 1;
+        }
+        for k in 0..=slots {
+            order.start[k + 1] += order.start[k];
+        }
+        order.index.resize(b.len(), 0);
+        order.pos.resize(b.len(), Vec3::ZERO);
+        order.k_of.resize(b.len(), 0);
+        for (j, &s) in order.slot_of.iter().enumerate() {
+            let s = if s == u32::MAX { slots } else { s as usize };
+            let k = order.start[s] as usize;
+            order.start[s] += 1;
+            order.index[k] = j as u32;
+            order.pos[k] = b[j];
+            order.k_of[j] = k as u32;
+        }
     }
 }
 
@@ -304,7 +382,6 @@ struct Probe<'a> {
     grid: &'a VoxelGrid,
     params: &'a ContactParams,
     bins: &'a Bins,
-    a: &'a [Vec3],
     fixed: &'a [AtomicI64],
     scale: f32,
 }
@@ -332,10 +409,10 @@ impl Probe<'_> {
     }
 
     /// Walks voxels `lo..=hi`, offering every A vertex of each (and whether it is in `own`) to
-    /// `visit(d2, index, in_own)`. A row's voxels sit in consecutive slots (see
+    /// `visit(d2, index, bin position, in_own)`. A row's voxels sit in consecutive slots (see
     /// [`voxel_hash`]), so each row of the block is one contiguous scan.
     #[inline]
-    fn walk(&self, p: Vec3, lo: UVec3, hi: UVec3, own: UVec3, mut visit: impl FnMut(f32, u32, bool)) {
+    fn walk(&self, p: Vec3, lo: UVec3, hi: UVec3, own: UVec3, mut visit: impl FnMut(f32, u32, u32, bool)) {
         let bins = self.bins;
         if bins.dense.is_some() {
             // Every entry of the run is in this row and in lo.x..=hi.x: no checks.
@@ -344,7 +421,7 @@ impl Probe<'_> {
                     let s0 = slot(bins.dense, bins.mask, UVec3::new(lo.x, y, z)) as usize;
                     let s1 = slot(bins.dense, bins.mask, UVec3::new(hi.x, y, z)) as usize;
                     for k in bins.start[s0] as usize..bins.start[s1 + 1] as usize {
-                        visit(dist2(p, bins.pos[k]), bins.index[k], bins.voxel[k] == own);
+                        visit(dist2(p, bins.pos[k]), bins.index[k], k as u32, bins.voxel[k] == own);
                     }
                 }
             }
@@ -358,7 +435,7 @@ impl Probe<'_> {
                     for k in bins.start[from as usize] as usize..bins.start[to as usize + 1] as usize {
                         let v = bins.voxel[k];
                         if v.y == y && v.z == z && v.x >= lo.x && v.x <= hi.x {
-                            visit(dist2(p, bins.pos[k]), bins.index[k], v == own);
+                            visit(dist2(p, bins.pos[k]), bins.index[k], k as u32, v == own);
                         }
                     }
                 };
@@ -384,14 +461,14 @@ impl Probe<'_> {
                 if plane {
                     let r = |k: usize| self.axis_range(k, p[k], q[k], None);
                     let ((x0, x1), (y0, y1), (z0, z1)) = (r(0), r(1), r(2));
-                    self.walk(p, UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1), q, |d, i, is_own| {
-                        block.insert(d, i);
+                    self.walk(p, UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1), q, |d, i, k, is_own| {
+                        block.insert(d, i, k);
                         if is_own {
-                            own.insert(d, i);
+                            own.insert(d, i, k);
                         }
                     });
                 } else {
-                    self.walk(p, q, q, q, |d, i, _| own.insert(d, i));
+                    self.walk(p, q, q, q, |d, i, k, _| own.insert(d, i, k));
                 }
                 (own, block)
             }
@@ -402,22 +479,23 @@ impl Probe<'_> {
                 let mut block = Nearest::EMPTY;
                 let (lo, hi) = (UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1));
                 if plane {
-                    self.walk(p, lo, hi, q, |d, i, _| {
+                    self.walk(p, lo, hi, q, |d, i, k, _| {
                         if d < r2 {
-                            block.insert(d, i);
+                            block.insert(d, i, k);
                         }
                     });
                 } else {
                     // Only the partner is needed: keep the best, no top-3 bookkeeping.
-                    let (mut best_d, mut best_i) = (r2, u32::MAX);
-                    self.walk(p, lo, hi, q, |d, i, _| {
+                    let (mut best_d, mut best_i, mut best_k) = (r2, u32::MAX, 0);
+                    self.walk(p, lo, hi, q, |d, i, k, _| {
                         // Without branches: whether a candidate wins is data, not a pattern.
                         let better = (d < best_d) | ((d == best_d) & (d < r2) & (i < best_i));
                         best_d = if better { d } else { best_d };
                         best_i = if better { i } else { best_i };
+                        best_k = if better { k } else { best_k };
                     });
                     if best_i != u32::MAX {
-                        block = Nearest { d: [best_d, 0.0, 0.0], i: [best_i, 0, 0], n: 1 };
+                        block = Nearest { d: [best_d, 0.0, 0.0], i: [best_i, 0, 0], k: [best_k, 0, 0], n: 1 };
                     }
                 }
                 (block, block)
@@ -428,30 +506,30 @@ impl Probe<'_> {
         }
         let m = self.params.magnitude;
         let center = self.grid.center();
+        let pos = &self.bins.pos;
         if plane && block.n == 3 {
-            let [i0, i1, i2] = block.i;
-            if let Some(n) =
-                plane_normal(center, self.a[i0 as usize], self.a[i1 as usize], self.a[i2 as usize])
-            {
+            let [k0, k1, k2] = block.k;
+            if let Some(n) = plane_normal(center, pos[k0 as usize], pos[k1 as usize], pos[k2 as usize]) {
                 let f_b = m * n;
                 let share = -f_b / 3.0;
-                for i in block.i {
-                    self.add(i, share);
+                for k in block.k {
+                    self.add(k, share);
                 }
                 return Some(f_b);
             }
         }
-        let partner = own.i[0];
-        let f_b = m * pairwise_direction(center, self.a[partner as usize], p);
+        let partner = own.k[0];
+        let f_b = m * pairwise_direction(center, pos[partner as usize], p);
         self.add(partner, -f_b);
         Some(f_b)
     }
 
-    fn add(&self, i: u32, f: Vec3) {
+    /// Adds `f` to the accumulator of the A vertex at bin position `k`.
+    fn add(&self, k: u32, f: Vec3) {
         for axis in 0..3 {
             let c = round_count(f[axis] * self.scale);
             if c != 0 {
-                self.fixed[3 * i as usize + axis].fetch_add(i64::from(c), Ordering::Relaxed);
+                self.fixed[3 * k as usize + axis].fetch_add(i64::from(c), Ordering::Relaxed);
             }
         }
     }

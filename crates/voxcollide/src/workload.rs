@@ -71,6 +71,44 @@ pub fn paper(n: usize, seed: u64) -> Result<Workload, Error> {
     Ok(w)
 }
 
+/// **shuffled(N)**: the bodies of [`lattice`] with each body's vertices in a seeded random
+/// order (a Fisher–Yates shuffle of A, then of B, from one [`SplitMix64`] stream seeded with
+/// `seed ^ SHUFFLE_SEED`), as a real mesh's vertices come. The grid is the same (built over
+/// the same A); a report is the lattice's, permuted.
+///
+/// # Errors
+/// As [`lattice`].
+pub fn shuffled(n: usize, seed: u64) -> Result<Workload, Error> {
+    let mut w = lattice(n, seed)?;
+    let mut rng = SplitMix64::new(seed ^ SHUFFLE_SEED);
+    for body in [&mut w.a, &mut w.b] {
+        for i in (1..body.len()).rev() {
+            body.swap(i, rng.below(i as u64 + 1) as usize);
+        }
+    }
+    Ok(w)
+}
+
+/// Mixed into the seed of [`shuffled`]'s order, so that it is not the jitter's stream.
+pub const SHUFFLE_SEED: u64 = 0x0bad_5eed_0f0d_e5e5;
+
+/// **z_fastest(N)**: the bodies of [`lattice`] listed z fastest, then y, then x (the lattice
+/// transposed: the order of a mesher that sweeps the other way).
+///
+/// # Errors
+/// As [`lattice`].
+pub fn z_fastest(n: usize, seed: u64) -> Result<Workload, Error> {
+    let mut w = lattice(n, seed)?;
+    let k = ((w.a.len() as f64).cbrt().round() as usize).max(1);
+    for body in [&mut w.a, &mut w.b] {
+        let xyz = std::mem::take(body);
+        body.extend((0..k).flat_map(|x| (0..k).flat_map(move |y| (0..k).map(move |z| (x, y, z)))).map(
+            |(x, y, z)| xyz[x + k * (y + k * z)],
+        ));
+    }
+    Ok(w)
+}
+
 /// The workloads' random numbers: SplitMix64 (Steele, Lea and Flood, 2014), a 64-bit state
 /// stepped by the golden-ratio increment and scrambled. Small and the same on every platform,
 /// so a workload is a pure function of its seed; it is not for anything that needs
@@ -127,5 +165,24 @@ mod tests {
         }
         assert_eq!(w.grid.voxel_size(), 1.0);
         assert_eq!(paper(1000, 7).unwrap().params.search, Search::Voxel);
+    }
+
+    #[test]
+    fn shuffled_and_z_fastest_hold_the_lattices_vertices_in_other_orders() {
+        let w = lattice(1000, 7).unwrap();
+        let key = |v: &Vec3| v.to_array().map(f32::to_bits);
+        let sorted = |mut v: Vec<Vec3>| {
+            v.sort_by_key(key);
+            v
+        };
+        for other in [shuffled(1000, 7).unwrap(), z_fastest(1000, 7).unwrap()] {
+            assert_ne!(other.a, w.a);
+            assert_eq!(sorted(other.a.clone()), sorted(w.a.clone()));
+            assert_eq!(sorted(other.b.clone()), sorted(w.b.clone()));
+            assert_eq!(other.grid, w.grid);
+        }
+        let z = z_fastest(1000, 7).unwrap();
+        assert_eq!((z.a[1], z.a[10]), (w.a[100], w.a[10]));
+        assert_eq!(shuffled(1000, 7).unwrap().a, shuffled(1000, 7).unwrap().a);
     }
 }

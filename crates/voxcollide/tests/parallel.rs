@@ -42,12 +42,37 @@ fn parallel_reports_equal_the_reference() {
 
 #[test]
 fn parallel_follows_the_reference_on_the_workloads() {
-    for w in [workload::lattice(30_000, 3).unwrap(), workload::paper(30_000, 4).unwrap()] {
+    let paper_shuffled = |n, seed| {
+        let mut w = workload::shuffled(n, seed).unwrap();
+        w.params.search = Search::Voxel;
+        w
+    };
+    let mut plane = workload::shuffled(30_000, 9).unwrap();
+    plane.params.direction = Direction::PlaneNormal;
+    for w in [
+        workload::lattice(30_000, 3).unwrap(),
+        workload::paper(30_000, 4).unwrap(),
+        workload::shuffled(30_000, 5).unwrap(),
+        workload::z_fastest(30_000, 6).unwrap(),
+        paper_shuffled(30_000, 7),
+        plane,
+    ] {
         let expected = CpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
         let actual = ParallelCpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
         assert!(expected == actual, "{:?}", w.params);
         assert!(expected.colliding_b.len() > 20_000);
     }
+    // A shuffled report is the lattice's, permuted: the same contacts and forces per vertex.
+    let (w, s) = (workload::lattice(30_000, 3).unwrap(), workload::shuffled(30_000, 3).unwrap());
+    let r = ParallelCpuCollision::new(w.grid, w.params).unwrap().step(&w.a, &w.b).unwrap();
+    let q = ParallelCpuCollision::new(s.grid, s.params).unwrap().step(&s.a, &s.b).unwrap();
+    assert_eq!(r.colliding_b.len(), q.colliding_b.len());
+    let key = |v: voxcollide::glam::Vec3| v.to_array().map(f32::to_bits);
+    let mut by_position: Vec<_> = w.b.iter().zip(&r.force_b).map(|(p, f)| (key(*p), key(*f))).collect();
+    let mut shuffled: Vec<_> = s.b.iter().zip(&q.force_b).map(|(p, f)| (key(*p), key(*f))).collect();
+    by_position.sort_unstable();
+    shuffled.sort_unstable();
+    assert!(by_position == shuffled);
 }
 
 #[test]
