@@ -1,4 +1,6 @@
-//! Every backend on DESIGN §7's lattice(N) and paper(N), with the k-d tree baseline (kiddo):
+//! Every backend on DESIGN §7's workloads — lattice(N), z_fastest(N), shuffled(N), paper(N)
+//! and paper_shuffled(N) — with each one's baseline (a k-d tree, kiddo, for the neighbour
+//! search; a hash map of A's voxels for the paper's rule):
 //! CPU reference (1 thread), parallel CPU (rayon's threads), GPU resident (positions already on
 //! the device, no upload, no readback: the embedded case) and GPU through `step()` (upload and
 //! readback included). Run: `cargo bench --bench collide`; the adapter is printed first.
@@ -9,10 +11,11 @@ use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use voxcollide::glam::Vec4;
-use voxcollide::workload::{DEFAULT_SEED, Workload, lattice, paper};
+use voxcollide::workload::DEFAULT_SEED;
 use voxcollide::{
     Collision, ContactReport, CpuCollision, GpuCollision, GpuContext, ParallelCpuCollision, wgpu,
 };
+use voxcollide_cli::bench::{WORKLOADS, voxel_hashmap};
 
 const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
 
@@ -28,9 +31,7 @@ fn bench(c: &mut Criterion) {
         }
     };
     eprintln!("threads: {}", rayon::current_num_threads());
-    for (name, make) in
-        [("lattice", lattice as fn(usize, u64) -> Result<Workload, voxcollide::Error>), ("paper", paper)]
-    {
+    for (name, make) in WORKLOADS {
         let mut group = c.benchmark_group(name);
         group.sample_size(10).warm_up_time(Duration::from_secs(1)).measurement_time(Duration::from_secs(5));
         for n in SIZES {
@@ -39,14 +40,20 @@ fn bench(c: &mut Criterion) {
 
             let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
             let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
-            group.bench_function(BenchmarkId::new("kdtree_kiddo", n), |bench| {
-                bench.iter(|| {
-                    let tree = kiddo::ImmutableKdTree::<f32, 3>::new_from_slice(&a).expect("tree");
-                    let nearest =
-                        tree.query_batch(&b).nearest_one::<kiddo::SquaredEuclidean<f32>>().execute();
-                    black_box(nearest.iter().filter(|r| r.distance < 0.81).count())
+            if w.params.search == voxcollide::Search::Voxel {
+                group.bench_function(BenchmarkId::new("voxel_hashmap", n), |bench| {
+                    bench.iter(|| black_box(voxel_hashmap(&w)));
                 });
-            });
+            } else {
+                group.bench_function(BenchmarkId::new("kdtree_kiddo", n), |bench| {
+                    bench.iter(|| {
+                        let tree = kiddo::ImmutableKdTree::<f32, 3>::new_from_slice(&a).expect("tree");
+                        let nearest =
+                            tree.query_batch(&b).nearest_one::<kiddo::SquaredEuclidean<f32>>().execute();
+                        black_box(nearest.iter().filter(|r| r.distance < 0.81).count())
+                    });
+                });
+            }
 
             let mut par = ParallelCpuCollision::new(w.grid, w.params).expect("params");
             let mut report = ContactReport::default();

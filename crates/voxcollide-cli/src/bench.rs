@@ -170,11 +170,12 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                 // The same answer as the workload: nearest A within the radius.
                 Search::Neighbours { radius } => {
                     let (ms, colliding) = time(config.samples, || {
-                        let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
-                            what: "k-d tree",
-                            value: format!("{e:?}"),
-                            rule: "kiddo could not build it".into(),
-                        })?;
+                        let tree =
+                            ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
+                                what: "k-d tree",
+                                value: format!("{e:?}"),
+                                rule: "kiddo could not build it".into(),
+                            })?;
                         let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
                         Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
                     })?;
@@ -275,8 +276,11 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     Ok(rows)
 }
 
+/// A workload's constructor: `(vertices per body, seed)`.
+pub type MakeWorkload = fn(usize, u64) -> Result<Workload, Error>;
+
 /// The workloads, by name: DESIGN §7's in three orders, and the paper's rule in two.
-pub const WORKLOADS: [(&str, fn(usize, u64) -> Result<Workload, Error>); 5] = [
+pub const WORKLOADS: [(&str, MakeWorkload); 5] = [
     ("lattice", lattice),
     ("z_fastest", z_fastest),
     ("shuffled", shuffled),
@@ -294,7 +298,8 @@ fn paper_shuffled(n: usize, seed: u64) -> Result<Workload, Error> {
 /// The paper workloads' baseline: a hash map from voxel to A's vertices, built over A, then per
 /// B vertex (in parallel) the nearest A vertex of its own voxel, ties to the lower index — what
 /// `Search::Voxel` asks. Returns the B vertices that found one.
-fn voxel_hashmap(w: &Workload) -> usize {
+#[must_use]
+pub fn voxel_hashmap(w: &Workload) -> usize {
     use rayon::prelude::*;
     use std::collections::HashMap;
     let grid = &w.grid;

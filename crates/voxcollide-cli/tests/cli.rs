@@ -173,7 +173,11 @@ fn bench_times_every_gpu_pass_when_asked() {
         .unwrap();
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
-    assert_eq!(stdout.matches("passes, ms: bounds").count(), voxcollide_cli::bench::WORKLOADS.len(), "{stdout}");
+    assert_eq!(
+        stdout.matches("passes, ms: bounds").count(),
+        voxcollide_cli::bench::WORKLOADS.len(),
+        "{stdout}"
+    );
     let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     for row in rows.as_array().unwrap() {
         let passes = row.get("passes");

@@ -4,7 +4,7 @@
 use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use voxcollide::workload::{DEFAULT_SEED, Workload, lattice, paper};
+use voxcollide::workload::{DEFAULT_SEED, Workload, lattice, paper, shuffled, z_fastest};
 use voxcollide::{Collision, CpuCollision};
 
 fn bench_workload(
@@ -27,6 +27,8 @@ fn bench_workload(
 
 fn benches(c: &mut Criterion) {
     bench_workload(c, "lattice", lattice);
+    bench_workload(c, "z_fastest", z_fastest);
+    bench_workload(c, "shuffled", shuffled);
     bench_workload(c, "paper", paper);
 }
 

@@ -215,21 +215,30 @@ impl ParallelCpuCollision {
         self.fixed.resize_with(3 * binned as usize, || AtomicI64::new(0));
 
         let m = self.params.magnitude;
-        let probe = Probe { grid: &grid, params: &self.params, bins: &self.bins, fixed: &self.fixed, scale: 65536.0 / m };
+        let probe = Probe {
+            grid: &grid,
+            params: &self.params,
+            bins: &self.bins,
+            fixed: &self.fixed,
+            scale: 65536.0 / m,
+        };
         // Probe in A's slot order, B's vertices sorted so; the forces go back to B's order after.
         let order = &mut self.order;
         let size = chunk(b.len());
         order.force.resize(b.len(), Vec3::ZERO);
         order.hit.resize(b.len(), false);
-        order.force.par_chunks_mut(size).zip(order.hit.par_chunks_mut(size)).zip(order.pos.par_chunks(size)).for_each(
-            |((forces, hits), pos)| {
+        order
+            .force
+            .par_chunks_mut(size)
+            .zip(order.hit.par_chunks_mut(size))
+            .zip(order.pos.par_chunks(size))
+            .for_each(|((forces, hits), pos)| {
                 for ((f, hit), p) in forces.iter_mut().zip(hits.iter_mut()).zip(pos) {
                     let force = probe.probe(*p);
                     *hit = force.is_some();
                     *f = force.unwrap_or(Vec3::ZERO);
                 }
-            },
-        );
+            });
         report.force_b.resize(b.len(), Vec3::ZERO);
         let (force, k_of) = (&order.force, &order.k_of);
         report.force_b.par_chunks_mut(size).enumerate().for_each(|(c, out)| {

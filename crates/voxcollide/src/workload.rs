@@ -102,9 +102,11 @@ pub fn z_fastest(n: usize, seed: u64) -> Result<Workload, Error> {
     let k = ((w.a.len() as f64).cbrt().round() as usize).max(1);
     for body in [&mut w.a, &mut w.b] {
         let xyz = std::mem::take(body);
-        body.extend((0..k).flat_map(|x| (0..k).flat_map(move |y| (0..k).map(move |z| (x, y, z)))).map(
-            |(x, y, z)| xyz[x + k * (y + k * z)],
-        ));
+        body.extend(
+            (0..k)
+                .flat_map(|x| (0..k).flat_map(move |y| (0..k).map(move |z| (x, y, z))))
+                .map(|(x, y, z)| xyz[x + k * (y + k * z)]),
+        );
     }
     Ok(w)
 }
