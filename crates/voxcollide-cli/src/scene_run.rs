@@ -396,9 +396,8 @@ pub fn settling_window(world: &World, dt: f32) -> u64 {
         .iter()
         .filter(|b| b.mode.contains(&voxcollide_sim::Mode::Free) && !b.springs.is_empty())
         .map(|b| {
-            let n = b.springs.len() as f64;
-            let h = b.springs.iter().map(|s| f64::from(s.rest)).sum::<f64>() / n;
-            let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / n;
+            let h = f64::from(mean_spring(b));
+            let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / b.springs.len() as f64;
             let m = b.inv_mass.iter().map(|w| 1.0 / f64::from(*w)).sum::<f64>() / b.len() as f64;
             let (lo, hi) = b.rest_pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
             2.0 * f64::from((hi - lo).max_element()) / (h * (k / m).sqrt())

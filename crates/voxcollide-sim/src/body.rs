@@ -324,14 +324,7 @@ impl MassSpring {
     /// triangles), in cubic length units, summed in `f64`.
     #[must_use]
     pub fn enclosed_volume(&self) -> f64 {
-        self.surface
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|v| self.pos[v as usize].as_dvec3());
-                a.dot(b.cross(c)) / 6.0
-            })
-            .sum()
+        self.surface.volume(&self.pos)
     }
 
     /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`.

@@ -195,15 +195,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                 };
                 let (positions, mesh) = implant_surface(shape, f64::from(edge / scale))?;
                 let made = Surface { positions, mesh };
-                let volume: f64 = made
-                    .mesh
-                    .triangles
-                    .iter()
-                    .map(|t| {
-                        let [a, b, c] = t.map(|v| made.positions[v as usize].as_dvec3());
-                        a.dot(b.cross(c)) / 6.0
-                    })
-                    .sum();
+                let volume = made.mesh.volume(&made.positions);
                 remark = Some(format!(
                     "a {} implant of {volume_ml} mL, base {base_mm} mm, projection {projection_mm} mm (profile exponent {:.3}): its {} triangles enclose {:.1} mL",
                     if shape.anatomical { "anatomical" } else { "round" },
@@ -475,15 +467,7 @@ impl BodySchedule {
 /// vertex area `a = A / N` and volume `V`, stays at half the stiffness `k` of its springs, so
 /// that the springs' stability bound still holds: `bulk = k V N / (2 A²)`.
 fn fill_bulk(shell: &MassSpring, k: f32) -> f32 {
-    let area: f64 = shell
-        .surface
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|v| shell.pos[v as usize].as_dvec3());
-            0.5 * (b - a).cross(c - a).length()
-        })
-        .sum();
+    let area = shell.surface.area(&shell.pos);
     (0.5 * f64::from(k) * shell.enclosed_volume() * shell.len() as f64 / (area * area)) as f32
 }
 
@@ -507,6 +491,29 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         bodies.push(body);
         notes.push(note);
         stiffness.push(kspring);
+    }
+    // Per shell filled to a volume: the volume it encloses at first and its target, in cubic
+    // file units (the voxel model's margin and the schedule both follow from them).
+    let mut fills: Vec<Option<(f64, f64)>> = Vec::with_capacity(file.bodies.len());
+    for (k, b) in file.bodies.iter().enumerate() {
+        let Some(ml) = b.inflate.and_then(|i| i.volume_ml) else {
+            fills.push(None);
+            continue;
+        };
+        let start = bodies[k].enclosed_volume();
+        let target = ml * 1e-6 / s.powi(3);
+        if !(start > 0.0 && target > 0.0) {
+            return Err(scene_error(
+                file,
+                k,
+                "inflate.volume_ml",
+                format!(
+                    "the shell encloses {start:.4e} cubic {}; inflating to a volume needs a closed, outward shell and a positive volume",
+                    file.units.symbol()
+                ),
+            ));
+        }
+        fills.push(Some((start, target)));
     }
     let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
     let mut contacts = Vec::with_capacity(file.contacts.len());
@@ -539,18 +546,11 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
         // grid keeps its dims as it follows A; what leaves it is discarded).
         let a = &bodies[c.a].pos;
-        let growth = match file.bodies[c.a].inflate {
-            None => 0.0,
-            Some(i) => match i.volume_ml {
-                // To a volume: its linear growth, and a fifth of its size more.
-                Some(ml) => {
-                    ((ml * 1e-6 / s.powi(3)) / bodies[c.a].enclosed_volume().max(f64::MIN_POSITIVE))
-                        .cbrt()
-                        .clamp(1.0, 10.0) as f32
-                        - 0.8
-                }
-                None => 0.6,
-            },
+        let growth = match (file.bodies[c.a].inflate, fills[c.a]) {
+            (None, _) => 0.0,
+            // To a volume: its linear growth, and a fifth of its size more.
+            (Some(_), Some((start, target))) => (target / start).cbrt().clamp(1.0, 10.0) as f32 - 0.8,
+            (Some(_), None) => 0.6,
         };
         let margin = if growth > 0.0 {
             let (lo, hi) = a.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
@@ -605,20 +605,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         if let Some(i) = b.inflate {
             (ramp, ease) = (i.ramp, i.ease);
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
-            if let Some(ml) = i.volume_ml {
-                let start = bodies[k].enclosed_volume();
-                let target = ml * 1e-6 / s.powi(3);
-                if !(start > 0.0 && target > 0.0) {
-                    return Err(scene_error(
-                        file,
-                        k,
-                        "inflate.volume_ml",
-                        format!(
-                            "the shell encloses {start:.4e} cubic {}; inflating to a volume needs a closed, outward shell and a positive volume",
-                            file.units.symbol()
-                        ),
-                    ));
-                }
+            if let Some((start, target)) = fills[k] {
                 growth = Some(target / start);
                 fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k])));
             }

@@ -8,3 +8,22 @@ pub struct TriangleMesh {
     /// The triangles, as indices into the body's positions.
     pub triangles: Vec<[u32; 3]>,
 }
+
+impl TriangleMesh {
+    /// The volume the triangles enclose over `positions`, summed in `f64` (positive when they
+    /// face outward).
+    #[must_use]
+    pub fn volume(&self, positions: &[glam::Vec3]) -> f64 {
+        self.corners(positions).map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
+    }
+
+    /// The triangles' total area over `positions`, summed in `f64`.
+    #[must_use]
+    pub fn area(&self, positions: &[glam::Vec3]) -> f64 {
+        self.corners(positions).map(|[a, b, c]| 0.5 * (b - a).cross(c - a).length()).sum()
+    }
+
+    fn corners<'a>(&'a self, positions: &'a [glam::Vec3]) -> impl Iterator<Item = [glam::DVec3; 3]> + 'a {
+        self.triangles.iter().map(|t| t.map(|v| positions[v as usize].as_dvec3()))
+    }
+}

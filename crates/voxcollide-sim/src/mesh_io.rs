@@ -276,12 +276,7 @@ pub fn check_closed(surface: &mut Surface) -> Result<SurfaceReport, String> {
             "is not consistently oriented: {flipped_edges} edge(s) run the same way in both of their triangles (e.g. vertices {a}–{b})"
         ));
     }
-    let (mut volume, mut area) = (0.0f64, 0.0f64);
-    for t in tris {
-        let [a, b, c]: [DVec3; 3] = t.map(|i| p[i as usize].as_dvec3());
-        volume += a.dot(b.cross(c)) / 6.0;
-        area += (b - a).cross(c - a).length() / 2.0;
-    }
+    let (mut volume, area) = (surface.mesh.volume(p), surface.mesh.area(p));
     let flipped = volume < 0.0;
     if flipped {
         for t in &mut surface.mesh.triangles {

@@ -145,10 +145,9 @@ struct Bins {
 struct Order {
     /// Per B vertex: its slot (`u32::MAX`: outside the grid or not finite).
     slot_of: Vec<u32>,
-    /// B's indices in slot order (those outside the grid last), and their positions.
-    index: Vec<u32>,
+    /// B's positions in slot order (those outside the grid last).
     pos: Vec<Vec3>,
-    /// Per B vertex: where it sits in `index`.
+    /// Per B vertex: where it sits in `pos`.
     k_of: Vec<u32>,
     /// Per sorted B vertex: its force and whether it collides.
     force: Vec<Vec3>,
@@ -372,14 +371,12 @@ impl ParallelCpuCollision {
         for k in 0..=slots {
             order.start[k + 1] += order.start[k];
         }
-        order.index.resize(b.len(), 0);
         order.pos.resize(b.len(), Vec3::ZERO);
         order.k_of.resize(b.len(), 0);
         for (j, &s) in order.slot_of.iter().enumerate() {
             let s = if s == u32::MAX { slots } else { s as usize };
             let k = order.start[s] as usize;
             order.start[s] += 1;
-            order.index[k] = j as u32;
             order.pos[k] = b[j];
             order.k_of[j] = k as u32;
         }
