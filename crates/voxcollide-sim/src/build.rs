@@ -67,16 +67,6 @@ fn spring_k(young_kpa: f64, h: f64, s: f64) -> f32 {
     (0.4 * young_kpa * 1e3 * s * h) as f32
 }
 
-fn scene_error(file: &SceneFile, k: usize, what: &str, message: impl Into<String>) -> Error {
-    Error::SceneFile {
-        file: file.path.display().to_string(),
-        line: 0,
-        column: 0,
-        key: format!("body[{k}].{what}"),
-        message: message.into(),
-    }
-}
-
 /// The rotation of `degrees` about x, then y, then z.
 fn rotation(degrees: [f64; 3]) -> Mat3 {
     let [x, y, z] = degrees.map(|d| (d as f32).to_radians());
@@ -503,13 +493,24 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         let start = bodies[k].enclosed_volume();
         let target = ml * 1e-6 / s.powi(3);
         if !(start > 0.0 && target > 0.0) {
-            return Err(scene_error(
-                file,
-                k,
+            return Err(file.body_error(k,
                 "inflate.volume_ml",
                 format!(
                     "the shell encloses {start:.4e} cubic {}; inflating to a volume needs a closed, outward shell and a positive volume",
                     file.units.symbol()
+                ),
+            ));
+        }
+        // The rest shape grows by the cube root of the ratio: beyond a thousandfold (ten times
+        // the size) the springs and the voxel model's margin cannot follow.
+        let ratio = target / start;
+        if !(1e-3..=1e3).contains(&ratio) {
+            let ml_of = |v: f64| v * s.powi(3) * 1e6;
+            return Err(file.body_error(k,
+                "inflate.volume_ml",
+                format!(
+                    "{ml} mL is {ratio:.3e} times the {:.4} mL the shell encloses; a shell filled to a volume can change it at most a thousandfold either way",
+                    ml_of(start)
                 ),
             ));
         }

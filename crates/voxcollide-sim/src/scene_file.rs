@@ -544,6 +544,8 @@ pub struct SceneFile {
     pub contacts: Vec<ContactSpec>,
     /// The output.
     pub output: Output,
+    /// The file's text, to point errors found after parsing at their line.
+    text: String,
 }
 
 /// 1-based line and column of byte `offset` in `text`.
@@ -970,7 +972,39 @@ impl SceneFile {
             bodies,
             contacts,
             output: raw.output,
+            text: text.to_string(),
         })
+    }
+
+    /// An [`Error::SceneFile`] about `key` (a key of the `k`-th `[[body]]`, or a path below one
+    /// such as `inflate.volume_ml`) found after parsing, when the world is built: at the line
+    /// and column where the body writes that key (its first part), or where the body's table
+    /// starts when it does not.
+    #[must_use]
+    pub fn body_error(&self, k: usize, key: &str, message: impl Into<String>) -> Error {
+        let top = key.split('.').next().unwrap_or(key);
+        let offset = nth_table(&self.text, "body", k).map_or(0, |start| {
+            let mut offset = start;
+            for line in self.text[start..].split_inclusive('\n') {
+                let t = line.trim_start();
+                if t.starts_with('[') && offset > start {
+                    break;
+                }
+                if t.split_once('=').is_some_and(|(name, _)| name.trim() == top) {
+                    return offset + (line.len() - t.len());
+                }
+                offset += line.len();
+            }
+            start
+        });
+        let (line, column) = line_column(&self.text, offset);
+        Error::SceneFile {
+            file: self.path.display().to_string(),
+            line,
+            column,
+            key: format!("body[{k}].{key}"),
+            message: message.into(),
+        }
     }
 
     /// Metres per file unit.

@@ -215,6 +215,21 @@ fn a_shell_inflates_to_its_target_volume() {
 }
 
 #[test]
+fn a_fill_beyond_a_thousandfold_is_refused_by_its_key() {
+    // A 20 mm sphere (32.9 mL as its polygon) cannot be filled to 1e40 mL, nor emptied to a
+    // millionth: a set-up error naming the key, before any step.
+    for ml in ["1e40", "1e-5"] {
+        let text = format!(
+            "[[body]]\nname = \"balloon\"\nkind = \"shell\"\nshape = {{ sphere = 20 }}\nspacing = 3\ninflate = {{ volume_ml = {ml} }}\n"
+        );
+        let err = build_world(&SceneFile::parse("balloon.toml", &text).unwrap()).unwrap_err();
+        let Error::SceneFile { line, column, key, message, .. } = &err else { panic!("{err}") };
+        assert_eq!((*line, *column, key.as_str()), (6, 1, "body[0].inflate.volume_ml"), "{err}");
+        assert!(message.contains("thousandfold"), "{err}");
+    }
+}
+
+#[test]
 fn a_block_has_the_young_modulus_the_file_gives() {
     // A 20 mm cube of E = 3 kPa at spacing 2 mm, stretched uniformly by 0.5 % along z (and
     // shrunk by a quarter of that across, the lattice's own Poisson ratio): the stress its
