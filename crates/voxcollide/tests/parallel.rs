@@ -91,3 +91,34 @@ fn parallel_errors_match_the_reference() {
     let bad = ContactParams { magnitude: -1.0, ..params };
     assert!(matches!(ParallelCpuCollision::new(grid, bad).unwrap_err(), Error::Magnitude { .. }));
 }
+
+#[test]
+fn parallel_reports_do_not_depend_on_the_thread_count() {
+    // Long runs of sorted B own most of A's accumulators and add to them without atomics
+    // (`own_bins`); the runs' boundaries move with the thread count, so every count must give
+    // the reference's report, in x-fastest and shuffled order, for every search and direction.
+    for (w, order) in [
+        (workload::lattice(150_000, 11).unwrap(), "lattice"),
+        (workload::shuffled(150_000, 12).unwrap(), "shuffled"),
+    ] {
+        for (search, direction) in [
+            (w.params.search, Direction::Pairwise),
+            (w.params.search, Direction::PlaneNormal),
+            (Search::Voxel, Direction::Pairwise),
+            (Search::Voxel, Direction::PlaneNormal),
+        ] {
+            let params = ContactParams { search, direction, ..w.params };
+            let expected = CpuCollision::new(w.grid, params).unwrap().step(&w.a, &w.b).unwrap();
+            assert!(expected.colliding_b.len() > 100_000);
+            for threads in [1, 2, 3, 7] {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+                let mut backend = ParallelCpuCollision::new(w.grid, params).unwrap();
+                let actual = pool.install(|| {
+                    backend.step(&w.a, &w.b).unwrap();
+                    backend.step(&w.a, &w.b).unwrap()
+                });
+                assert!(expected == actual, "{order} {params:?} on {threads} threads");
+            }
+        }
+    }
+}

@@ -1,0 +1,637 @@
+//! `ParallelCpuCollision`: a multi-threaded CPU backend (rayon) for machines without an adapter,
+//! giving the same reports as the reference.
+//!
+//! What makes it fast, and why it stays exact:
+//! - Both bodies are sorted by the voxel table's slot (a parallel counting sort, [`sort`]):
+//!   A's positions are copied into slot order, so a walk reads contiguous memory, and B is
+//!   probed in the same order, so neighbouring probes read neighbouring bins. The caller's
+//!   vertex order is touched only when a body is read in and its forces written out, which makes
+//!   the speed the same for any order.
+//! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
+//!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
+//!   radius cannot reach are skipped (only when their nearest face is farther than the radius
+//!   plus a rounding margin, so no candidate is lost).
+//! - Forces on A are summed in fixed point with atomic 64-bit integers: integer sums do not
+//!   depend on their order, so the totals equal the reference's exactly.
+
+mod sort;
+
+use std::sync::atomic::{AtomicI64, Ordering};
+
+use glam::{UVec3, Vec3};
+use rayon::prelude::*;
+
+use crate::collision::Collision;
+use crate::cpu::{check_body, step_grid};
+use crate::eliminate::{pairwise_direction, plane_normal};
+use crate::error::{Body, Error};
+use crate::grid::VoxelGrid;
+use crate::math::dist2;
+use crate::params::{ContactParams, Direction, Search};
+use crate::report::ContactReport;
+use crate::voxel_data::{dense_slots, hashed_slots, voxel_hash};
+use sort::{Scatter, SortedBody, chunk};
+
+/// The three nearest candidates in `(d2, index)` order.
+/// `i`: the A vertex's index (the tie-break of the reference's order); `k`: where it sits in
+/// the bins (where its position and its force accumulator are).
+#[derive(Clone, Copy, Debug)]
+struct Nearest {
+    d: [f32; 3],
+    i: [u32; 3],
+    k: [u32; 3],
+    n: usize,
+}
+
+impl Nearest {
+    const EMPTY: Nearest = Nearest { d: [0.0; 3], i: [0; 3], k: [0; 3], n: 0 };
+
+    #[inline]
+    fn insert(&mut self, d: f32, i: u32, slot_k: u32) {
+        let before = |k: usize| self.d[k] < d || (self.d[k] == d && self.i[k] < i);
+        let mut k = 0;
+        while k < self.n && before(k) {
+            k += 1;
+        }
+        if k == 3 {
+            return;
+        }
+        let mut j = self.n.min(2);
+        while j > k {
+            self.d[j] = self.d[j - 1];
+            self.i[j] = self.i[j - 1];
+            self.k[j] = self.k[j - 1];
+            j -= 1;
+        }
+        self.d[k] = d;
+        self.i[k] = i;
+        self.k[k] = slot_k;
+        self.n = (self.n + 1).min(3);
+    }
+}
+
+/// `x.floor()`, inline: without SSE4.1 (the x86-64 baseline) `floor` is a libm call, which
+/// was 3 % of a lattice(1M) step. Equal to `floor` for every finite `x` (up to the sign of a
+/// zero result, which no caller can see: it only becomes a voxel index).
+#[inline]
+fn floor(x: f32) -> f32 {
+    if x.abs() < 8_388_608.0 {
+        let t = x as i32 as f32;
+        if t > x { t - 1.0 } else { t }
+    } else {
+        x // already an integer (or not finite)
+    }
+}
+
+/// `x.round_ties_even() as i32` for the fixed-point counts, inline (likewise a libm call
+/// otherwise): adding and subtracting 1.5 · 2^23 rounds to the nearest even integer in the
+/// default rounding mode, exactly, for |x| < 2^22 — counts are at most about 2^16.
+#[inline]
+fn round_count(x: f32) -> i32 {
+    const MAGIC: f32 = 12_582_912.0;
+    if x.abs() < 4_194_304.0 { ((x + MAGIC) - MAGIC) as i32 } else { x.round_ties_even() as i32 }
+}
+
+/// `grid.voxel_of(p)` with the inline [`floor`]: the same voxel or `None` for every `p`.
+#[inline]
+fn voxel_of(grid: &VoxelGrid, p: Vec3) -> Option<UVec3> {
+    if !p.is_finite() {
+        return None;
+    }
+    let (o, inv, d) = (grid.origin(), grid.inv_voxel_size(), grid.dims());
+    let axis = |p: f32, o: f32, dim: u32| {
+        let q = floor((p - o) * inv);
+        (q >= 0.0 && q < dim as f32).then_some(q as u32)
+    };
+    Some(UVec3::new(axis(p.x, o.x, d.x)?, axis(p.y, o.y, d.y)?, axis(p.z, o.z, d.z)?))
+}
+
+/// The slot of voxel `v`: its linear index in a dense table, else its hash.
+#[inline]
+fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
+    match dense {
+        Some([dx, dy]) => v.x + dx * (v.y + dy * v.z),
+        None => voxel_hash(v) & mask,
+    }
+}
+
+/// A's voxel table: its slots, and A sorted by them.
+#[derive(Debug, Default)]
+struct Bins {
+    /// `Some([dx, dy])`: one slot per voxel, at `x + dx * (y + dy * z)`.
+    dense: Option<[u32; 2]>,
+    mask: u32,
+    /// A in slot order.
+    a: SortedBody,
+    /// Hashed tables only: the voxel of each sorted A vertex (a walk keeps the row's own).
+    voxel: Vec<UVec3>,
+}
+
+/// A force in sorted-B order, and whether the vertex collides (`w` = 1).
+type Hit = [f32; 4];
+/// The multi-threaded CPU backend. Reports equal [`CpuCollision`](crate::CpuCollision)'s.
+///
+/// Runs on rayon's global thread pool (one thread per core unless `RAYON_NUM_THREADS` says
+/// otherwise).
+#[derive(Debug)]
+pub struct ParallelCpuCollision {
+    grid: VoxelGrid,
+    params: ContactParams,
+    bins: Bins,
+    /// B in the order of A's slots.
+    b: SortedBody,
+    /// Per sorted B vertex: its force and whether it collides.
+    hits: Vec<Hit>,
+    /// Per B vertex, in the caller's order: whether it collides.
+    hit_b: Vec<bool>,
+    /// Fixed-point force accumulators of A, three per binned vertex in bin order.
+    fixed: Vec<AtomicI64>,
+    /// With profiling on, the last step's phases in milliseconds (see [`PHASES`]).
+    phases: Option<[f64; PHASES.len()]>,
+}
+
+/// The phases of a parallel step, as [`ParallelCpuCollision::phase_times`] names them: A
+/// sorted by slot, B sorted by A's slots, the probe, B's forces back in the caller's order, A's
+/// forces likewise, and the list of colliding B vertices.
+pub const PHASES: [&str; 6] = ["sort_a", "sort_b", "probe", "forces_b", "forces_a", "colliding"];
+
+impl ParallelCpuCollision {
+    /// A parallel backend for the pair of bodies that `grid` was built for.
+    ///
+    /// # Errors
+    /// [`Error::Magnitude`] or [`Error::Radius`] when `params` are invalid for `grid`.
+    pub fn new(grid: VoxelGrid, params: ContactParams) -> Result<ParallelCpuCollision, Error> {
+        params.validate(&grid)?;
+        Ok(ParallelCpuCollision {
+            grid,
+            params,
+            bins: Bins::default(),
+            b: SortedBody::default(),
+            hits: Vec::new(),
+            hit_b: Vec::new(),
+            fixed: Vec::new(),
+            phases: None,
+        })
+    }
+
+    /// The grid as built.
+    #[must_use]
+    pub fn grid(&self) -> &VoxelGrid {
+        &self.grid
+    }
+
+    /// The contact parameters.
+    #[must_use]
+    pub fn params(&self) -> &ContactParams {
+        &self.params
+    }
+
+    /// Times each phase of the following steps (a clock read between phases), or stops.
+    pub fn set_profiling(&mut self, on: bool) {
+        self.phases = on.then_some([0.0; PHASES.len()]);
+    }
+
+    /// The last step's phases in milliseconds, in [`PHASES`] order; `None` with profiling off.
+    #[must_use]
+    pub fn phase_times(&self) -> Option<[(&'static str, f64); PHASES.len()]> {
+        self.phases.map(|t| std::array::from_fn(|k| (PHASES[k], t[k])))
+    }
+
+    /// One step into `report`, reusing its vectors: once they have reached the bodies' sizes a
+    /// step allocates nothing.
+    ///
+    /// # Errors
+    /// As [`Collision::step`].
+    ///
+    /// A step called from outside rayon's pool runs as one job on the pool, so that its dozen
+    /// parallel phases are handed out through the workers' own queues: from outside, each would
+    /// cross to the pool through its global queue (a wake-up each, and a queue block
+    /// allocated every 63 hand-offs).
+    pub fn step_into(&mut self, a: &[Vec3], b: &[Vec3], report: &mut ContactReport) -> Result<(), Error> {
+        check_body(Body::A, a)?;
+        check_body(Body::B, b)?;
+        if rayon::current_thread_index().is_some() {
+            self.step_in_pool(a, b, report)
+        } else {
+            rayon::scope(|_| self.step_in_pool(a, b, report))
+        }
+    }
+
+    /// [`step_into`](Self::step_into) on a thread of the pool.
+    fn step_in_pool(&mut self, a: &[Vec3], b: &[Vec3], report: &mut ContactReport) -> Result<(), Error> {
+        let mut clock = self.phases.map(|_| (std::time::Instant::now(), 0));
+        let mut lap = |phases: &mut Option<[f64; PHASES.len()]>| {
+            if let (Some(t), Some((last, k))) = (phases.as_mut(), clock.as_mut()) {
+                let now = std::time::Instant::now();
+                t[*k] = (now - *last).as_secs_f64() * 1e3;
+                (*last, *k) = (now, *k + 1);
+            }
+        };
+        let grid = step_grid(&self.grid, self.params.anchor, a)?;
+        let binned = self.bin(&grid, a);
+        lap(&mut self.phases);
+        let (dense, mask) = (self.bins.dense, self.bins.mask);
+        let slots = self.bins.a.start.len() - 1;
+        self.b.sort(b, slots, |p| voxel_of(&grid, p).map(|q| slot(dense, mask, q)));
+        lap(&mut self.phases);
+        // The accumulators are left at zero by the previous step's resolve.
+        self.fixed.truncate(3 * binned as usize);
+        self.fixed.resize_with(3 * binned as usize, || AtomicI64::new(0));
+
+        let m = self.params.magnitude;
+        let probe = Probe {
+            grid: &grid,
+            params: &self.params,
+            bins: &self.bins,
+            fixed: &self.fixed,
+            scale: 65536.0 / m,
+        };
+        // Probe in A's slot order; the forces go back to B's order after.
+        let sorted = self.b.rec.len();
+        self.hits.resize(sorted, [0.0; 4]);
+        // Long runs, so that most of A's accumulators are one run's alone (`own_bins`): a
+        // quarter of a thread's share each.
+        let size = (sorted / (4 * rayon::current_num_threads())).max(1024);
+        let voxel = self.params.search == Search::Voxel;
+        let plane = self.params.direction == Direction::PlaneNormal;
+        self.hits.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).for_each(|(hits, recs)| {
+            match (voxel, plane) {
+                (false, false) => probe.run::<false, false>(recs, hits),
+                (false, true) => probe.run::<false, true>(recs, hits),
+                (true, false) => probe.run::<true, false>(recs, hits),
+                (true, true) => probe.run::<true, true>(recs, hits),
+            }
+        });
+        lap(&mut self.phases);
+        report.force_b.resize(b.len(), Vec3::ZERO);
+        self.hit_b.resize(b.len(), false);
+        let size = chunk(b.len());
+        let (hits, k_of) = (&self.hits, &self.b.k_of);
+        report
+            .force_b
+            .par_chunks_mut(size)
+            .zip(self.hit_b.par_chunks_mut(size))
+            .zip(k_of.par_chunks(size))
+            .for_each(|((force, hit), k_of)| {
+                for ((f, h), &k) in force.iter_mut().zip(hit.iter_mut()).zip(k_of) {
+                    let [x, y, z, w] = if k == u32::MAX { [0.0; 4] } else { hits[k as usize] };
+                    *f = Vec3::new(x, y, z);
+                    *h = w != 0.0;
+                }
+            });
+
+        lap(&mut self.phases);
+        // Back to f32, each accumulator back to zero for the next step: read in bin order (in
+        // memory order), written to A's order (one write a vertex, wherever it is); the first
+        // overflow in (vertex, axis) order is the error, as on the CPU.
+        let unit = m / 65536.0;
+        report.force_a.resize(a.len(), Vec3::ZERO);
+        let size = chunk(a.len());
+        report.force_a.par_chunks_mut(size).zip(self.bins.a.k_of.par_chunks(size)).for_each(
+            |(forces, k_of)| {
+                for (f, &k) in forces.iter_mut().zip(k_of) {
+                    if k == u32::MAX {
+                        *f = Vec3::ZERO;
+                    }
+                }
+            },
+        );
+        let out = Scatter::new(&mut report.force_a);
+        let size = chunk(binned as usize);
+        let overflow = self
+            .fixed
+            .par_chunks_mut(3 * size)
+            .zip(self.bins.a.rec.par_chunks(size))
+            .filter_map(|(fixed, recs)| {
+                let mut first: Option<(usize, i64)> = None;
+                for (acc, r) in fixed.chunks_exact_mut(3).zip(recs) {
+                    let mut f = [0.0f32; 3];
+                    for (axis, (o, acc)) in f.iter_mut().zip(acc).enumerate() {
+                        let count = std::mem::replace(acc.get_mut(), 0);
+                        match i32::try_from(count) {
+                            Ok(c) => *o = c as f32 * unit,
+                            Err(_) => {
+                                let at = 3 * r.i as usize + axis;
+                                first = Some(
+                                    first.map_or((at, count), |e| if e.0 < at { e } else { (at, count) }),
+                                );
+                            }
+                        }
+                    }
+                    // SAFETY: the sorted records hold each binned vertex once, so no two
+                    // writes share an index.
+                    unsafe { out.write(r.i as usize, Vec3::from_array(f)) };
+                }
+                first
+            })
+            .min_by_key(|(k, _)| *k);
+        lap(&mut self.phases);
+        if let Some((k, count)) = overflow {
+            return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
+        }
+        report.colliding_b.clear();
+        report.colliding_b.extend(self.hit_b.iter().enumerate().filter(|(_, h)| **h).map(|(j, _)| j as u32));
+        lap(&mut self.phases);
+        report.binned_a = binned;
+        report.discarded_a = a.len() as u32 - binned;
+        report.grid_center = grid.center();
+        Ok(())
+    }
+
+    /// Sorts A by the slots of a table for `grid`: one slot per voxel while the grid has at
+    /// most four voxels a vertex (no aliasing, and a row is one run of A's vertices in spatial
+    /// order), else four hash slots a vertex, which keep aliasing rare
+    /// (docs/performance-notes.md). Either way memory is O(|A|).
+    fn bin(&mut self, grid: &VoxelGrid, a: &[Vec3]) -> u32 {
+        let bins = &mut self.bins;
+        let d = grid.dims();
+        let dense = dense_slots(d, a.len());
+        bins.dense = dense.map(|_| [d.x, d.y]);
+        let slots = dense.unwrap_or_else(|| hashed_slots(a.len(), 4)) as usize;
+        bins.mask = (slots - 1) as u32;
+        let (mask, dense) = (bins.mask, bins.dense);
+        let binned = bins.a.sort(a, slots, |p| voxel_of(grid, p).map(|q| slot(dense, mask, q)));
+        if dense.is_none() {
+            let rec = &bins.a.rec;
+            bins.voxel.resize(rec.len(), UVec3::ZERO);
+            bins.voxel.par_chunks_mut(chunk(rec.len())).zip(rec.par_chunks(chunk(rec.len()))).for_each(
+                |(v, r)| {
+                    for (v, r) in v.iter_mut().zip(r) {
+                        // Sorted vertices are in the grid.
+                        *v = voxel_of(grid, r.p).unwrap_or_default();
+                    }
+                },
+            );
+        }
+        binned
+    }
+}
+
+/// What a B vertex needs to probe.
+struct Probe<'a> {
+    grid: &'a VoxelGrid,
+    params: &'a ContactParams,
+    bins: &'a Bins,
+    fixed: &'a [AtomicI64],
+    scale: f32,
+}
+
+impl Probe<'_> {
+    /// Probes a run of sorted B vertices.
+    fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], hits: &mut [Hit]) {
+        let own = self.own_bins(recs);
+        for (h, r) in hits.iter_mut().zip(recs) {
+            *h = match self.probe::<VOXEL, PLANE>(r.p, own) {
+                Some(f) => [f.x, f.y, f.z, 1.0],
+                None => [0.0; 4],
+            };
+        }
+    }
+
+    /// The voxels of the block around `q` along one axis that a sphere of radius `r` around
+    /// `p` can reach (all three when `r` is `None`), clipped to the grid.
+    fn axis_range(&self, axis: usize, p: f32, q: u32, r: Option<f32>) -> (u32, u32) {
+        let dim = self.grid.dims()[axis];
+        let (mut lo, mut hi) = (q.saturating_sub(1), (q + 1).min(dim - 1));
+        if let Some(r) = r {
+            let vs = self.grid.voxel_size();
+            let origin = self.grid.origin()[axis];
+            // Generous for the f32 rounding of positions, voxel indices, faces and d2: a few
+            // ulps of the largest magnitude involved, and 1e-3 of the radius.
+            let margin = 1e-3 * r + 16.0 * f32::EPSILON * (p.abs() + origin.abs() + vs * dim as f32);
+            let reach = r + margin;
+            // Selects, not branches: which faces are out of reach is data, not a pattern.
+            let below = p - (origin + q as f32 * vs) > reach;
+            let above = (origin + (q + 1) as f32 * vs) - p > reach;
+            lo = if below { q } else { lo };
+            hi = if above { q } else { hi };
+        }
+        (lo, hi)
+    }
+
+    /// Walks voxels `lo..=hi`, offering every A vertex of each (and whether it is in `own`) to
+    /// `visit(d2, index, bin position, in_own)`. A row's voxels sit in consecutive slots (see
+    /// [`voxel_hash`]), so each row of the block is one contiguous scan.
+    /// `OWN`: whether `visit` looks at `in_own` (when not, it is always `false`).
+    #[inline(always)]
+    fn walk<const OWN: bool>(
+        &self,
+        p: Vec3,
+        lo: UVec3,
+        hi: UVec3,
+        own: UVec3,
+        mut visit: impl FnMut(f32, u32, u32, bool),
+    ) {
+        let bins = self.bins;
+        let (start, rec) = (&bins.a.start, &bins.a.rec);
+        if let Some([dx, dy]) = bins.dense {
+            // Every entry of the run is in this row and in lo.x..=hi.x: no checks. The own
+            // voxel's vertices are its slot's run.
+            let (own_lo, own_hi) = if OWN {
+                let s = (own.x + dx * (own.y + dy * own.z)) as usize;
+                (start[s] as usize, start[s + 1] as usize)
+            } else {
+                (0, 0)
+            };
+            for z in lo.z..=hi.z {
+                for y in lo.y..=hi.y {
+                    let row = (dx * (y + dy * z)) as usize;
+                    let (k0, k1) =
+                        (start[row + lo.x as usize] as usize, start[row + hi.x as usize + 1] as usize);
+                    for (k, r) in rec[k0..k1].iter().enumerate() {
+                        let k = k0 + k;
+                        visit(dist2(p, r.p), r.i, k as u32, OWN && k >= own_lo && k < own_hi);
+                    }
+                }
+            }
+            return;
+        }
+        for z in lo.z..=hi.z {
+            for y in lo.y..=hi.y {
+                let s0 = voxel_hash(UVec3::new(lo.x, y, z)) & bins.mask;
+                let s1 = voxel_hash(UVec3::new(hi.x, y, z)) & bins.mask;
+                let mut scan = |from: u32, to: u32| {
+                    let (k0, k1) = (start[from as usize] as usize, start[to as usize + 1] as usize);
+                    for (k, (r, &v)) in rec[k0..k1].iter().zip(&bins.voxel[k0..k1]).enumerate() {
+                        if v.y == y && v.z == z && v.x >= lo.x && v.x <= hi.x {
+                            visit(dist2(p, r.p), r.i, (k0 + k) as u32, OWN && v == own);
+                        }
+                    }
+                };
+                if s0 <= s1 {
+                    scan(s0, s1);
+                } else {
+                    // The row wraps around the end of the table.
+                    scan(s0, bins.mask);
+                    scan(0, s1);
+                }
+            }
+        }
+    }
+
+    /// The force on B vertex `p`, or `None` when it does not collide; adds A's shares.
+    /// Specialised by search (`VOXEL`: `Search::Voxel`) and direction (`PLANE`:
+    /// `Direction::PlaneNormal`), so each configuration runs code without the others' branches.
+    #[inline(always)]
+    fn probe<const VOXEL: bool, const PLANE: bool>(&self, p: Vec3, own_bins: (u32, u32)) -> Option<Vec3> {
+        let q = voxel_of(self.grid, p)?;
+        let m = self.params.magnitude;
+        let center = self.grid.center();
+        let pos = |k: u32| self.bins.a.rec[k as usize].p;
+        let radius = match self.params.search {
+            Search::Neighbours { radius } => radius,
+            Search::Voxel => f32::INFINITY,
+        };
+        if !PLANE {
+            // Pairwise: only the partner is needed, the least (d2, index) in the own voxel or
+            // within the radius; no top-3 bookkeeping. Without branches: whether a candidate
+            // wins is data, not a pattern.
+            let (lo, hi) = if VOXEL { (q, q) } else { self.block(p, q, Some(radius)) };
+            let r2 = radius * radius;
+            let (mut best_d, mut best_i, mut best_k) = (if VOXEL { f32::INFINITY } else { r2 }, u32::MAX, 0);
+            self.walk::<false>(p, lo, hi, q, |d, i, k, _| {
+                let better = (d < best_d) | ((d == best_d) & (VOXEL | (d < r2)) & (i < best_i));
+                best_d = if better { d } else { best_d };
+                best_i = if better { i } else { best_i };
+                best_k = if better { k } else { best_k };
+            });
+            if best_i == u32::MAX {
+                return None;
+            }
+            let f_b = m * pairwise_direction(center, pos(best_k), p);
+            self.add(best_k, -f_b, own_bins);
+            return Some(f_b);
+        }
+        // Plane normal: the three nearest of the block (the own voxel's nearest is the
+        // fallback partner under the paper's rule).
+        let mut own = Nearest::EMPTY;
+        let mut block = Nearest::EMPTY;
+        if VOXEL {
+            let (lo, hi) = self.block(p, q, None);
+            self.walk::<true>(p, lo, hi, q, |d, i, k, is_own| {
+                block.insert(d, i, k);
+                if is_own {
+                    own.insert(d, i, k);
+                }
+            });
+        } else {
+            let r2 = radius * radius;
+            let (lo, hi) = self.block(p, q, Some(radius));
+            self.walk::<false>(p, lo, hi, q, |d, i, k, _| {
+                if d < r2 {
+                    block.insert(d, i, k);
+                }
+            });
+            own = block;
+        }
+        if own.n == 0 {
+            return None;
+        }
+        if block.n == 3 {
+            let [k0, k1, k2] = block.k;
+            if let Some(n) = plane_normal(center, pos(k0), pos(k1), pos(k2)) {
+                let f_b = m * n;
+                let share = -f_b / 3.0;
+                for k in block.k {
+                    self.add(k, share, own_bins);
+                }
+                return Some(f_b);
+            }
+        }
+        let partner = own.k[0];
+        let f_b = m * pairwise_direction(center, pos(partner), p);
+        self.add(partner, -f_b, own_bins);
+        Some(f_b)
+    }
+
+    /// The block around voxel `q` that a sphere of radius `r` around `p` can reach (the whole
+    /// 3×3×3 block when `r` is `None`), clipped to the grid.
+    #[inline(always)]
+    fn block(&self, p: Vec3, q: UVec3, r: Option<f32>) -> (UVec3, UVec3) {
+        let a = |k: usize| self.axis_range(k, p[k], q[k], r);
+        let ((x0, x1), (y0, y1), (z0, z1)) = (a(0), a(1), a(2));
+        (UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1))
+    }
+
+    /// Adds `f` to the accumulator of the A vertex at bin position `k`.
+    /// `own`: the bin positions that only this task's B vertices can reach (see
+    /// [`Probe::own_bins`]); their accumulators take a plain read and write, the others an
+    /// atomic add (an atomic add waits for the stores before it: a quarter of a lattice probe).
+    #[inline(always)]
+    fn add(&self, k: u32, f: Vec3, own: (u32, u32)) {
+        let mine = k >= own.0 && k < own.1;
+        for axis in 0..3 {
+            let c = round_count(f[axis] * self.scale);
+            let acc = &self.fixed[3 * k as usize + axis];
+            if mine {
+                acc.store(acc.load(Ordering::Relaxed) + i64::from(c), Ordering::Relaxed);
+            } else if c != 0 {
+                acc.fetch_add(i64::from(c), Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// The bin positions of A that no B vertex outside `recs` (a run of sorted B) can reach.
+    ///
+    /// In a dense table a B vertex in slot `t` reaches only A vertices in the slots of its
+    /// 3×3×3 block, `t - reach ..= t + reach` with `reach = 1 + dx + dx·dy`. B is sorted by
+    /// slot, so every other task's B vertices lie in slots `≤ t0` or `≥ t1` (the first and last
+    /// of the run: a slot may be split between two runs), and A's slots strictly between
+    /// `t0 + reach` and `t1 - reach` are this run's alone. A hashed table has no such bound:
+    /// nothing is private there.
+    fn own_bins(&self, recs: &[sort::Rec]) -> (u32, u32) {
+        let (Some([dx, dy]), Some(first), Some(last)) = (self.bins.dense, recs.first(), recs.last()) else {
+            return (0, 0);
+        };
+        let (Some(t0), Some(t1)) = (voxel_of(self.grid, first.p), voxel_of(self.grid, last.p)) else {
+            return (0, 0);
+        };
+        let (dx, dy) = (dx as u64, dy as u64);
+        let lin = |v: UVec3| v.x as u64 + dx * (v.y as u64 + dy * v.z as u64);
+        let reach = 1 + dx + dx * dy;
+        let (lo, hi) = (lin(t0) + reach + 1, lin(t1).saturating_sub(reach));
+        if lo >= hi {
+            return (0, 0);
+        }
+        let start = &self.bins.a.start;
+        (start[lo as usize], start[hi as usize])
+    }
+}
+
+impl Collision for ParallelCpuCollision {
+    fn step(&mut self, a: &[Vec3], b: &[Vec3]) -> Result<ContactReport, Error> {
+        let mut report = ContactReport::default();
+        self.step_into(a, b, &mut report)?;
+        Ok(report)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inline_floor_and_round_equal_the_library_ones() {
+        let mut x = -70_000_000.0f32;
+        let specials =
+            [0.0, -0.0, 0.5, -0.5, 1.5, 2.5, -2.5, -1.0, 8_388_607.5, -8_388_607.5, 4_194_303.5, 1e30, -1e30];
+        for v in specials {
+            assert_eq!(floor(v), v.floor(), "{v}");
+            assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+        }
+        while x < 70_000_000.0 {
+            for v in [x, x + 0.25, x + 0.5, x + 0.75, f32::from_bits(x.to_bits() + 1)] {
+                assert_eq!(floor(v), v.floor(), "{v}");
+                if v.abs() < 1e9 {
+                    assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+                }
+            }
+            x += 997.3;
+        }
+        for k in -300_000..300_000 {
+            let v = k as f32 * 0.5;
+            assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
+            assert_eq!(floor(v), v.floor(), "{v}");
+        }
+    }
+}
