@@ -5,6 +5,10 @@
 //!   then each B vertex's nearest A vertex within the radius, on the same threads);
 //! - `Search::Voxel` (paper): a hash map of A's voxels (`std::collections::HashMap`: build
 //!   over A, then each B vertex's nearest A vertex in its own voxel, on the same threads).
+//!
+//! Each figure also gets its distance to this machine's floor: the bytes a step must move
+//! ([`step_bytes`]) at the memory bandwidth measured on the same threads ([`cpu_bandwidth`]) or
+//! on the device ([`gpu_bandwidth`]).
 
 use std::time::Instant;
 
@@ -54,6 +58,74 @@ pub struct BenchRow {
     /// the order they run; empty otherwise.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub passes: Vec<PassTime>,
+    /// The least time a step can take on this machine: the bytes it must move
+    /// ([`step_bytes`]) at the memory bandwidth its device was measured to reach
+    /// ([`cpu_bandwidth`], [`gpu_bandwidth`]); `None` where that was not measured.
+    pub floor_ms: Option<f64>,
+    /// The median over the floor: how far the step is from what memory allows.
+    pub times_floor: Option<f64>,
+    /// The bandwidth the floor was computed with, in GB/s.
+    pub bandwidth_gb_s: Option<f64>,
+}
+
+/// The bytes a step must move at the least for bodies of `n_a` and `n_b` vertices with
+/// `colliding` contacts: both bodies' positions read and both bodies' forces written (12 bytes
+/// a vector each), and the colliding indices written (4 bytes each). Everything else a backend
+/// moves — its sorted copies, voxel tables, accumulators — is its own overhead.
+#[must_use]
+pub fn step_bytes(n_a: usize, n_b: usize, colliding: usize) -> u64 {
+    24 * (n_a as u64 + n_b as u64) + 4 * colliding as u64
+}
+
+/// The bytes each bandwidth measurement copies: large enough to leave every cache.
+const COPY_BYTES: usize = 256 << 20;
+
+/// The memory bandwidth the CPU threads reach, in bytes per second: the best of five parallel
+/// copies of a 256 MiB buffer (the bytes read and the bytes written both counted), on rayon's
+/// threads as the parallel backend runs.
+#[must_use]
+pub fn cpu_bandwidth() -> f64 {
+    use rayon::prelude::*;
+    let words = COPY_BYTES / 8;
+    let src: Vec<u64> = (0..words as u64).collect();
+    let mut dst = vec![0u64; words];
+    let chunk = (words / (8 * rayon::current_num_threads())).max(1 << 16);
+    let mut best = f64::INFINITY;
+    for _ in 0..5 {
+        let t = Instant::now();
+        dst.par_chunks_mut(chunk).zip(src.par_chunks(chunk)).for_each(|(d, s)| d.copy_from_slice(s));
+        best = best.min(t.elapsed().as_secs_f64());
+        std::hint::black_box(&dst);
+    }
+    (2 * COPY_BYTES) as f64 / best
+}
+
+/// The memory bandwidth of `ctx`'s device, in bytes per second: the best of five copies of a
+/// buffer of up to 256 MiB into another on the device (read and written bytes counted), timed
+/// from submission to completion. `None` when the device cannot make the buffers.
+#[must_use]
+pub fn gpu_bandwidth(ctx: &GpuContext) -> Option<f64> {
+    let device = ctx.device();
+    let size = (COPY_BYTES as u64).min(device.limits().max_buffer_size) & !255;
+    if size == 0 {
+        return None;
+    }
+    let buffer = |usage| {
+        device.create_buffer(&wgpu::BufferDescriptor { label: Some("bandwidth"), size, usage, mapped_at_creation: false })
+    };
+    let (src, dst) = (buffer(wgpu::BufferUsages::COPY_SRC), buffer(wgpu::BufferUsages::COPY_DST));
+    let mut best = f64::INFINITY;
+    for k in 0..6 {
+        let t = Instant::now();
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(&src, 0, &dst, 0, size);
+        ctx.queue().submit([encoder.finish()]);
+        device.poll(wgpu::PollType::wait_indefinitely()).ok()?;
+        if k > 0 {
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+    }
+    Some((2 * size) as f64 / best)
 }
 
 /// One GPU pass's median time.
@@ -157,6 +229,8 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     }
     let ctx = if config.gpu { GpuContext::new().ok() } else { None };
     let threads = rayon::current_num_threads();
+    let cpu_bw = cpu_bandwidth();
+    let gpu_bw = ctx.as_ref().and_then(gpu_bandwidth);
     let mut rows = Vec::new();
     for &size in &config.sizes {
         for (name, make) in WORKLOADS {
@@ -253,6 +327,8 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
             let baseline_ms = measured[0].1;
             for (backend, ms, device, threads, colliding) in measured {
                 let backend_is_resident = backend == "gpu_resident";
+                let bandwidth = if backend.starts_with("gpu") { gpu_bw } else { Some(cpu_bw) };
+                let floor_ms = bandwidth.map(|bw| step_bytes(n, w.b.len(), colliding) as f64 / bw * 1e3);
                 let row = BenchRow {
                     workload: name.into(),
                     size,
@@ -267,6 +343,9 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     threads,
                     colliding,
                     passes: if backend_is_resident { std::mem::take(&mut passes) } else { Vec::new() },
+                    floor_ms,
+                    times_floor: floor_ms.map(|f| ms / f),
+                    bandwidth_gb_s: bandwidth.map(|bw| bw / 1e9),
                 };
                 note(&row);
                 rows.push(row);
@@ -326,19 +405,21 @@ pub fn voxel_hashmap(w: &Workload) -> usize {
 #[must_use]
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>8}  {}\n",
-        "workload", "vertices", "backend", "median ms", "vertices/s", "vs baseline", "threads", "device"
+        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>9} {:>8} {:>8}  {}\n",
+        "workload", "vertices", "backend", "median ms", "vertices/s", "vs baseline", "floor ms", "x floor", "threads", "device"
     );
     for r in rows {
         let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };
         out += &format!(
-            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>8}  {}\n",
+            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>9} {:>8} {:>8}  {}\n",
             r.workload,
             r.vertices,
             r.backend,
             r.median_ms,
             r.vertices_per_second,
             r.speedup_vs_baseline.unwrap_or(f64::NAN),
+            r.floor_ms.map_or("-".into(), |f| format!("{f:.3}")),
+            r.times_floor.map_or("-".into(), |x| format!("{x:.0}x")),
             threads,
             r.device
         );

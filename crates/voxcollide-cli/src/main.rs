@@ -21,7 +21,7 @@ struct Cli {
 enum Command {
     /// Run one of the paper's scenarios: pictures (PNG), ParaView files (VTK) and summary.json.
     Run(RunArgs),
-    /// Time every backend on DESIGN §7's lattice(N) and paper(N) against a k-d tree (kiddo).
+    /// Time every backend on DESIGN §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
     Bench(BenchArgs),
 }
 
