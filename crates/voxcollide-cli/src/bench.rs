@@ -111,7 +111,12 @@ pub fn gpu_bandwidth(ctx: &GpuContext) -> Option<f64> {
         return None;
     }
     let buffer = |usage| {
-        device.create_buffer(&wgpu::BufferDescriptor { label: Some("bandwidth"), size, usage, mapped_at_creation: false })
+        device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bandwidth"),
+            size,
+            usage,
+            mapped_at_creation: false,
+        })
     };
     let (src, dst) = (buffer(wgpu::BufferUsages::COPY_SRC), buffer(wgpu::BufferUsages::COPY_DST));
     let mut best = f64::INFINITY;
@@ -406,7 +411,16 @@ pub fn voxel_hashmap(w: &Workload) -> usize {
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
         "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>9} {:>8} {:>8}  {}\n",
-        "workload", "vertices", "backend", "median ms", "vertices/s", "vs baseline", "floor ms", "x floor", "threads", "device"
+        "workload",
+        "vertices",
+        "backend",
+        "median ms",
+        "vertices/s",
+        "vs baseline",
+        "floor ms",
+        "x floor",
+        "threads",
+        "device"
     );
     for r in rows {
         let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };

@@ -30,7 +30,7 @@ use crate::math::dist2;
 use crate::params::{ContactParams, Direction, Search};
 use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots, voxel_hash};
-use sort::{Scatter, SortedBody, chunk};
+use sort::{SortedBody, chunk};
 
 /// The three nearest candidates in `(d2, index)` order.
 /// `i`: the A vertex's index (the tie-break of the reference's order); `k`: where it sits in
@@ -127,8 +127,6 @@ struct Bins {
     voxel: Vec<UVec3>,
 }
 
-/// A force in sorted-B order, and whether the vertex collides (`w` = 1).
-type Hit = [f32; 4];
 /// The multi-threaded CPU backend. Reports equal [`CpuCollision`](crate::CpuCollision)'s.
 ///
 /// Runs on rayon's global thread pool (one thread per core unless `RAYON_NUM_THREADS` says
@@ -140,10 +138,14 @@ pub struct ParallelCpuCollision {
     bins: Bins,
     /// B in the order of A's slots.
     b: SortedBody,
-    /// Per sorted B vertex: its force and whether it collides.
-    hits: Vec<Hit>,
-    /// Per B vertex, in the caller's order: whether it collides.
-    hit_b: Vec<bool>,
+    /// Per sorted B vertex: its force and whether it collides (`w` = 1); then the same in
+    /// the caller's order, with scratch for the way back (`SortedBody::unsort`).
+    res_b: Vec<[f32; 4]>,
+    hit_b: Vec<[f32; 4]>,
+    scratch_b: Vec<[f32; 4]>,
+    /// Per binned A vertex, in bin order: its force; scratch for the way back.
+    res_a: Vec<Vec3>,
+    scratch_a: Vec<Vec3>,
     /// Fixed-point force accumulators of A, three per binned vertex in bin order.
     fixed: Vec<AtomicI64>,
     /// With profiling on, the last step's phases in milliseconds (see [`PHASES`]).
@@ -151,8 +153,8 @@ pub struct ParallelCpuCollision {
 }
 
 /// The phases of a parallel step, as [`ParallelCpuCollision::phase_times`] names them: A
-/// sorted by slot, B sorted by A's slots, the probe, B's forces back in the caller's order, A's
-/// forces likewise, and the list of colliding B vertices.
+/// sorted by slot, B sorted by A's slots, the probe (which writes B's results in B's order),
+/// B's forces, A's forces back in A's order, and the list of colliding B vertices.
 pub const PHASES: [&str; 6] = ["sort_a", "sort_b", "probe", "forces_b", "forces_a", "colliding"];
 
 impl ParallelCpuCollision {
@@ -167,8 +169,11 @@ impl ParallelCpuCollision {
             params,
             bins: Bins::default(),
             b: SortedBody::default(),
-            hits: Vec::new(),
+            res_b: Vec::new(),
             hit_b: Vec::new(),
+            scratch_b: Vec::new(),
+            res_a: Vec::new(),
+            scratch_a: Vec::new(),
             fixed: Vec::new(),
             phases: None,
         })
@@ -246,70 +251,52 @@ impl ParallelCpuCollision {
             fixed: &self.fixed,
             scale: 65536.0 / m,
         };
-        // Probe in A's slot order; the forces go back to B's order after.
+        // Probe in A's slot order, in long runs, so that most of A's accumulators are one run's
+        // alone (`own_bins`): a quarter of a thread's share each.
         let sorted = self.b.rec.len();
-        self.hits.resize(sorted, [0.0; 4]);
-        // Long runs, so that most of A's accumulators are one run's alone (`own_bins`): a
-        // quarter of a thread's share each.
         let size = (sorted / (4 * rayon::current_num_threads())).max(1024);
         let voxel = self.params.search == Search::Voxel;
         let plane = self.params.direction == Direction::PlaneNormal;
-        self.hits.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).for_each(|(hits, recs)| {
+        self.res_b.resize(sorted, [0.0; 4]);
+        self.res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).for_each(|(out, recs)| {
             match (voxel, plane) {
-                (false, false) => probe.run::<false, false>(recs, hits),
-                (false, true) => probe.run::<false, true>(recs, hits),
-                (true, false) => probe.run::<true, false>(recs, hits),
-                (true, true) => probe.run::<true, true>(recs, hits),
+                (false, false) => probe.run::<false, false>(recs, out),
+                (false, true) => probe.run::<false, true>(recs, out),
+                (true, false) => probe.run::<true, false>(recs, out),
+                (true, true) => probe.run::<true, true>(recs, out),
             }
         });
         lap(&mut self.phases);
+        // B's results in B's order (those outside the grid collide with nothing), then its
+        // forces.
+        self.hit_b.resize(b.len(), [0.0; 4]);
+        self.b.unsort(&self.res_b, &mut self.scratch_b, &mut self.hit_b, |o, h| *o = h.unwrap_or([0.0; 4]));
         report.force_b.resize(b.len(), Vec3::ZERO);
-        self.hit_b.resize(b.len(), false);
         let size = chunk(b.len());
-        let (hits, k_of) = (&self.hits, &self.b.k_of);
-        report
-            .force_b
-            .par_chunks_mut(size)
-            .zip(self.hit_b.par_chunks_mut(size))
-            .zip(k_of.par_chunks(size))
-            .for_each(|((force, hit), k_of)| {
-                for ((f, h), &k) in force.iter_mut().zip(hit.iter_mut()).zip(k_of) {
-                    let [x, y, z, w] = if k == u32::MAX { [0.0; 4] } else { hits[k as usize] };
-                    *f = Vec3::new(x, y, z);
-                    *h = w != 0.0;
-                }
-            });
-
+        report.force_b.par_chunks_mut(size).zip(self.hit_b.par_chunks(size)).for_each(|(force, hit)| {
+            for (f, h) in force.iter_mut().zip(hit) {
+                *f = Vec3::new(h[0], h[1], h[2]);
+            }
+        });
         lap(&mut self.phases);
-        // Back to f32, each accumulator back to zero for the next step: read in bin order (in
-        // memory order), written to A's order (one write a vertex, wherever it is); the first
-        // overflow in (vertex, axis) order is the error, as on the CPU.
+        // Back to f32, each accumulator back to zero for the next step, in bin order, then to
+        // A's order; the first overflow in (vertex, axis) order is the error, as on the CPU.
         let unit = m / 65536.0;
-        report.force_a.resize(a.len(), Vec3::ZERO);
-        let size = chunk(a.len());
-        report.force_a.par_chunks_mut(size).zip(self.bins.a.k_of.par_chunks(size)).for_each(
-            |(forces, k_of)| {
-                for (f, &k) in forces.iter_mut().zip(k_of) {
-                    if k == u32::MAX {
-                        *f = Vec3::ZERO;
-                    }
-                }
-            },
-        );
-        let out = Scatter::new(&mut report.force_a);
+        self.res_a.resize(binned as usize, Vec3::ZERO);
         let size = chunk(binned as usize);
         let overflow = self
             .fixed
             .par_chunks_mut(3 * size)
             .zip(self.bins.a.rec.par_chunks(size))
-            .filter_map(|(fixed, recs)| {
+            .zip(self.res_a.par_chunks_mut(size))
+            .filter_map(|((fixed, recs), out)| {
                 let mut first: Option<(usize, i64)> = None;
-                for (acc, r) in fixed.chunks_exact_mut(3).zip(recs) {
+                for ((acc, r), o) in fixed.chunks_exact_mut(3).zip(recs).zip(out) {
                     let mut f = [0.0f32; 3];
-                    for (axis, (o, acc)) in f.iter_mut().zip(acc).enumerate() {
+                    for (axis, (x, acc)) in f.iter_mut().zip(acc).enumerate() {
                         let count = std::mem::replace(acc.get_mut(), 0);
                         match i32::try_from(count) {
-                            Ok(c) => *o = c as f32 * unit,
+                            Ok(c) => *x = c as f32 * unit,
                             Err(_) => {
                                 let at = 3 * r.i as usize + axis;
                                 first = Some(
@@ -318,19 +305,23 @@ impl ParallelCpuCollision {
                             }
                         }
                     }
-                    // SAFETY: the sorted records hold each binned vertex once, so no two
-                    // writes share an index.
-                    unsafe { out.write(r.i as usize, Vec3::from_array(f)) };
+                    *o = Vec3::from_array(f);
                 }
                 first
             })
             .min_by_key(|(k, _)| *k);
+        report.force_a.resize(a.len(), Vec3::ZERO);
+        self.bins.a.unsort(&self.res_a, &mut self.scratch_a, &mut report.force_a, |o, f| {
+            *o = f.unwrap_or(Vec3::ZERO)
+        });
         lap(&mut self.phases);
         if let Some((k, count)) = overflow {
             return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
         }
         report.colliding_b.clear();
-        report.colliding_b.extend(self.hit_b.iter().enumerate().filter(|(_, h)| **h).map(|(j, _)| j as u32));
+        report
+            .colliding_b
+            .extend(self.hit_b.iter().enumerate().filter(|(_, h)| h[3] != 0.0).map(|(j, _)| j as u32));
         lap(&mut self.phases);
         report.binned_a = binned;
         report.discarded_a = a.len() as u32 - binned;
@@ -378,13 +369,10 @@ struct Probe<'a> {
 
 impl Probe<'_> {
     /// Probes a run of sorted B vertices.
-    fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], hits: &mut [Hit]) {
+    fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
         let own = self.own_bins(recs);
-        for (h, r) in hits.iter_mut().zip(recs) {
-            *h = match self.probe::<VOXEL, PLANE>(r.p, own) {
-                Some(f) => [f.x, f.y, f.z, 1.0],
-                None => [0.0; 4],
-            };
+        for (o, r) in out.iter_mut().zip(recs) {
+            *o = self.probe::<VOXEL, PLANE>(r.p, own).map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
         }
     }
 

@@ -1,14 +1,19 @@
-//! A body's vertices sorted by the voxel table's slot, in parallel: a counting sort in a few
-//! parts, each with its own counts, so no pass needs an atomic read-modify-write and the order
-//! is stable (ascending index within a slot) whatever the thread count.
+//! A body's vertices sorted by the voxel table's slot, in parallel, in two passes that each
+//! write memory in order whatever order the vertices come in:
+//! 1. each part of the body (a run of the caller's order, one per task) splits its vertices
+//!    into buckets of consecutive slots (at most 1024 buckets, so every bucket's write cursor
+//!    stays in cache), with counts of its own;
+//! 2. each bucket, a few thousand vertices, is counting-sorted by slot on its own, into its own
+//!    range of the sorted array, and writes its slots' starts.
 //!
 //! The sort is what makes `ParallelCpuCollision`'s speed independent of the caller's vertex
 //! order: every later pass reads the sorted records, whose order depends only on where the
-//! vertices are. Only the passes that read a body in and write its forces out touch the
-//! caller's order, once each.
+//! vertices are. A single counting sort over all slots did the same with a random access to
+//! its counts and one to the sorted array per vertex in any order but the lucky one (2.4× the
+//! time shuffled; docs/performance-notes.md). Both passes are stable: within a slot, vertices
+//! stay in ascending index order whatever the thread count.
 
 use std::marker::PhantomData;
-use std::sync::atomic::{AtomicU32, Ordering::Relaxed};
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -21,36 +26,55 @@ pub(super) struct Rec {
     pub i: u32,
 }
 
+/// A vertex between the two passes: its slot, index and position.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C)]
+struct Tmp {
+    s: u32,
+    i: u32,
+    p: Vec3,
+}
+
 /// One body sorted by slot. Buffers are reused from step to step.
 #[derive(Debug, Default)]
 pub(super) struct SortedBody {
     /// Per vertex: its slot (`u32::MAX`: outside the grid or not finite).
     pub key: Vec<u32>,
-    /// Per vertex: where it sits in `rec` (`u32::MAX`: not sorted, outside the grid).
-    pub k_of: Vec<u32>,
     /// The sorted vertices (those outside the grid are left out).
     pub rec: Vec<Rec>,
     /// Per slot: where its vertices start in `rec` (`slots + 1` entries).
     pub start: Vec<u32>,
-    /// `parts × slots` counts, then running offsets (scratch).
-    counts: Vec<AtomicU32>,
-    /// Per range of slots: its total, then where it starts (scratch).
-    totals: Vec<u32>,
+    /// The vertices in bucket order (between the passes).
+    tmp: Vec<Tmp>,
+    /// `parts × buckets`: each part's counts per bucket, then its write cursors.
+    cursor: Vec<u32>,
+    /// Per bucket: where its vertices start in `tmp` and `rec` (`buckets + 1` entries).
+    bucket_start: Vec<u32>,
+    /// `parts × buckets`: where each part's vertices of each bucket start in `tmp`.
+    offset: Vec<u32>,
+    /// Per sorted position: where the vertex was in `tmp` (within its bucket's range).
+    back: Vec<u32>,
+    /// The sort's shape, for [`SortedBody::unsort`]: bits of a slot within its bucket,
+    /// buckets, and vertices per part.
+    shape: (u32, usize, usize),
 }
 
-/// How many parts to count in: one per thread, while the parts' counts stay within about 16
-/// words per vertex (a hashed table has up to 8 slots a vertex), and one for small bodies,
-/// where the threads would cost more than they save.
-fn parts(n: usize, slots: usize) -> usize {
-    if n < 32_768 {
-        return 1;
-    }
-    (16 * n / slots.max(1)).clamp(1, rayon::current_num_threads())
+/// Tasks for the first pass over `n` vertices: a few per thread, none for small bodies, where
+/// the threads would cost more than they save.
+fn parts(n: usize) -> usize {
+    if n < 32_768 { 1 } else { (4 * rayon::current_num_threads()).min(n / 8192) }
 }
 
 /// Items per parallel task for `n` items: every thread gets several tasks.
 pub(super) fn chunk(n: usize) -> usize {
     (n / (8 * rayon::current_num_threads())).clamp(1024, 16_384)
+}
+
+/// The bits of a slot within its bucket: at most 1024 buckets, at least 256 slots each (or
+/// one bucket for a table smaller than that).
+fn bucket_bits(slots: usize) -> u32 {
+    let bits = usize::BITS - (slots.max(1) - 1).leading_zeros();
+    bits.saturating_sub(10).max(bits.min(8))
 }
 
 impl SortedBody {
@@ -63,103 +87,158 @@ impl SortedBody {
         slot_of: impl Fn(Vec3) -> Option<u32> + Sync,
     ) -> u32 {
         let n = points.len();
-        let parts = parts(n, slots);
+        let shift = bucket_bits(slots);
+        let buckets = ((slots.max(1) - 1) >> shift) + 1;
+        let parts = parts(n);
         let part = n.div_ceil(parts);
+        let parts = n.div_ceil(part); // every part non-empty
         self.key.resize(n, u32::MAX);
-        self.k_of.resize(n, u32::MAX);
-        if self.counts.len() < parts * slots {
-            self.counts.resize_with(parts * slots, || AtomicU32::new(0));
-        }
-        let counts = &self.counts[..parts * slots];
+        self.cursor.resize(parts * buckets, 0);
 
-        // 1. Each part's keys and counts (the counts are zero: see the end of 3).
-        let sorted: usize = self
-            .key
+        // 1a. Each part's keys and counts per bucket.
+        self.key
             .par_chunks_mut(part)
             .zip(points.par_chunks(part))
-            .enumerate()
-            .map(|(p, (keys, points))| {
-                let counts = &counts[p * slots..(p + 1) * slots];
-                let mut sorted = 0;
+            .zip(self.cursor.par_chunks_mut(buckets))
+            .for_each(|((keys, points), counts)| {
+                counts.fill(0);
                 for (key, &q) in keys.iter_mut().zip(points) {
                     *key = match slot_of(q) {
                         Some(s) => {
-                            let c = &counts[s as usize];
-                            c.store(c.load(Relaxed) + 1, Relaxed);
-                            sorted += 1;
+                            counts[(s >> shift) as usize] += 1;
                             s
                         }
                         None => u32::MAX,
                     };
                 }
-                sorted
-            })
-            .sum();
-
-        // 2. Exclusive prefix sum in (slot, part) order: a range's total, the ranges' running
-        //    sum, then each range's offsets.
-        self.start.resize(slots + 1, 0);
-        let range = chunk(slots).max(4096);
-        let ranges = slots.div_ceil(range);
-        self.totals.resize(ranges, 0);
-        self.totals.par_iter_mut().enumerate().for_each(|(r, t)| {
-            let (lo, hi) = (r * range, ((r + 1) * range).min(slots));
-            *t = (0..parts)
-                .map(|p| counts[p * slots + lo..p * slots + hi].iter().map(|c| c.load(Relaxed)).sum::<u32>())
-                .sum();
-        });
+            });
+        // Offsets in (bucket, part) order: a few thousand numbers.
+        self.bucket_start.resize(buckets + 1, 0);
         let mut running = 0u32;
-        for t in &mut self.totals {
-            let c = *t;
-            *t = running;
-            running += c;
+        for b in 0..buckets {
+            self.bucket_start[b] = running;
+            for p in 0..parts {
+                let c = &mut self.cursor[p * buckets + b];
+                (*c, running) = (running, running + *c);
+            }
         }
-        self.start[..slots].par_chunks_mut(range).zip(self.totals.par_iter()).enumerate().for_each(
-            |(r, (start, &base))| {
-                let mut running = base;
-                for (j, st) in start.iter_mut().enumerate() {
-                    let s = r * range + j;
-                    *st = running;
-                    for p in 0..parts {
-                        let c = &counts[p * slots + s];
-                        let n = c.load(Relaxed);
-                        c.store(running, Relaxed);
-                        running += n;
-                    }
-                }
-            },
-        );
-        self.start[slots] = sorted as u32;
+        self.bucket_start[buckets] = running;
+        let sorted = running as usize;
+        self.offset.clear();
+        self.offset.extend_from_slice(&self.cursor);
+        self.shape = (shift, buckets, part);
 
-        // 3. Each part places its vertices in order (stable), reading them in the caller's order
-        //    and writing each record once; then the counts go back to zero.
-        self.rec.resize(sorted, Rec::default());
-        let rec = Scatter::new(&mut self.rec);
-        self.k_of.par_chunks_mut(part).zip(self.key.par_chunks(part)).enumerate().for_each(
-            |(p, (k_of, keys))| {
-                let counts = &counts[p * slots..(p + 1) * slots];
-                let first = p * part;
-                for (j, (k, &s)) in k_of.iter_mut().zip(keys).enumerate() {
-                    if s == u32::MAX {
-                        *k = u32::MAX;
-                        continue;
+        // 1b. Each part writes its vertices to its ranges of the buckets, in order.
+        self.tmp.resize(sorted, Tmp::default());
+        {
+            let tmp = Scatter::new(&mut self.tmp);
+            self.key
+                .par_chunks(part)
+                .zip(points.par_chunks(part))
+                .zip(self.cursor.par_chunks_mut(buckets))
+                .enumerate()
+                .for_each(|(p, ((keys, points), cursor))| {
+                    for (j, (&s, &q)) in keys.iter().zip(points).enumerate() {
+                        if s == u32::MAX {
+                            continue;
+                        }
+                        let at = &mut cursor[(s >> shift) as usize];
+                        // SAFETY: part p's cursor of bucket b starts at its own range of `tmp`,
+                        // as long as p's count of b; the ranges of all (bucket, part) pairs tile
+                        // 0..sorted, and the cursor moves once per vertex that 1a counted from
+                        // the same keys. So every index is written once.
+                        unsafe { tmp.write(*at as usize, Tmp { s, i: (p * part + j) as u32, p: q }) };
+                        *at += 1;
                     }
-                    let c = &counts[s as usize];
-                    let at = c.load(Relaxed);
-                    c.store(at + 1, Relaxed);
-                    let i = first + j;
-                    // SAFETY: after step 2, part p's cursor of slot s starts at its own range of
-                    // `rec`, as long as p's count of s; the ranges of all (slot, part) pairs tile
-                    // 0..sorted without overlap, and each cursor moves once per vertex of p in s,
-                    // which step 1 counted from the same keys. So every `at` is written once.
-                    unsafe { rec.write(at as usize, Rec { p: points[i], i: i as u32 }) };
-                    *k = at;
+                });
+        }
+
+        // 2. Each bucket: a counting sort by slot on the bucket's own slice of `start`, which
+        //    ends as its slots' starts.
+        self.rec.resize(sorted, Rec::default());
+        self.back.resize(sorted, 0);
+        self.start.resize(slots + 1, 0);
+        {
+            let (tmp, bucket_start) = (&self.tmp, &self.bucket_start);
+            let rec = Scatter::new(&mut self.rec);
+            let back = Scatter::new(&mut self.back);
+            self.start[..slots].par_chunks_mut(1 << shift).enumerate().for_each(|(b, start)| {
+                let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
+                let first = b << shift;
+                start.fill(0);
+                for t in &tmp[lo..hi] {
+                    start[t.s as usize - first] += 1;
                 }
-            },
-        );
-        // Back to zero for the next step (a pass over the counts, sequential in memory).
-        counts.par_chunks(range).for_each(|c| c.iter().for_each(|c| c.store(0, Relaxed)));
+                let mut running = lo as u32;
+                for c in start.iter_mut() {
+                    (*c, running) = (running, running + *c);
+                }
+                for (j, t) in tmp[lo..hi].iter().enumerate() {
+                    let at = &mut start[t.s as usize - first];
+                    // SAFETY: the bucket's slots' cursors tile its range lo..hi of `rec` and
+                    // `back` (counted just above from the same vertices), and buckets' ranges
+                    // are disjoint: every index is written once.
+                    unsafe {
+                        rec.write(*at as usize, Rec { p: t.p, i: t.i });
+                        back.write(*at as usize, (lo + j) as u32);
+                    }
+                    *at += 1;
+                }
+                // Each cursor now holds the next slot's start: shift them back by one.
+                start.copy_within(..start.len() - 1, 1);
+                start[0] = lo as u32;
+            });
+        }
+        self.start[slots] = sorted as u32;
         sorted as u32
+    }
+
+    /// Takes values in sorted order (`by_rec[k]` for `rec[k]`) back to the caller's order,
+    /// calling `write(out[i], value)` for each vertex `i` (`None`: left out of the sort). The
+    /// sort's two passes run backwards, so every access stays in memory order or within a
+    /// bucket whatever order the vertices came in: a plain scatter by `rec[k].i` is a random
+    /// write per vertex in a shuffled body (about 20 ms of a paper(1M) step).
+    pub fn unsort<T: Copy + Default + Send + Sync, O: Send>(
+        &mut self,
+        by_rec: &[T],
+        scratch: &mut Vec<T>,
+        out: &mut [O],
+        write: impl Fn(&mut O, Option<T>) + Sync,
+    ) {
+        let (shift, buckets, part) = self.shape;
+        let sorted = self.rec.len();
+        // 2 backwards: each bucket's values to where its vertices were in `tmp`.
+        scratch.resize(sorted, T::default());
+        {
+            let to = Scatter::new(scratch);
+            let (back, bucket_start) = (&self.back, &self.bucket_start);
+            (0..buckets).into_par_iter().with_min_len(8).for_each(|b| {
+                let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
+                for k in lo..hi {
+                    // SAFETY: `back` is a permutation of each bucket's range (the sort wrote
+                    // one entry per position, each a distinct position of the same range).
+                    unsafe { to.write(back[k] as usize, by_rec[k]) };
+                }
+            });
+        }
+        // 1b backwards: each part reads its buckets' ranges in order, as it wrote them.
+        self.cursor.clear();
+        self.cursor.extend_from_slice(&self.offset);
+        let scratch = &*scratch;
+        out.par_chunks_mut(part)
+            .zip(self.key.par_chunks(part))
+            .zip(self.cursor.par_chunks_mut(buckets))
+            .for_each(|((out, keys), cursor)| {
+                for (o, &s) in out.iter_mut().zip(keys) {
+                    if s == u32::MAX {
+                        write(o, None);
+                    } else {
+                        let at = &mut cursor[(s >> shift) as usize];
+                        write(o, Some(scratch[*at as usize]));
+                        *at += 1;
+                    }
+                }
+            });
     }
 }
 
@@ -190,5 +269,61 @@ impl<'a, T: Copy> Scatter<'a, T> {
         assert!(i < self.len, "scatter index {i} out of {}", self.len);
         // SAFETY: in bounds, and by the caller's contract no other thread touches element i.
         unsafe { self.ptr.add(i).write(value) }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::workload::SplitMix64;
+
+    #[test]
+    fn sorts_stably_and_unsorts_back() {
+        // One body reused across sizes, as from step to step; some vertices left out; a table
+        // of one slot, tables smaller and larger than the body, and a pile in three slots.
+        let mut body = SortedBody::default();
+        for (n, slots, pile) in [
+            (1, 1, false),
+            (10, 3, false),
+            (40_000, 5_000, false),
+            (100_000, 1 << 20, false),
+            (70_000, 300_000, true),
+            (33, 7, false),
+        ] {
+            let points: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+            let slot_of = |p: Vec3| {
+                let h = SplitMix64::new(p.x as u64).next_u64();
+                match (h % 7, pile) {
+                    (0, _) => None,
+                    (_, true) => Some((h % 3) as u32 * 1000),
+                    _ => Some((h % slots as u64) as u32),
+                }
+            };
+            let sorted = body.sort(&points, slots, slot_of);
+            let mut expected: Vec<(u32, u32)> =
+                (0..n).filter_map(|i| slot_of(points[i]).map(|s| (s, i as u32))).collect();
+            expected.sort_unstable();
+            assert_eq!(sorted as usize, expected.len(), "n {n}");
+            assert_eq!(body.start.len(), slots + 1);
+            assert_eq!(body.start[slots], sorted);
+            for (k, &(s, i)) in expected.iter().enumerate() {
+                assert_eq!(body.rec[k].i, i, "n {n} position {k}");
+                assert_eq!(body.rec[k].p, points[i as usize]);
+                assert!(
+                    (body.start[s as usize]..body.start[s as usize + 1]).contains(&(k as u32)),
+                    "n {n} slot {s}"
+                );
+            }
+            let by_rec: Vec<u32> = body.rec.iter().map(|r| 2 * r.i + 1).collect();
+            let (mut out, mut scratch) = (vec![7u32; n], Vec::new());
+            body.unsort(&by_rec, &mut scratch, &mut out, |o, v| *o = v.unwrap_or(0));
+            for (i, &o) in out.iter().enumerate() {
+                assert_eq!(
+                    o,
+                    if slot_of(points[i]).is_some() { 2 * i as u32 + 1 } else { 0 },
+                    "n {n} vertex {i}"
+                );
+            }
+        }
     }
 }
