@@ -259,14 +259,16 @@ impl ParallelCpuCollision {
         let voxel = self.params.search == Search::Voxel;
         let plane = self.params.direction == Direction::PlaneNormal;
         self.res_b.resize(sorted, [0.0; 4]);
-        self.res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).for_each(|(out, recs)| {
-            match (voxel, plane) {
+        let (dense, b_start) = (self.bins.dense.is_some(), &self.b.start);
+        self.res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).enumerate().for_each(
+            |(c, (out, recs))| match (voxel, plane) {
+                (true, false) if dense => probe.run_own_slots(b_start, c * size, recs, out),
                 (false, false) => probe.run::<false, false>(recs, out),
                 (false, true) => probe.run::<false, true>(recs, out),
                 (true, false) => probe.run::<true, false>(recs, out),
                 (true, true) => probe.run::<true, true>(recs, out),
-            }
-        });
+            },
+        );
         lap(&mut self.phases);
         // B's results in B's order (those outside the grid collide with nothing), then its
         // forces.
@@ -370,12 +372,62 @@ struct Probe<'a> {
 
 impl Probe<'_> {
     /// Probes a run of sorted B vertices.
-    #[inline(never)]
     fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
         let own = self.own_bins(recs);
         for (o, r) in out.iter_mut().zip(recs) {
             *o = self.probe::<VOXEL, PLANE>(r.p, own).map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
         }
+    }
+
+    /// [`run`](Self::run) for the paper's rule with pairwise forces on a dense table, as a
+    /// merge of the two sorted bodies: B's vertices of each slot against A's of the same slot
+    /// (its voxel's), with no voxel computed and no block walked. `first` is the position of
+    /// `recs[0]` in sorted B.
+    fn run_own_slots(&self, b_start: &[u32], first: usize, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
+        let (Some([dx, dy]), Some(r0)) = (self.bins.dense, recs.first()) else {
+            return;
+        };
+        let Some(q) = voxel_of(self.grid, r0.p) else {
+            return; // sorted B is in the grid
+        };
+        let own = self.own_bins(recs);
+        let (a_start, a_rec) = (&self.bins.a.start, &self.bins.a.rec);
+        let mut s = (q.x + dx * (q.y + dy * q.z)) as usize;
+        let (mut k, end) = (first, first + recs.len());
+        while k < end {
+            while b_start[s + 1] as usize <= k {
+                s += 1;
+            }
+            let hi = (b_start[s + 1] as usize).min(end);
+            let (a0, a1) = (a_start[s] as usize, a_start[s + 1] as usize);
+            for (o, r) in out[k - first..hi - first].iter_mut().zip(&recs[k - first..hi - first]) {
+                let (mut best_d, mut best_i, mut best_k) = (f32::INFINITY, u32::MAX, 0);
+                for (j, a) in a_rec[a0..a1].iter().enumerate() {
+                    let d = dist2(r.p, a.p);
+                    let better = (d < best_d) | ((d == best_d) & (a.i < best_i));
+                    best_d = if d < best_d { d } else { best_d };
+                    best_i = select_unpredictable(better, a.i, best_i);
+                    best_k = select_unpredictable(better, (a0 + j) as u32, best_k);
+                }
+                *o = if best_i == u32::MAX {
+                    [0.0; 4]
+                } else {
+                    let f = self.pair_force(r.p, best_k, own);
+                    [f.x, f.y, f.z, 1.0]
+                };
+            }
+            k = hi;
+        }
+    }
+
+    /// The pairwise force on B vertex `p` from its partner at bin position `k` of A; adds A's
+    /// share.
+    #[inline(always)]
+    fn pair_force(&self, p: Vec3, k: u32, own: (u32, u32)) -> Vec3 {
+        let partner = self.bins.a.rec[k as usize].p;
+        let f_b = self.params.magnitude * pairwise_direction(self.grid.center(), partner, p);
+        self.add(k, -f_b, own);
+        f_b
     }
 
     /// The voxels of the block around `q` along one axis that a sphere of radius `r` around
