@@ -1,11 +1,15 @@
-// Pass 2a: count the A vertices of every slot (a counting sort by slot, DESIGN §3's
-// VoxelData): each A vertex whose voxel is inside the grid adds one to its slot's count. CPU
-// twin: VoxelData::bin.
+// Pass 2a: count the vertices of every slot (a counting sort by slot, DESIGN §3's VoxelData):
+// each vertex whose voxel is inside the grid adds one to its slot's count. Run for A (BODY 0),
+// and for B (BODY 1) by A's slots, so that the probe walks B in A's slot order whatever order B
+// comes in. CPU twins: VoxelData::bin, and parallel/sort.rs.
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
-@group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> pos: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> count: array<atomic<u32>>;
+
+// 0: body A (params.n_a vertices, counted in state.binned); 1: body B (state.binned_b).
+override BODY: u32 = 0u;
 
 var<workgroup> wg_binned: atomic<u32>;
 
@@ -16,8 +20,8 @@ fn main(
     @builtin(local_invocation_index) lid: u32,
 ) {
     let i = item_index(gid, nwg);
-    if i < params.n_a {
-        let v = voxel_of(pos_a[i].xyz, state.origin.xyz);
+    if i < select(params.n_a, params.n_b, BODY == 1u) {
+        let v = voxel_of(pos[i].xyz, state.origin.xyz);
         if v.w == 1u {
             atomicAdd(&count[slot_of(v.xyz)], 1u);
             atomicAdd(&wg_binned, 1u);
@@ -27,7 +31,11 @@ fn main(
     if lid == 0u {
         let n = atomicLoad(&wg_binned);
         if n != 0u {
-            atomicAdd(&state.binned, n);
+            if BODY == 0u {
+                atomicAdd(&state.binned, n);
+            } else {
+                atomicAdd(&state.binned_b, n);
+            }
         }
     }
 }

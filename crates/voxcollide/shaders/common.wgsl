@@ -45,7 +45,7 @@ struct State {
     overflow: atomic<u32>,            // ~(3 * vertex + axis) of the first overflow; 0 = none
     status: atomic<u32>,
     truncated: atomic<u32>,           // ~j of the first B vertex whose walk the driver cut short
-    _pad0: u32,
+    binned_b: atomic<u32>,            // B vertices in the grid (sorted by A's slots)
     _pad1: u32,
     _pad2: u32,
 }

@@ -5,13 +5,16 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
-@group(0) @binding(2) var<storage, read> pos_a: array<vec4<f32>>;
-@group(0) @binding(3) var<storage, read> pos_b: array<vec4<f32>>;
-@group(0) @binding(4) var<storage, read> start: array<u32>;
-@group(0) @binding(5) var<storage, read> sorted: array<vec4<u32>>; // (position bits, index)
-// Per A vertex 8 words: the low words of the x, y, z totals, one unused, then the high words.
-@group(0) @binding(6) var<storage, read_write> fixed: array<atomic<u32>>;
-@group(0) @binding(7) var<storage, read_write> force_b: array<vec4<f32>>;
+// B in A's slot order (passes bin_b to sort_b): (position bits, index in B).
+@group(0) @binding(2) var<storage, read> sorted_b: array<vec4<u32>>;
+@group(0) @binding(3) var<storage, read> start: array<u32>;
+// A in slot order: (position bits, index in A). A walk reads positions here, and A's force
+// accumulators are kept in this order too, so that no access follows A's own order.
+@group(0) @binding(4) var<storage, read> sorted: array<vec4<u32>>;
+// Per sorted A vertex 8 words: the low words of the x, y, z totals, one unused, then the high
+// words.
+@group(0) @binding(5) var<storage, read_write> fixed: array<atomic<u32>>;
+@group(0) @binding(6) var<storage, read_write> force_b: array<vec4<f32>>;
 
 var<workgroup> wg_colliding: atomic<u32>;
 
@@ -23,10 +26,12 @@ override DIRECTION: u32 = DIRECTION_PAIRWISE;
 // Equals params.dense != 0u: with a slot per voxel, no slot holds another voxel's vertices.
 override DENSE: bool = false;
 
-// The nearest candidates so far, in (d2, index) order; only the first `n` are valid.
+// The nearest candidates so far, in (d2, index) order; only the first `n` are valid. `at`:
+// where each sits in `sorted` (its position there, and its force accumulator).
 struct Nearest {
     d: vec3<f32>,
     i: vec3<u32>,
+    at: vec3<u32>,
     n: u32,
 }
 
@@ -36,7 +41,7 @@ fn before(da: f32, ia: u32, db: f32, ib: u32) -> bool {
 
 // Straight-line on purpose: Mesa's llvmpipe caps the iterations of all loops nested in one
 // outermost loop at 65535, so the walk below keeps to one loop iteration per list entry.
-fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
+fn insert(t: ptr<function, Nearest>, d: f32, i: u32, at: u32) {
     let n = (*t).n;
     // k = how many kept entries come before (d, i); they are sorted.
     let k = select(0u, 1u, n > 0u && before((*t).d.x, (*t).i.x, d, i))
@@ -45,12 +50,15 @@ fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
     if k == 0u {
         (*t).d = vec3<f32>(d, (*t).d.x, (*t).d.y);
         (*t).i = vec3<u32>(i, (*t).i.x, (*t).i.y);
+        (*t).at = vec3<u32>(at, (*t).at.x, (*t).at.y);
     } else if k == 1u {
         (*t).d = vec3<f32>((*t).d.x, d, (*t).d.y);
         (*t).i = vec3<u32>((*t).i.x, i, (*t).i.y);
+        (*t).at = vec3<u32>((*t).at.x, at, (*t).at.y);
     } else if k == 2u {
         (*t).d.z = d;
         (*t).i.z = i;
+        (*t).at.z = at;
     } else {
         return;
     }
@@ -62,23 +70,23 @@ fn insert(t: ptr<function, Nearest>, d: f32, i: u32) {
 // high word (one atomic per count, not two); the low word is stored as low ^ 2^31 (= T's own low
 // word), so that zeroed memory is T = 0. The sum is exact and independent of order: the carries
 // out of the low word add up to the same total whatever the order.
-fn add_fixed(i: u32, axis: u32, c: i32) {
+fn add_fixed(at: u32, axis: u32, c: i32) {
     if c == 0 {
         return;
     }
     let u = bitcast<u32>(c);
-    let old = atomicAdd(&fixed[8u * i + axis], u) ^ 0x80000000u;
+    let old = atomicAdd(&fixed[8u * at + axis], u) ^ 0x80000000u;
     let carry = select(0u, 1u, old + u < old);
     let delta = carry + select(0u, 0xffffffffu, c < 0);
     if delta != 0u {
-        atomicAdd(&fixed[8u * i + 4u + axis], delta);
+        atomicAdd(&fixed[8u * at + 4u + axis], delta);
     }
 }
 
-fn add_force_a(i: u32, f: vec3<f32>) {
-    add_fixed(i, 0u, i32(round(f.x * params.scale)));
-    add_fixed(i, 1u, i32(round(f.y * params.scale)));
-    add_fixed(i, 2u, i32(round(f.z * params.scale)));
+fn add_force_a(at: u32, f: vec3<f32>) {
+    add_fixed(at, 0u, i32(round(f.x * params.scale)));
+    add_fixed(at, 1u, i32(round(f.y * params.scale)));
+    add_fixed(at, 2u, i32(round(f.z * params.scale)));
 }
 
 // (b - a) / sqrt(d2), or for coincident vertices the unit vector from the center, or +z.
@@ -100,10 +108,14 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
-    let j = item_index(gid, nwg);
+    // Invocation k probes the k-th B vertex in A's slot order, so that neighbouring invocations
+    // walk neighbouring slots whatever order B comes in; B's vertices outside the grid are not
+    // sorted, and their forces stay cleared.
+    let k = item_index(gid, nwg);
     var hit = false;
-    if j < params.n_b {
-        hit = probe(j);
+    if k < atomicLoad(&state.binned_b) {
+        let entry = sorted_b[k];
+        hit = probe(entry.w, bitcast<vec3<f32>>(entry.xyz));
     }
     if hit {
         atomicAdd(&wg_colliding, 1u);
@@ -132,6 +144,7 @@ fn walk_own_voxel(p: vec3<f32>, v: vec3<u32>, best: ptr<function, Nearest>) -> b
             return true;
         }
         let entry = sorted[k];
+        let at = k;
         k++;
         let a = bitcast<vec3<f32>>(entry.xyz);
         if !DENSE && any(floor((a - origin_v) * inv) != vf) {
@@ -141,14 +154,14 @@ fn walk_own_voxel(p: vec3<f32>, v: vec3<u32>, best: ptr<function, Nearest>) -> b
         if (*best).n == 0u || before(d2, entry.w, (*best).d.x, (*best).i.x) {
             (*best).d.x = d2;
             (*best).i.x = entry.w;
+            (*best).at.x = at;
             (*best).n = 1u;
         }
     }
     return false;
 }
 
-fn probe(j: u32) -> bool {
-    let p = pos_b[j].xyz;
+fn probe(j: u32, p: vec3<f32>) -> bool {
     let origin = state.origin.xyz;
     let center = state.center.xyz;
     let vb = voxel_of(p, origin);
@@ -271,6 +284,7 @@ fn probe(j: u32) -> bool {
                 next_range++;
             }
             let entry = sorted[k];
+            let at = k;
             k++;
             let a = bitcast<vec3<f32>>(entry.xyz);
             let i = entry.w;
@@ -287,15 +301,16 @@ fn probe(j: u32) -> bool {
                 if d2 < r2 && (block.n == 0u || before(d2, i, block.d.x, block.i.x)) {
                     block.d.x = d2;
                     block.i.x = i;
+                    block.at.x = at;
                     block.n = 1u;
                 }
             } else if voxel_only {
                 if all(vec3<f32>(q.x, f32(y), f32(z)) == vec3<f32>(vb.xyz)) {
-                    insert(&own, d2, i);
+                    insert(&own, d2, i, at);
                 }
-                insert(&block, d2, i);
+                insert(&block, d2, i, at);
             } else if d2 < r2 {
-                insert(&block, d2, i);
+                insert(&block, d2, i, at);
             }
         }
     }
@@ -312,9 +327,9 @@ fn probe(j: u32) -> bool {
     }
     let m = params.magnitude;
     if plane && block.n == 3u {
-        let a0 = pos_a[block.i[0]].xyz;
-        let a1 = pos_a[block.i[1]].xyz;
-        let a2 = pos_a[block.i[2]].xyz;
+        let a0 = bitcast<vec3<f32>>(sorted[block.at[0]].xyz);
+        let a1 = bitcast<vec3<f32>>(sorted[block.at[1]].xyz);
+        let a2 = bitcast<vec3<f32>>(sorted[block.at[2]].xyz);
         let c = cross3(a1 - a0, a2 - a0);
         let len = sqrt(dot3(c, c));
         if len >= DEGENERATE {
@@ -326,15 +341,15 @@ fn probe(j: u32) -> bool {
             let f_b = m * n;
             force_b[j] = vec4<f32>(f_b, 1.0);
             let share = -f_b / 3.0;
-            add_force_a(block.i[0], share);
-            add_force_a(block.i[1], share);
-            add_force_a(block.i[2], share);
+            add_force_a(block.at[0], share);
+            add_force_a(block.at[1], share);
+            add_force_a(block.at[2], share);
             return true;
         }
     }
-    let ia = partner.i[0];
-    let f_b = m * pairwise_direction(center, pos_a[ia].xyz, p);
+    let at = partner.at[0];
+    let f_b = m * pairwise_direction(center, bitcast<vec3<f32>>(sorted[at].xyz), p);
     force_b[j] = vec4<f32>(f_b, 1.0);
-    add_force_a(ia, -f_b);
+    add_force_a(at, -f_b);
     return true;
 }

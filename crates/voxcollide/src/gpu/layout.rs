@@ -78,7 +78,9 @@ pub(crate) struct GpuState {
     pub overflow: u32,
     pub status: u32,
     pub truncated: u32,
-    pub _pad: [u32; 3],
+    /// B vertices in the grid, sorted by A's slots for the probe.
+    pub binned_b: u32,
+    pub _pad: [u32; 2],
 }
 const _: () = assert!(std::mem::size_of::<GpuState>() == 96);
 

@@ -1,7 +1,9 @@
 //! The GPU backend: WGSL compute passes on wgpu (DESIGN §3), checked against the CPU reference.
 //!
-//! A step is nine passes recorded into one command encoder — bounds (FollowA only), frame, a
-//! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), probe, resolve —
+//! A step is fourteen passes recorded into one command encoder — bounds (FollowA only), frame, a
+//! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), the same of B by
+//! A's slots (bin_b … sort_b, so that the probe's speed does not depend on B's order), probe,
+//! resolve —
 //! with every intermediate in device buffers that are created once and reused while the sizes
 //! fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
 //! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
@@ -53,6 +55,8 @@ pub(crate) struct Kernels {
     scan_carry: Kernel,
     scan_add: Kernel,
     sort: Kernel,
+    bin_b: Kernel,
+    sort_b: Kernel,
     probe_hashed: Kernel,
     probe_dense: Kernel,
     resolve: Kernel,
@@ -67,7 +71,7 @@ impl Kernels {
                 device,
                 if dense { "voxcollide probe (dense)" } else { "voxcollide probe (hashed)" },
                 shaders::PROBE,
-                &[Uniform, ReadWrite, Read, Read, Read, Read, ReadWrite, ReadWrite],
+                &[Uniform, ReadWrite, Read, Read, Read, ReadWrite, ReadWrite],
                 &[
                     ("SEARCH", f64::from(params.search)),
                     ("DIRECTION", f64::from(params.direction)),
@@ -103,13 +107,27 @@ impl Kernels {
                 shaders::SORT,
                 &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
             ),
+            bin_b: Kernel::with_constants(
+                device,
+                "voxcollide bin_b",
+                shaders::BIN,
+                &[Uniform, ReadWrite, Read, ReadWrite],
+                &[("BODY", 1.0)],
+            ),
+            sort_b: Kernel::with_constants(
+                device,
+                "voxcollide sort_b",
+                shaders::SORT,
+                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
+                &[("BODY", 1.0)],
+            ),
             probe_hashed: probe(false),
             probe_dense: probe(true),
             resolve: Kernel::new(
                 device,
                 "voxcollide resolve",
                 shaders::RESOLVE,
-                &[Uniform, ReadWrite, Read, ReadWrite],
+                &[Uniform, ReadWrite, Read, Read, ReadWrite],
             ),
         }
     }
@@ -129,8 +147,14 @@ struct Buffers {
     partial: Buffer,
     cursor: Buffer,
     sorted: Buffer,
-    /// Per A vertex 8 words: the low words of the x, y, z fixed-point totals, one unused, the
-    /// high words, one unused (biased by 2^31: see `add_fixed` in `shaders/probe.wgsl`).
+    /// The same for B, sorted by A's slots.
+    count_b: Buffer,
+    start_b: Buffer,
+    partial_b: Buffer,
+    cursor_b: Buffer,
+    sorted_b: Buffer,
+    /// Per sorted A vertex 8 words: the low words of the x, y, z fixed-point totals, one
+    /// unused, the high words, one unused (biased by 2^31: see `add_fixed` in `shaders/probe.wgsl`).
     fixed: Buffer,
     force_a: Buffer,
     force_b: Buffer,
@@ -164,6 +188,15 @@ impl Buffers {
             ),
             cursor: make("voxcollide cursor", 4 * u64::from(scan_slots(slots)), storage),
             sorted: make("voxcollide sorted", VEC4 * a, storage),
+            count_b: make("voxcollide count_b", 4 * u64::from(scan_slots(slots)), storage),
+            start_b: make("voxcollide start_b", 4 * u64::from(scan_slots(slots)), storage),
+            partial_b: make(
+                "voxcollide partial_b",
+                4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
+                storage,
+            ),
+            cursor_b: make("voxcollide cursor_b", 4 * u64::from(scan_slots(slots)), storage),
+            sorted_b: make("voxcollide sorted_b", VEC4 * b, storage),
             fixed: make("voxcollide fixed", 32 * a, storage),
             force_a: make("voxcollide force_a", VEC4 * a, storage),
             force_b: make("voxcollide force_b", VEC4 * b, storage),
@@ -183,6 +216,11 @@ struct Bound {
     scan_carry: wgpu::BindGroup,
     scan_add: wgpu::BindGroup,
     sort: wgpu::BindGroup,
+    bin_b: wgpu::BindGroup,
+    scan_b: wgpu::BindGroup,
+    scan_carry_b: wgpu::BindGroup,
+    scan_add_b: wgpu::BindGroup,
+    sort_b: wgpu::BindGroup,
     /// Hashed, dense.
     probe: [wgpu::BindGroup; 2],
     resolve: wgpu::BindGroup,
@@ -190,8 +228,22 @@ struct Bound {
 
 /// The passes of a step, in the order they run (`bounds` runs under `Anchor::FollowA` only), as
 /// [`GpuCollision::pass_times`] names them.
-pub const PASSES: [&str; 9] =
-    ["bounds", "frame", "bin", "scan", "scan_carry", "scan_add", "sort", "probe", "resolve"];
+pub const PASSES: [&str; 14] = [
+    "bounds",
+    "frame",
+    "bin",
+    "scan",
+    "scan_carry",
+    "scan_add",
+    "sort",
+    "bin_b",
+    "scan_b",
+    "scan_carry_b",
+    "scan_add_b",
+    "sort_b",
+    "probe",
+    "resolve",
+];
 
 /// Timestamp queries around each pass, and where they are resolved and read back.
 #[derive(Debug)]
@@ -417,14 +469,22 @@ impl GpuCollision {
                 scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial]),
                 scan_add: k.scan_add.bind(&device, &[&bufs.params, &bufs.start, &bufs.partial, &bufs.cursor]),
                 sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.cursor, &bufs.sorted]),
+                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &bufs.count_b]),
+                scan_b: k.scan.bind(&device, &[&bufs.params, &bufs.count_b, &bufs.start_b, &bufs.partial_b]),
+                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial_b]),
+                scan_add_b: k
+                    .scan_add
+                    .bind(&device, &[&bufs.params, &bufs.start_b, &bufs.partial_b, &bufs.cursor_b]),
+                sort_b: k
+                    .sort_b
+                    .bind(&device, &[&bufs.params, &bufs.state, b, &bufs.cursor_b, &bufs.sorted_b]),
                 probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
                     probe.bind(
                         &device,
                         &[
                             &bufs.params,
                             &bufs.state,
-                            a,
-                            b,
+                            &bufs.sorted_b,
                             &bufs.start,
                             &bufs.sorted,
                             &bufs.fixed,
@@ -432,7 +492,9 @@ impl GpuCollision {
                         ],
                     )
                 }),
-                resolve: k.resolve.bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &bufs.force_a]),
+                resolve: k
+                    .resolve
+                    .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &bufs.sorted, &bufs.force_a]),
             })?;
             self.bound = Some(bound);
             self.bind_group_builds += 1;
@@ -442,6 +504,11 @@ impl GpuCollision {
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         encoder.clear_buffer(&bufs.count, 0, Some(4 * u64::from(scan_slots(slots))));
+        encoder.clear_buffer(&bufs.count_b, 0, Some(4 * u64::from(scan_slots(slots))));
+        // The probe writes the forces of B's vertices in the grid and the resolve those of A's;
+        // the others stay zero.
+        encoder.clear_buffer(&bufs.force_b, 0, Some(VEC4 * u64::from(n_b)));
+        encoder.clear_buffer(&bufs.force_a, 0, Some(VEC4 * u64::from(n_a)));
         encoder.clear_buffer(&bufs.fixed, 0, Some(32 * u64::from(n_a)));
         let k = &self.kernels;
         let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
@@ -457,6 +524,11 @@ impl GpuCollision {
             (&k.scan_carry, &bound.scan_carry, None),
             (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
             (&k.sort, &bound.sort, Some(n_a)),
+            (&k.bin_b, &bound.bin_b, Some(n_b)),
+            (&k.scan, &bound.scan_b, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
+            (&k.scan_carry, &bound.scan_carry_b, None),
+            (&k.scan_add, &bound.scan_add_b, Some(scan_slots(slots) / 4)),
+            (&k.sort_b, &bound.sort_b, Some(n_b)),
             (probe, &bound.probe[usize::from(dense)], Some(n_b)),
             (&k.resolve, &bound.resolve, Some(n_a)),
         ];
