@@ -122,3 +122,27 @@ fn parallel_reports_do_not_depend_on_the_thread_count() {
         }
     }
 }
+
+#[test]
+fn piles_on_either_side_of_the_32_bit_accumulators_match_the_reference() {
+    // A's totals are summed in 32 bits while no slot of B holds more than 1213 vertices, in 64
+    // bits beyond. Piles of B around an A vertex, just under and just over that, from every
+    // direction, must give the reference's report either way (and the 64-bit path the
+    // reference's overflow where the total leaves i32: 32769 pushes of 65536).
+    use voxcollide::glam::Vec3;
+    let grid = VoxelGrid::new(Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
+    let a = [Vec3::splat(1.5), Vec3::new(1.6, 1.5, 1.5)];
+    for per_voxel in [1, 1213, 1214, 5000] {
+        let mut b = Vec::new();
+        for (k, d) in [Vec3::X, -Vec3::X, Vec3::Y, -Vec3::Y, Vec3::Z, -Vec3::Z].into_iter().enumerate() {
+            for j in 0..per_voxel {
+                b.push(Vec3::splat(1.5) + d * (0.6 + 0.0001 * (j % 7) as f32) + Vec3::splat(0.01 * k as f32));
+            }
+        }
+        for params in all_params(1.0, 1.0) {
+            let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b);
+            let actual = ParallelCpuCollision::new(grid, params).unwrap().step(&a, &b);
+            assert!(expected == actual, "{per_voxel} a voxel, {params:?}");
+        }
+    }
+}

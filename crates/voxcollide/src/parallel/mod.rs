@@ -11,13 +11,14 @@
 //!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
 //!   plus a rounding margin, so no candidate is lost).
-//! - Forces on A are summed in fixed point with atomic 64-bit integers: integer sums do not
-//!   depend on their order, so the totals equal the reference's exactly.
+//! - Forces on A are summed in fixed point with atomic integers: integer sums do not depend on
+//!   their order, so the totals equal the reference's exactly. 32-bit accumulators while no total
+//!   can leave `i32` (no slot of B holds more than 1213 vertices), else 64-bit ones.
 
 mod sort;
 
 use std::hint::select_unpredictable;
-use std::sync::atomic::{AtomicI64, Ordering};
+use std::sync::atomic::{AtomicI32, AtomicI64, Ordering};
 
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
@@ -147,8 +148,10 @@ pub struct ParallelCpuCollision {
     /// Per binned A vertex, in bin order: its force; scratch for the way back.
     res_a: Vec<Vec3>,
     scratch_a: Vec<Vec3>,
-    /// Fixed-point force accumulators of A, three per binned vertex in bin order.
+    /// Fixed-point force accumulators of A, three per binned vertex in bin order: 64-bit, and
+    /// 32-bit for steps where no total can leave `i32` (half the memory the probe adds into).
     fixed: Vec<AtomicI64>,
+    fixed32: Vec<AtomicI32>,
     /// With profiling on, the last step's phases in milliseconds (see [`PHASES`]).
     phases: Option<[f64; PHASES.len()]>,
 }
@@ -176,6 +179,7 @@ impl ParallelCpuCollision {
             res_a: Vec::new(),
             scratch_a: Vec::new(),
             fixed: Vec::new(),
+            fixed32: Vec::new(),
             phases: None,
         })
     }
@@ -240,35 +244,17 @@ impl ParallelCpuCollision {
         let slots = self.bins.a.start.len() - 1;
         self.b.sort(b, slots, |p| voxel_of(&grid, p).map(|q| slot(dense, mask, q)));
         lap(&mut self.phases);
-        // The accumulators are left at zero by the previous step's resolve.
-        self.fixed.truncate(3 * binned as usize);
-        self.fixed.resize_with(3 * binned as usize, || AtomicI64::new(0));
-
-        let m = self.params.magnitude;
-        let probe = Probe {
-            grid: &grid,
-            params: &self.params,
-            bins: &self.bins,
-            fixed: &self.fixed,
-            scale: 65536.0 / m,
+        // A's totals fit 32-bit accumulators when no total can leave i32: a B vertex adds at
+        // most one count to an A vertex, of at most 65537 (|force| ≤ magnitude), and only B's
+        // vertices in the 27 voxels around that A vertex's reach it, each at most the fullest
+        // slot of B: 27 · 1213 · 65540 < 2^31.
+        let narrow = 27 * u64::from(self.b.max_per_slot) * 65_540 < 1 << 31;
+        let run = Run { grid: &grid, params: &self.params, bins: &self.bins, b: &self.b };
+        let overflow = if narrow {
+            run.probe(&mut self.fixed32, &mut self.res_b, &mut self.res_a)
+        } else {
+            run.probe(&mut self.fixed, &mut self.res_b, &mut self.res_a)
         };
-        // Probe in A's slot order, in long runs, so that most of A's accumulators are one run's
-        // alone (`own_bins`): a quarter of a thread's share each.
-        let sorted = self.b.rec.len();
-        let size = (sorted / (4 * rayon::current_num_threads())).max(1024);
-        let voxel = self.params.search == Search::Voxel;
-        let plane = self.params.direction == Direction::PlaneNormal;
-        self.res_b.resize(sorted, [0.0; 4]);
-        let (dense, b_start) = (self.bins.dense.is_some(), &self.b.start);
-        self.res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).enumerate().for_each(
-            |(c, (out, recs))| match (voxel, plane) {
-                (true, false) if dense => probe.run_own_slots(b_start, c * size, recs, out),
-                (false, false) => probe.run::<false, false>(recs, out),
-                (false, true) => probe.run::<false, true>(recs, out),
-                (true, false) => probe.run::<true, false>(recs, out),
-                (true, true) => probe.run::<true, true>(recs, out),
-            },
-        );
         lap(&mut self.phases);
         // B's results in B's order (those outside the grid collide with nothing), then its
         // forces.
@@ -282,37 +268,6 @@ impl ParallelCpuCollision {
             }
         });
         lap(&mut self.phases);
-        // Back to f32, each accumulator back to zero for the next step, in bin order, then to
-        // A's order; the first overflow in (vertex, axis) order is the error, as on the CPU.
-        let unit = m / 65536.0;
-        self.res_a.resize(binned as usize, Vec3::ZERO);
-        let size = chunk(binned as usize);
-        let overflow = self
-            .fixed
-            .par_chunks_mut(3 * size)
-            .zip(self.bins.a.rec.par_chunks(size))
-            .zip(self.res_a.par_chunks_mut(size))
-            .filter_map(|((fixed, recs), out)| {
-                let mut first: Option<(usize, i64)> = None;
-                for ((acc, r), o) in fixed.chunks_exact_mut(3).zip(recs).zip(out) {
-                    let mut f = [0.0f32; 3];
-                    for (axis, (x, acc)) in f.iter_mut().zip(acc).enumerate() {
-                        let count = std::mem::replace(acc.get_mut(), 0);
-                        match i32::try_from(count) {
-                            Ok(c) => *x = c as f32 * unit,
-                            Err(_) => {
-                                let at = 3 * r.i as usize + axis;
-                                first = Some(
-                                    first.map_or((at, count), |e| if e.0 < at { e } else { (at, count) }),
-                                );
-                            }
-                        }
-                    }
-                    *o = Vec3::from_array(f);
-                }
-                first
-            })
-            .min_by_key(|(k, _)| *k);
         report.force_a.resize(a.len(), Vec3::ZERO);
         self.bins.a.unsort(&self.res_a, &mut self.scratch_a, &mut report.force_a, |o, f| {
             *o = f.unwrap_or(Vec3::ZERO)
@@ -361,16 +316,136 @@ impl ParallelCpuCollision {
     }
 }
 
-/// What a B vertex needs to probe.
-struct Probe<'a> {
+/// A fixed-point force accumulator of A.
+trait Accumulator: Send + Sync {
+    fn zero() -> Self;
+    /// Adds with a plain read and write: for an accumulator only one task adds to.
+    fn add_owned(&self, c: i32);
+    /// Adds atomically.
+    fn add_shared(&self, c: i32);
+    /// The total, leaving zero.
+    fn take(&mut self) -> i64;
+}
+
+impl Accumulator for AtomicI64 {
+    fn zero() -> Self {
+        AtomicI64::new(0)
+    }
+    #[inline(always)]
+    fn add_owned(&self, c: i32) {
+        self.store(self.load(Ordering::Relaxed) + i64::from(c), Ordering::Relaxed);
+    }
+    #[inline(always)]
+    fn add_shared(&self, c: i32) {
+        self.fetch_add(i64::from(c), Ordering::Relaxed);
+    }
+    fn take(&mut self) -> i64 {
+        std::mem::replace(self.get_mut(), 0)
+    }
+}
+
+/// Used only while no partial sum can leave `i32` (see `narrow` in the step), so no add wraps.
+impl Accumulator for AtomicI32 {
+    fn zero() -> Self {
+        AtomicI32::new(0)
+    }
+    #[inline(always)]
+    fn add_owned(&self, c: i32) {
+        self.store(self.load(Ordering::Relaxed).wrapping_add(c), Ordering::Relaxed);
+    }
+    #[inline(always)]
+    fn add_shared(&self, c: i32) {
+        self.fetch_add(c, Ordering::Relaxed);
+    }
+    fn take(&mut self) -> i64 {
+        i64::from(std::mem::replace(self.get_mut(), 0))
+    }
+}
+
+/// What a step's probe reads: the grid, the params and both sorted bodies.
+struct Run<'a> {
     grid: &'a VoxelGrid,
     params: &'a ContactParams,
     bins: &'a Bins,
-    fixed: &'a [AtomicI64],
+    b: &'a SortedBody,
+}
+
+impl Run<'_> {
+    /// Probes sorted B into `res_b` (each vertex's force, `w` = 1 where it collides), adding
+    /// A's shares into `fixed`, then turns A's totals into `res_a` (bin order), leaving the
+    /// accumulators at zero. Returns the first overflow in (vertex, axis) order, as on the CPU.
+    fn probe<T: Accumulator>(
+        &self,
+        fixed: &mut Vec<T>,
+        res_b: &mut Vec<[f32; 4]>,
+        res_a: &mut Vec<Vec3>,
+    ) -> Option<(usize, i64)> {
+        // The accumulators are left at zero by the previous step's resolve.
+        let binned = self.bins.a.rec.len();
+        fixed.truncate(3 * binned);
+        fixed.resize_with(3 * binned, T::zero);
+        let m = self.params.magnitude;
+        let probe =
+            Probe { grid: self.grid, params: self.params, bins: self.bins, fixed, scale: 65536.0 / m };
+        // Probe in A's slot order, in long runs, so that most of A's accumulators are one run's
+        // alone (`own_bins`): a quarter of a thread's share each.
+        let sorted = self.b.rec.len();
+        let size = (sorted / (4 * rayon::current_num_threads())).max(1024);
+        let voxel = self.params.search == Search::Voxel;
+        let plane = self.params.direction == Direction::PlaneNormal;
+        res_b.resize(sorted, [0.0; 4]);
+        let (dense, b_start) = (self.bins.dense.is_some(), &self.b.start);
+        res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).enumerate().for_each(
+            |(c, (out, recs))| match (voxel, plane) {
+                (true, false) if dense => probe.run_own_slots(b_start, c * size, recs, out),
+                (false, false) => probe.run::<false, false>(recs, out),
+                (false, true) => probe.run::<false, true>(recs, out),
+                (true, false) => probe.run::<true, false>(recs, out),
+                (true, true) => probe.run::<true, true>(recs, out),
+            },
+        );
+        // Back to f32, each accumulator back to zero for the next step, in bin order.
+        let unit = m / 65536.0;
+        res_a.resize(binned, Vec3::ZERO);
+        let size = chunk(binned);
+        fixed
+            .par_chunks_mut(3 * size)
+            .zip(self.bins.a.rec.par_chunks(size))
+            .zip(res_a.par_chunks_mut(size))
+            .filter_map(|((fixed, recs), out)| {
+                let mut first: Option<(usize, i64)> = None;
+                for ((acc, r), o) in fixed.chunks_exact_mut(3).zip(recs).zip(out) {
+                    let mut f = [0.0f32; 3];
+                    for (axis, (x, acc)) in f.iter_mut().zip(acc).enumerate() {
+                        let count = acc.take();
+                        match i32::try_from(count) {
+                            Ok(c) => *x = c as f32 * unit,
+                            Err(_) => {
+                                let at = 3 * r.i as usize + axis;
+                                first = Some(
+                                    first.map_or((at, count), |e| if e.0 < at { e } else { (at, count) }),
+                                );
+                            }
+                        }
+                    }
+                    *o = Vec3::from_array(f);
+                }
+                first
+            })
+            .min_by_key(|(k, _)| *k)
+    }
+}
+
+/// What a B vertex needs to probe.
+struct Probe<'a, T> {
+    grid: &'a VoxelGrid,
+    params: &'a ContactParams,
+    bins: &'a Bins,
+    fixed: &'a [T],
     scale: f32,
 }
 
-impl Probe<'_> {
+impl<T: Accumulator> Probe<'_, T> {
     /// Probes a run of sorted B vertices.
     fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
         let own = self.own_bins(recs);
@@ -611,9 +686,9 @@ impl Probe<'_> {
             let c = round_count(f[axis] * self.scale);
             let acc = &self.fixed[3 * k as usize + axis];
             if mine {
-                acc.store(acc.load(Ordering::Relaxed) + i64::from(c), Ordering::Relaxed);
+                acc.add_owned(c);
             } else if c != 0 {
-                acc.fetch_add(i64::from(c), Ordering::Relaxed);
+                acc.add_shared(c);
             }
         }
     }

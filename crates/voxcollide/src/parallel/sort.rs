@@ -54,6 +54,8 @@ pub(super) struct SortedBody {
     offset: Vec<u32>,
     /// Per sorted position: where the vertex was in `tmp` (within its bucket's range).
     back: Vec<u32>,
+    /// The most vertices in one slot.
+    pub max_per_slot: u32,
     /// The sort's shape, for [`SortedBody::unsort`]: bits of a slot within its bucket,
     /// buckets, and vertices per part.
     shape: (u32, usize, usize),
@@ -162,32 +164,39 @@ impl SortedBody {
             let (tmp, bucket_start) = (&self.tmp, &self.bucket_start);
             let rec = Scatter::new(&mut self.rec);
             let back = Scatter::new(&mut self.back);
-            self.start[..slots].par_chunks_mut(1 << shift).enumerate().for_each(|(b, start)| {
-                let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
-                let first = b << shift;
-                start.fill(0);
-                for t in &tmp[lo..hi] {
-                    start[t.s as usize - first] += 1;
-                }
-                let mut running = lo as u32;
-                for c in start.iter_mut() {
-                    (*c, running) = (running, running + *c);
-                }
-                for (j, t) in tmp[lo..hi].iter().enumerate() {
-                    let at = &mut start[t.s as usize - first];
-                    // SAFETY: the bucket's slots' cursors tile its range lo..hi of `rec` and
-                    // `back` (counted just above from the same vertices), and buckets' ranges
-                    // are disjoint: every index is written once.
-                    unsafe {
-                        rec.write(*at as usize, Rec { p: t.p, i: t.i });
-                        back.write(*at as usize, (lo + j) as u32);
+            self.max_per_slot = self.start[..slots]
+                .par_chunks_mut(1 << shift)
+                .enumerate()
+                .map(|(b, start)| {
+                    let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
+                    let first = b << shift;
+                    start.fill(0);
+                    for t in &tmp[lo..hi] {
+                        start[t.s as usize - first] += 1;
                     }
-                    *at += 1;
-                }
-                // Each cursor now holds the next slot's start: shift them back by one.
-                start.copy_within(..start.len() - 1, 1);
-                start[0] = lo as u32;
-            });
+                    let most = start.iter().copied().max().unwrap_or(0);
+                    let mut running = lo as u32;
+                    for c in start.iter_mut() {
+                        (*c, running) = (running, running + *c);
+                    }
+                    for (j, t) in tmp[lo..hi].iter().enumerate() {
+                        let at = &mut start[t.s as usize - first];
+                        // SAFETY: the bucket's slots' cursors tile its range lo..hi of `rec` and
+                        // `back` (counted just above from the same vertices), and buckets' ranges
+                        // are disjoint: every index is written once.
+                        unsafe {
+                            rec.write(*at as usize, Rec { p: t.p, i: t.i });
+                            back.write(*at as usize, (lo + j) as u32);
+                        }
+                        *at += 1;
+                    }
+                    // Each cursor now holds the next slot's start: shift them back by one.
+                    start.copy_within(..start.len() - 1, 1);
+                    start[0] = lo as u32;
+                    most
+                })
+                .max()
+                .unwrap_or(0);
         }
         self.start[slots] = sorted as u32;
         sorted as u32
