@@ -8,6 +8,7 @@
 pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells, lattices in surfaces
 pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integrator
 pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units
+pub mod catalogue; // implant catalogues (DESIGN §9): the candidates `compare` runs, checked
 pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback

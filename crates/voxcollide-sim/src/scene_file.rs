@@ -558,7 +558,7 @@ fn line_column(text: &str, offset: usize) -> (usize, usize) {
 
 /// The dotted path of the key whose line holds byte `offset`: the tables above it
 /// (`[[body]]` counted, so `body[2]`), then the key on that line (inline tables too).
-fn key_at(text: &str, offset: usize) -> String {
+pub(crate) fn key_at(text: &str, offset: usize) -> String {
     let offset = offset.min(text.len());
     let mut table = String::new();
     let mut counts: Vec<(String, usize)> = Vec::new();
@@ -664,7 +664,13 @@ fn inline_key(upto: &str) -> String {
 }
 
 /// The file's error at `span`.
-fn at(file: &str, text: &str, span: Range<usize>, key: Option<&str>, message: impl Into<String>) -> Error {
+pub(crate) fn at(
+    file: &str,
+    text: &str,
+    span: Range<usize>,
+    key: Option<&str>,
+    message: impl Into<String>,
+) -> Error {
     let (line, column) = line_column(text, span.start);
     Error::SceneFile {
         file: file.to_string(),
@@ -1048,7 +1054,7 @@ fn find_key(text: &str, table: &str, key: &str) -> usize {
 }
 
 /// The byte offset where the `k`-th `[[name]]` table starts.
-fn nth_table(text: &str, name: &str, k: usize) -> Option<usize> {
+pub(crate) fn nth_table(text: &str, name: &str, k: usize) -> Option<usize> {
     let header = format!("[[{name}]]");
     let mut from = 0;
     for _ in 0..=k {
@@ -1060,7 +1066,7 @@ fn nth_table(text: &str, name: &str, k: usize) -> Option<usize> {
 
 /// A shape's sizes: positive, and an implant's volume one that its base and projection hold.
 /// The error's key below `body[k]`, and its message.
-fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
+pub(crate) fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
     let positive = |v: &[f64]| v.iter().all(|x| x.is_finite() && *x > 0.0);
     let ok = match shape {
         Shape::Box(s) | Shape::Ellipsoid(s) => positive(s),

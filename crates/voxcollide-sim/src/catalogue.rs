@@ -1,0 +1,289 @@
+//! Implant catalogues (DESIGN §9): the candidates `voxcollide compare` runs through one scene,
+//! read from TOML and checked, with errors that name the file, line, column and key.
+//!
+//! ```toml
+//! [[candidate]]
+//! name = "round 300 mL"
+//! shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40, style = "round" } }
+//!
+//! [[candidate]]
+//! name = "my shell"
+//! mesh = "shell.stl"          # a closed surface, resolved against the catalogue's folder
+//! ```
+
+use std::path::{Path, PathBuf};
+
+use serde::Deserialize;
+use toml::Spanned;
+use voxcollide::Error;
+
+use crate::scene_file::{Geometry, Shape, at, check_shape, key_at, nth_table};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCatalogue {
+    #[serde(default)]
+    candidate: Vec<RawCandidate>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCandidate {
+    name: Spanned<String>,
+    shape: Option<Spanned<Shape>>,
+    mesh: Option<Spanned<String>>,
+}
+
+/// One candidate: its name and its geometry (a built-in shape, or a mesh resolved against the
+/// catalogue's folder).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Candidate {
+    /// Its unique name.
+    pub name: String,
+    /// Its shape or mesh.
+    pub geometry: Geometry,
+}
+
+impl Candidate {
+    /// A folder name for the candidate's run: its name with every character that is not a
+    /// letter, a digit, `-`, `_` or `.` turned into `_`.
+    #[must_use]
+    pub fn folder(&self) -> String {
+        self.name.chars().map(|c| if c.is_alphanumeric() || "-_.".contains(c) { c } else { '_' }).collect()
+    }
+}
+
+/// A catalogue, read and checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Catalogue {
+    /// The file it was read from.
+    pub path: PathBuf,
+    /// The candidates, in file order (at least one).
+    pub candidates: Vec<Candidate>,
+}
+
+impl Catalogue {
+    /// Reads and checks the catalogue at `path`; meshes must exist.
+    ///
+    /// # Errors
+    /// [`Error::SceneFile`] naming the file, line, column and key: a syntax or type error, an
+    /// unknown key, no candidate, a missing, empty or repeated name (or two names that give the
+    /// same folder), neither or both of `shape` and `mesh`, a size that is not positive, an
+    /// implant volume that its base and projection cannot hold, a mesh that is not a file; or,
+    /// at line 0, a file that cannot be read.
+    pub fn read(path: impl AsRef<Path>) -> Result<Catalogue, Error> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
+            file: path.display().to_string(),
+            line: 0,
+            column: 0,
+            key: String::new(),
+            message: format!("cannot read the catalogue: {e}"),
+        })?;
+        let catalogue = Catalogue::parse(path, &text)?;
+        let file = path.display().to_string();
+        for (k, c) in catalogue.candidates.iter().enumerate() {
+            if let Geometry::Mesh(mesh) = &c.geometry
+                && !mesh.is_file()
+            {
+                let offset =
+                    nth_table(&text, "candidate", k).and_then(|t| text[t..].find("mesh").map(|i| t + i));
+                let offset = offset.unwrap_or(0);
+                return Err(at(
+                    &file,
+                    &text,
+                    offset..offset,
+                    Some(&format!("candidate[{k}].mesh")),
+                    format!("{} does not exist or is not a file", mesh.display()),
+                ));
+            }
+        }
+        Ok(catalogue)
+    }
+
+    /// Parses and checks catalogue `text` as if read from `path` (mesh paths are resolved
+    /// against its folder, and not looked for).
+    ///
+    /// # Errors
+    /// As [`read`](Self::read), but for the mesh files.
+    pub fn parse(path: impl AsRef<Path>, text: &str) -> Result<Catalogue, Error> {
+        let path = path.as_ref();
+        let file = path.display().to_string();
+        let raw: RawCatalogue = toml::from_str(text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            let message = e.message().trim().to_string();
+            let key =
+                message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
+                    let context = key_at(text, span.start);
+                    if context.ends_with(unknown) || context.is_empty() {
+                        if context.is_empty() { unknown.to_string() } else { context }
+                    } else {
+                        format!("{context}.{unknown}")
+                    }
+                });
+            at(&file, text, span, key.as_deref(), message)
+        })?;
+        if raw.candidate.is_empty() {
+            return Err(at(
+                &file,
+                text,
+                0..0,
+                Some("candidate"),
+                "no [[candidate]]: a catalogue lists at least one",
+            ));
+        }
+        let dir = path.parent().unwrap_or(Path::new(""));
+        let mut candidates: Vec<Candidate> = Vec::with_capacity(raw.candidate.len());
+        for (k, c) in raw.candidate.into_iter().enumerate() {
+            let key = |what: &str| format!("candidate[{k}].{what}");
+            let name_span = c.name.span();
+            let name = c.name.into_inner();
+            if name.trim().is_empty() {
+                return Err(at(&file, text, name_span, Some(&key("name")), "a candidate needs a name"));
+            }
+            let geometry = match (c.shape, c.mesh) {
+                (Some(shape), None) => {
+                    let span = shape.span();
+                    let shape = shape.into_inner();
+                    check_shape(&shape).map_err(|(what, m)| at(&file, text, span, Some(&key(what)), m))?;
+                    Geometry::Shape(shape)
+                }
+                (None, Some(mesh)) => Geometry::Mesh(dir.join(mesh.into_inner())),
+                (Some(_), Some(mesh)) => {
+                    return Err(at(
+                        &file,
+                        text,
+                        mesh.span(),
+                        Some(&key("mesh")),
+                        format!("candidate {name:?} has both `shape` and `mesh`; give one"),
+                    ));
+                }
+                (None, None) => {
+                    return Err(at(
+                        &file,
+                        text,
+                        name_span,
+                        Some(&key("shape")),
+                        format!("candidate {name:?} needs a `shape` or a `mesh`"),
+                    ));
+                }
+            };
+            let candidate = Candidate { name, geometry };
+            if let Some(first) =
+                candidates.iter().position(|o| o.name == candidate.name || o.folder() == candidate.folder())
+            {
+                return Err(at(
+                    &file,
+                    text,
+                    name_span,
+                    Some(&key("name")),
+                    format!(
+                        "{:?} repeats candidate[{first}] {:?} (names are unique, and so are the folders they give)",
+                        candidate.name, candidates[first].name
+                    ),
+                ));
+            }
+            candidates.push(candidate);
+        }
+        Ok(Catalogue { path: path.to_path_buf(), candidates })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene_file::ImplantStyle;
+
+    fn error(text: &str) -> (usize, String, String) {
+        match Catalogue::parse("cat.toml", text).unwrap_err() {
+            Error::SceneFile { file, line, key, message, .. } => {
+                assert_eq!(file, "cat.toml");
+                (line, key, message)
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn candidates_are_read_in_order() {
+        let c = Catalogue::parse(
+            "dir/cat.toml",
+            r#"
+[[candidate]]
+name = "round 300"
+shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+
+[[candidate]]
+name = "teardrop 250"
+shape = { implant = { volume_ml = 250, base_mm = 110, projection_mm = 38, style = "anatomical" } }
+
+[[candidate]]
+name = "own / shell"
+mesh = "shell.stl"
+"#,
+        )
+        .unwrap();
+        assert_eq!(c.candidates.len(), 3);
+        assert_eq!(
+            c.candidates[1].geometry,
+            Geometry::Shape(Shape::Implant {
+                volume_ml: 250.0,
+                base_mm: 110.0,
+                projection_mm: 38.0,
+                style: ImplantStyle::Anatomical
+            })
+        );
+        assert_eq!(c.candidates[2].geometry, Geometry::Mesh(PathBuf::from("dir/shell.stl")));
+        assert_eq!(c.candidates[2].folder(), "own___shell");
+    }
+
+    #[test]
+    fn bad_candidates_are_named_by_line_and_key() {
+        let implant = |v: &str| {
+            format!(
+                "[[candidate]]\nname = \"a\"\nshape = {{ implant = {{ volume_ml = {v}, base_mm = 115, projection_mm = 40 }} }}\n"
+            )
+        };
+        let (line, key, message) = error(&implant("900"));
+        assert_eq!((line, key.as_str()), (3, "candidate[0].shape.implant.volume_ml"), "{message}");
+        assert!(message.contains("holds more than"), "{message}");
+        let (line, key, _) = error(&implant("-5"));
+        assert_eq!((line, key.as_str()), (3, "candidate[0].shape"));
+        let (_, key, _) = error("[[candidate]]\nname = \"a\"\n");
+        assert_eq!(key, "candidate[0].shape");
+        let (line, key, _) = error("[[candidate]]\nname = \"\"\nshape = { sphere = 3 }\n");
+        assert_eq!((line, key.as_str()), (2, "candidate[0].name"));
+        let (line, key, message) = error(
+            "[[candidate]]\nname = \"a b\"\nshape = { sphere = 3 }\n[[candidate]]\nname = \"a_b\"\nshape = { sphere = 4 }\n",
+        );
+        assert_eq!((line, key.as_str()), (5, "candidate[1].name"), "{message}");
+        let (line, key, _) = error("[[candidate]]\nname = \"a\"\nshape = { sphere = 3 }\nmesh = \"x.stl\"\n");
+        assert_eq!((line, key.as_str()), (4, "candidate[0].mesh"));
+        let (line, key, _) = error("[[candidate]]\nname = \"a\"\nshape = { sphere = 3 }\ncolour = 1\n");
+        assert_eq!((line, key.as_str()), (4, "candidate[0].colour"));
+        let (_, key, _) = error("# nothing\n");
+        assert_eq!(key, "candidate");
+        let (line, _, _) = error("[[candidate]]\nname = 3\n");
+        assert_eq!(line, 2);
+    }
+
+    #[test]
+    fn a_missing_mesh_is_named() {
+        let dir = std::env::temp_dir().join(format!("voxcollide-catalogue-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("cat.toml");
+        std::fs::write(&path, "[[candidate]]\nname = \"a\"\nmesh = \"missing.stl\"\n").unwrap();
+        match Catalogue::read(&path).unwrap_err() {
+            Error::SceneFile { line, key, message, .. } => {
+                assert_eq!((line, key.as_str()), (3, "candidate[0].mesh"));
+                assert!(message.contains("missing.stl"), "{message}");
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(matches!(
+            Catalogue::read(dir.join("nope.toml")).unwrap_err(),
+            Error::SceneFile { line: 0, .. }
+        ));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
