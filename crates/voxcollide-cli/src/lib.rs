@@ -4,7 +4,8 @@
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 
-pub mod bench; //    `voxcollide bench`: every backend against a k-d tree baseline
+pub mod bench; //    `voxcollide bench`: every backend against its workload's baseline
+pub mod compare; //  `voxcollide compare`: implant candidates through one scene, and the report
 pub mod output; //   VTK / ParaView files of the bodies
 pub mod render; //   offscreen PNG pictures with wgpu
 pub mod scenario; // a scene run end to end: backend, frames, files, summary

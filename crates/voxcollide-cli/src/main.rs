@@ -23,6 +23,31 @@ enum Command {
     Run(RunArgs),
     /// Time every backend on DESIGN §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
     Bench(BenchArgs),
+    /// Choose an implant: run a scene once per candidate of a catalogue (DESIGN §9), the named
+    /// shell replaced by each and filled to its volume, then settled; write report.html,
+    /// compare.json, compare.csv and a folder per candidate.
+    Compare(CompareArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct CompareArgs {
+    /// The scene file (DESIGN §8), e.g. scenes/breast-implant.toml.
+    scene: PathBuf,
+    /// The scene's shell body that each candidate replaces.
+    #[arg(long)]
+    body: String,
+    /// The catalogue: [[candidate]] tables with `name` and `shape` or `mesh`.
+    #[arg(long)]
+    candidates: PathBuf,
+    /// The output folder.
+    #[arg(long, default_value = "out/compare")]
+    out: PathBuf,
+    /// Where to run.
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+    /// Picture size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "640x420", value_parser = parse_size)]
+    image: (u32, u32),
 }
 
 #[derive(clap::Args, Debug)]
@@ -159,6 +184,7 @@ fn main() -> ExitCode {
     let args = match Cli::parse().command {
         Command::Run(args) => args,
         Command::Bench(args) => return bench(&args),
+        Command::Compare(args) => return compare(&args),
     };
     let backend = match args.backend {
         BackendArg::Auto => Backend::Auto,
@@ -297,6 +323,93 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 voxcollide_cli::scene_run::REST_TOLERANCE
             );
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn backend_of(arg: BackendArg) -> Backend {
+    match arg {
+        BackendArg::Auto => Backend::Auto,
+        BackendArg::Gpu => Backend::Gpu,
+        BackendArg::Cpu => Backend::Cpu,
+    }
+}
+
+fn compare(args: &CompareArgs) -> ExitCode {
+    let config = voxcollide_cli::compare::CompareConfig {
+        scene: args.scene.clone(),
+        body: args.body.clone(),
+        candidates: args.candidates.clone(),
+        out: args.out.clone(),
+        backend: backend_of(args.backend),
+        image: args.image,
+    };
+    let bars = indicatif::MultiProgress::new();
+    let style = |template: &str| {
+        ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> ")
+    };
+    let whole = bars.add(ProgressBar::new(0));
+    whole.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} candidates  {elapsed}"));
+    whole.set_prefix("all");
+    let current = bars.add(ProgressBar::new(1));
+    current.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} steps  {per_sec}  {msg}"));
+    let mut at = usize::MAX;
+    let result = voxcollide_cli::compare::compare(
+        &config,
+        &mut |p| {
+            if p.index != at {
+                at = p.index;
+                whole.set_length(p.count as u64);
+                whole.set_position(p.index as u64);
+                current.reset();
+                current.set_prefix(format!("{}/{}", p.index + 1, p.count));
+                current.set_message(p.name.to_string());
+            }
+            current.set_length(p.planned.max(p.done));
+            current.set_position(p.done);
+        },
+        &mut |line| {
+            if whole.is_hidden() {
+                eprintln!("{line}");
+            } else {
+                bars.println(line).ok();
+            }
+        },
+    );
+    whole.finish_and_clear();
+    current.finish_and_clear();
+    match result {
+        Ok(c) => {
+            println!(
+                "{:<24} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8}",
+                "candidate",
+                "volume mL",
+                format!("lift {}", c.units),
+                format!("max disp {}", c.units),
+                "peak kPa",
+                format!("area {}²", c.units),
+                "settled"
+            );
+            for r in &c.candidates {
+                println!(
+                    "{:<24} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8}",
+                    r.name,
+                    r.volume_ml,
+                    r.apex_lift,
+                    r.max_tissue_displacement,
+                    r.peak_contact_pressure_kpa,
+                    r.contact_area,
+                    r.settled
+                );
+            }
+            println!("written: {}/report.html, compare.json, compare.csv", args.out.display());
             ExitCode::SUCCESS
         }
         Err(e) => {

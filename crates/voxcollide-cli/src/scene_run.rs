@@ -160,6 +160,25 @@ pub fn run_file(
     note: &mut dyn FnMut(&str),
 ) -> Result<FileSummary, Error> {
     let file = SceneFile::read(&config.path)?;
+    run_scene(&file, config, progress, note, &mut |_, _| Ok(()))
+}
+
+/// What [`run_scene`] calls with the world and the contact reports of the last frame.
+pub type Finished<'a> = dyn FnMut(&World, &[ContactReport]) -> Result<(), Error> + 'a;
+
+/// [`run_file`] on a scene already read (`config.path` names it), calling `finished` with the
+/// world and the contact reports of the last frame before `summary.json` is written.
+///
+/// # Errors
+/// As [`run_file`], and `finished`'s.
+pub fn run_scene(
+    file: &SceneFile,
+    config: &FileRunConfig,
+    progress: &mut dyn FnMut(u64, u64),
+    note: &mut dyn FnMut(&str),
+    finished: &mut Finished<'_>,
+) -> Result<FileSummary, Error> {
+    let file = file.clone();
     let built = build_world(&file)?;
     for n in &built.notes {
         for r in &n.remarks {
@@ -338,6 +357,7 @@ pub fn run_file(
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
+            finished(world, &reports)?;
             break;
         }
         // Past the schedule, frames a settling window apart.
@@ -370,7 +390,9 @@ pub fn run_file(
 
 /// The surface a body is shown and measured by: the user's own where the lattice carries one
 /// (its vertices following their cells), else the body's.
-fn shown_surface(body: &MassSpring) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
+pub(crate) fn shown_surface(
+    body: &MassSpring,
+) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
     match &body.embedded {
         Some(e) => (e.positions(&body.pos, &body.rest_pos).into(), &e.mesh),
         None => (body.pos.as_slice().into(), &body.surface),
@@ -408,7 +430,7 @@ pub fn settling_window(world: &World, dt: f32) -> u64 {
 }
 
 /// A body's spacing: the mean rest length of its springs (1 without springs).
-fn mean_spring(b: &MassSpring) -> f32 {
+pub(crate) fn mean_spring(b: &MassSpring) -> f32 {
     if b.springs.is_empty() {
         1.0
     } else {

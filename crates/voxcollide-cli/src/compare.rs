@@ -1,0 +1,480 @@
+//! `voxcollide compare` (DESIGN §9): one scene run once per candidate of an implant catalogue,
+//! the named body's shape (or mesh) replaced by the candidate's, with settling on; the
+//! candidates' resting shapes and measurements side by side in `report.html` (self-contained),
+//! `compare.json` and `compare.csv`.
+//!
+//! The compared body is a shell: it starts as the scene places it (the shipped scene puts it at
+//! 80 % of its size on the chest wall) and fills to the candidate's own volume over the scene's
+//! inflation ramp, then the scene settles. Every candidate is built before anything runs, so a
+//! bad one is an error naming it and nothing is written.
+
+use std::path::{Path, PathBuf};
+
+use base64::Engine;
+use glam::Vec3;
+use serde::Serialize;
+use voxcollide::{ContactReport, Error};
+use voxcollide_sim::World;
+use voxcollide_sim::build::build_world;
+use voxcollide_sim::catalogue::{Candidate, Catalogue};
+use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
+
+use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
+use crate::scenario::Backend;
+use crate::scene_run::{FileRunConfig, mean_spring, run_scene, shown_surface};
+
+/// What to compare, and where.
+#[derive(Clone, Debug)]
+pub struct CompareConfig {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The name of the scene's shell body that each candidate replaces.
+    pub body: String,
+    /// The catalogue file.
+    pub candidates: PathBuf,
+    /// The output folder: `report.html`, `compare.json`, `compare.csv`, and a folder per
+    /// candidate with its run.
+    pub out: PathBuf,
+    /// Which backend runs the scenes.
+    pub backend: Backend,
+    /// Picture size.
+    pub image: (u32, u32),
+}
+
+/// One candidate's result, as in `compare.json` (DESIGN §9's keys first).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct CandidateResult {
+    /// The candidate's name.
+    pub name: String,
+    /// The volume the compared shell encloses at the end, in mL.
+    pub volume_ml: f64,
+    /// How far the tissue's outer surface rose at its highest point (scene units).
+    pub apex_lift: f32,
+    /// The largest distance a tissue vertex moved from its rest position over the run (scene
+    /// units).
+    pub max_tissue_displacement: f32,
+    /// The largest contact pressure on a tissue vertex at the end, in kPa: its contact force
+    /// over the area a surface vertex stands for (its body's spacing squared).
+    pub peak_contact_pressure_kpa: f64,
+    /// The area the tissue touches the shell over at the end (contacting tissue vertices times
+    /// the spacing squared), in scene units squared.
+    pub contact_area: f64,
+    /// The deepest a tissue vertex got inside the shell over the run (scene units).
+    pub max_penetration: f32,
+    /// Whether the scene came to rest before `max_steps`.
+    pub settled: bool,
+    /// The voxel size of the compared body's contact (scene units): the model removes
+    /// penetrations deeper than that within a few steps.
+    pub voxel_size: f32,
+    /// The total contact force over the contact area, in kPa.
+    pub mean_contact_pressure_kpa: f64,
+    /// The volume the candidate was filled to, in mL: its own.
+    pub target_volume_ml: f64,
+    /// Steps run.
+    pub steps: u64,
+    /// Its run's folder, relative to the output folder.
+    pub folder: String,
+    /// Its pictures (front and side), relative to the output folder; none without an adapter.
+    pub pictures: Vec<String>,
+}
+
+/// What `compare` measured, as written to `compare.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Comparison {
+    /// The scene file.
+    pub scene: String,
+    /// The compared body.
+    pub body: String,
+    /// The scene's length unit.
+    pub units: String,
+    /// Per candidate, in the catalogue's order.
+    pub candidates: Vec<CandidateResult>,
+}
+
+fn io(path: &Path, e: impl std::fmt::Display) -> Error {
+    Error::Io { path: path.display().to_string(), message: e.to_string() }
+}
+
+/// The scene with `body` replaced by candidate `c`, filled to `volume_ml`, settling on.
+fn with_candidate(scene: &SceneFile, body: usize, c: &Candidate, volume_ml: Option<f64>) -> SceneFile {
+    let mut s = scene.clone();
+    s.time.settle = true;
+    let b = &mut s.bodies[body];
+    b.geometry = c.geometry.clone();
+    if let Some(volume_ml) = volume_ml {
+        let ramp = b.inflate.map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
+        let ease = b.inflate.map_or(Ease::Smooth, |i| i.ease);
+        b.inflate = Some(Inflate { pressure_kpa: None, volume_ml: Some(volume_ml), ramp, ease });
+    }
+    s
+}
+
+/// The candidate's own volume in mL: an implant's as given; any other shape's or mesh's as its
+/// shell encloses it at scale 1.
+fn own_volume_ml(scene: &SceneFile, body: usize, c: &Candidate) -> Result<f64, Error> {
+    if let Geometry::Shape(Shape::Implant { volume_ml, .. }) = c.geometry {
+        return Ok(volume_ml);
+    }
+    let mut s = with_candidate(scene, body, c, None);
+    s.bodies[body].scale = 1.0;
+    s.bodies[body].inflate = None;
+    let built = build_world(&s)?;
+    Ok(built.world.bodies[body].enclosed_volume() * scene.metres().powi(3) * 1e6)
+}
+
+/// Where a comparison is, for a progress display.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress<'a> {
+    /// The candidate running, from 0.
+    pub index: usize,
+    /// Candidates in all.
+    pub count: usize,
+    /// The candidate's name.
+    pub name: &'a str,
+    /// Its steps done, and planned (the schedule's; settling may run past it).
+    pub done: u64,
+    /// Steps planned.
+    pub planned: u64,
+}
+
+/// Runs every candidate of `config`'s catalogue through its scene and writes the report,
+/// calling `progress` as steps are done and `note` with what is worth saying.
+///
+/// # Errors
+/// The scene's and catalogue's errors; [`Error::Invalid`] for a `--body` the scene lacks;
+/// [`Error::SceneFile`] at the body for one that is not a shell; a candidate that cannot be
+/// built, named (`candidate[k] "name": …`) — all before anything is written; then the runs'
+/// and the files' errors.
+pub fn compare(
+    config: &CompareConfig,
+    progress: &mut dyn FnMut(Progress<'_>),
+    note: &mut dyn FnMut(&str),
+) -> Result<Comparison, Error> {
+    let scene = SceneFile::read(&config.scene)?;
+    let catalogue = Catalogue::read(&config.candidates)?;
+    let names: Vec<&str> = scene.bodies.iter().map(|b| b.name.as_str()).collect();
+    let body = names.iter().position(|n| *n == config.body).ok_or_else(|| Error::Invalid {
+        what: "--body",
+        value: config.body.clone(),
+        rule: format!("names a body of {}: {}", config.scene.display(), names.join(", ")),
+    })?;
+    if scene.bodies[body].kind != BodyKind::Shell {
+        return Err(scene.body_error(
+            body,
+            "kind",
+            "the compared body must be a shell (kind = \"shell\"): it is filled to each candidate's volume",
+        ));
+    }
+    // The tissue: the soft bodies in contact with the compared one.
+    let tissue: Vec<usize> = scene
+        .contacts
+        .iter()
+        .filter_map(|c| match (c.a == body, c.b == body) {
+            (true, false) => Some(c.b),
+            (false, true) => Some(c.a),
+            _ => None,
+        })
+        .filter(|&k| scene.bodies[k].kind == BodyKind::Soft)
+        .collect();
+    if tissue.is_empty() {
+        return Err(scene.body_error(
+            body,
+            "name",
+            "no soft body is in contact with the compared body: add a [[contact]] with the tissue",
+        ));
+    }
+
+    // Every candidate is built first: a bad one is named before anything is written.
+    let mut runs = Vec::with_capacity(catalogue.candidates.len());
+    for (k, c) in catalogue.candidates.iter().enumerate() {
+        let named = |e: Error| Error::Invalid {
+            what: "candidate",
+            value: format!("candidate[{k}] {:?} of {}", c.name, catalogue.path.display()),
+            rule: e.to_string(),
+        };
+        let volume = own_volume_ml(&scene, body, c).map_err(named)?;
+        let s = with_candidate(&scene, body, c, Some(volume));
+        build_world(&s).map_err(named)?;
+        runs.push((c, volume, s));
+    }
+
+    std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
+    let (ctx, _) = crate::scenario::context(config.backend, true, note)?;
+    let mut renderer = match &ctx {
+        Some(ctx) => Some(Renderer::new(ctx, config.image.0, config.image.1)?),
+        None => None,
+    };
+    let units = scene.units.symbol().to_string();
+    let mut comparison = Comparison {
+        scene: config.scene.display().to_string(),
+        body: config.body.clone(),
+        units: units.clone(),
+        candidates: Vec::new(),
+    };
+    for (k, (c, volume, s)) in runs.iter().enumerate() {
+        note(&format!("candidate {}/{}: {} ({volume:.0} mL)", k + 1, runs.len(), c.name));
+        let folder = c.folder();
+        let run_config = FileRunConfig {
+            path: config.scene.clone(),
+            backend: config.backend,
+            out: config.out.join(&folder),
+            image: config.image,
+        };
+        let mut result = CandidateResult {
+            name: c.name.clone(),
+            target_volume_ml: *volume,
+            folder: folder.clone(),
+            ..CandidateResult::default()
+        };
+        let metres = scene.metres();
+        let count = runs.len();
+        let summary = run_scene(
+            s,
+            &run_config,
+            &mut |done, planned| progress(Progress { index: k, count, name: &c.name, done, planned }),
+            &mut |_| {},
+            &mut |world, reports| {
+                measure_end(world, reports, body, &tissue, metres, &mut result);
+                if let Some(r) = renderer.as_mut() {
+                    result.pictures = pictures(r, world, body, &tissue, &config.out, &folder, &units)?;
+                }
+                Ok(())
+            },
+        )?;
+        result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
+        result.max_tissue_displacement =
+            tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);
+        result.max_penetration = summary
+            .contacts
+            .iter()
+            .filter(|c| c.a == config.body || c.b == config.body)
+            .map(|c| c.max_penetration)
+            .fold(0.0, f32::max);
+        result.settled = summary.settled;
+        result.steps = summary.steps;
+        comparison.candidates.push(result);
+    }
+    write_outputs(&comparison, &config.out)?;
+    Ok(comparison)
+}
+
+/// The end-of-run measurements that need the world: the apex lift and the contact pressures.
+fn measure_end(
+    world: &World,
+    reports: &[ContactReport],
+    body: usize,
+    tissue: &[usize],
+    metres: f64,
+    out: &mut CandidateResult,
+) {
+    let top = |p: &[Vec3]| p.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    out.apex_lift = tissue
+        .iter()
+        .map(|&t| {
+            let b = &world.bodies[t];
+            let (now, _) = shown_surface(b);
+            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
+            top(&now) - top(rest)
+        })
+        .fold(f32::MIN, f32::max);
+    let (mut peak, mut total, mut area) = (0.0f64, 0.0f64, 0.0f64);
+    out.voxel_size = world
+        .contacts
+        .iter()
+        .filter(|p| p.a == body || p.b == body)
+        .map(|p| p.grid.voxel_size())
+        .fold(0.0, f32::max);
+    for (pair, r) in world.contacts.iter().zip(reports) {
+        // The tissue's side of a contact with the compared body.
+        let (t, forces) = if pair.a == body && tissue.contains(&pair.b) {
+            (pair.b, &r.force_b)
+        } else if pair.b == body && tissue.contains(&pair.a) {
+            (pair.a, &r.force_a)
+        } else {
+            continue;
+        };
+        let h = f64::from(mean_spring(&world.bodies[t]));
+        let vertex_area = h * h;
+        for f in forces.iter().filter(|f| **f != Vec3::ZERO) {
+            // Internal force units are `metres` newtons; an area of h² scene units is
+            // h² · metres² m².
+            let newtons = f64::from(f.length()) * metres;
+            let kpa = newtons / (vertex_area * metres * metres) / 1e3;
+            peak = peak.max(kpa);
+            total += newtons;
+            area += vertex_area;
+        }
+    }
+    out.peak_contact_pressure_kpa = peak;
+    out.contact_area = area;
+    out.mean_contact_pressure_kpa = if area > 0.0 { total / (area * metres * metres) / 1e3 } else { 0.0 };
+}
+
+/// The candidate's resting shape from the front (looking along +y) and the side (along +x),
+/// cut open through the compared body's centre, the tissue coloured by displacement on one
+/// scale for every candidate (a tenth of the tissue's extent); returns the files written.
+fn pictures(
+    renderer: &mut Renderer,
+    world: &World,
+    body: usize,
+    tissue: &[usize],
+    out: &Path,
+    folder: &str,
+    units: &str,
+) -> Result<Vec<String>, Error> {
+    let shown: Vec<(Vec<Vec3>, Vec<f32>)> = world
+        .bodies
+        .iter()
+        .map(|b| {
+            let (p, _) = shown_surface(b);
+            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
+            let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
+            (p.into_owned(), moved)
+        })
+        .collect();
+    let extent = tissue
+        .iter()
+        .flat_map(|&t| world.bodies[t].rest_pos.iter())
+        .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+    let range = (0.0, 0.1 * (extent.1 - extent.0).max_element());
+    let centre = {
+        let p = &world.bodies[body].pos;
+        p.iter().copied().sum::<Vec3>() / p.len().max(1) as f32
+    };
+    let mut files = Vec::new();
+    // From a little above, so the tissue's surface shows its colours beside the cut.
+    for (view, dir) in [("front", Vec3::new(0.0, 1.0, -0.35)), ("side", Vec3::new(1.0, 0.0, -0.35))] {
+        let scene = RenderScene {
+            meshes: world
+                .bodies
+                .iter()
+                .enumerate()
+                .map(|(k, b)| SceneMesh {
+                    positions: &shown[k].0,
+                    triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
+                    scalars: tissue.contains(&k).then(|| shown[k].1.as_slice()),
+                    base_color: if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
+                })
+                .collect(),
+            scalar_range: range,
+            clip: Some((centre, Vec3::new(dir.x, dir.y, 0.0))),
+            view_dir: dir,
+            up: Vec3::Z,
+        };
+        let name = format!("{folder}/{view}.png");
+        let legend = Legend::new(format!("tissue displacement ({units})"), range);
+        renderer.render_png_with_legend(&scene, Some(&legend), &out.join(&name))?;
+        files.push(name);
+    }
+    Ok(files)
+}
+
+/// `compare.json`, `compare.csv` and `report.html` in `out`.
+fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
+    let path = out.join("compare.json");
+    let json = serde_json::to_string_pretty(comparison).map_err(|e| io(&path, e))?;
+    std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
+
+    let path = out.join("compare.csv");
+    let mut csv = csv::Writer::from_path(&path).map_err(|e| io(&path, e))?;
+    let u = &comparison.units;
+    csv.write_record([
+        "name".to_string(),
+        "volume_ml".into(),
+        format!("apex_lift_{u}"),
+        format!("max_tissue_displacement_{u}"),
+        "peak_contact_pressure_kpa".into(),
+        "mean_contact_pressure_kpa".into(),
+        format!("contact_area_{u}2"),
+        format!("max_penetration_{u}"),
+        "settled".into(),
+        "steps".into(),
+    ])
+    .map_err(|e| io(&path, e))?;
+    for c in &comparison.candidates {
+        csv.write_record([
+            c.name.clone(),
+            format!("{:.1}", c.volume_ml),
+            format!("{:.3}", c.apex_lift),
+            format!("{:.3}", c.max_tissue_displacement),
+            format!("{:.3}", c.peak_contact_pressure_kpa),
+            format!("{:.3}", c.mean_contact_pressure_kpa),
+            format!("{:.1}", c.contact_area),
+            format!("{:.3}", c.max_penetration),
+            c.settled.to_string(),
+            c.steps.to_string(),
+        ])
+        .map_err(|e| io(&path, e))?;
+    }
+    csv.flush().map_err(|e| io(&path, e))?;
+
+    let path = out.join("report.html");
+    let html = report_html(comparison, out)?;
+    std::fs::write(&path, html).map_err(|e| io(&path, e))
+}
+
+/// `s` with `&`, `<`, `>` and `"` escaped for HTML.
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}
+
+/// The report: one self-contained page (pictures as data URIs, no script, no link) with the
+/// table of measurements and each candidate's resting shape from the front and the side.
+fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
+    let u = escape(&comparison.units);
+    let mut rows = String::new();
+    for c in &comparison.candidates {
+        rows += &format!(
+            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{}</td></tr>\n",
+            escape(&c.name),
+            c.volume_ml,
+            c.apex_lift,
+            c.max_tissue_displacement,
+            c.peak_contact_pressure_kpa,
+            c.mean_contact_pressure_kpa,
+            c.contact_area,
+            c.max_penetration,
+            if c.settled { "yes" } else { "no (max_steps)" }
+        );
+    }
+    let mut figures = String::new();
+    for c in &comparison.candidates {
+        figures += &format!("<section><h3>{}</h3>\n", escape(&c.name));
+        if c.pictures.is_empty() {
+            figures += "<p>No pictures: no adapter to draw them on.</p>\n";
+        }
+        for p in &c.pictures {
+            let bytes = std::fs::read(out.join(p)).map_err(|e| io(&out.join(p), e))?;
+            let data = base64::engine::general_purpose::STANDARD.encode(bytes);
+            let view = if p.ends_with("front.png") { "front" } else { "side" };
+            figures += &format!(
+                "<figure><img alt=\"{} from the {view}\" src=\"data:image/png;base64,{data}\"><figcaption>{view}</figcaption></figure>\n",
+                escape(&c.name)
+            );
+        }
+        figures += "</section>\n";
+    }
+    Ok(format!(
+        r#"<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8"><title>Implant comparison: {scene}</title>
+<style>
+body {{ font-family: sans-serif; margin: 2em; color: #222; }}
+table {{ border-collapse: collapse; }} th, td {{ border: 1px solid #bbb; padding: 0.3em 0.6em; text-align: right; }}
+th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; }} img {{ max-width: 480px; }}
+</style></head>
+<body>
+<h1>Implant comparison</h1>
+<p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
+<h2>Measurements</h2>
+<table id="measurements">
+<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>settled</th></tr></thead>
+<tbody>
+{rows}</tbody></table>
+<h2>Resting shapes</h2>
+<p>Cut open through the implant's centre; the tissue coloured by how far it moved, on one scale for every candidate.</p>
+{figures}</body></html>
+"#,
+        scene = escape(&comparison.scene),
+        body = escape(&comparison.body),
+    ))
+}

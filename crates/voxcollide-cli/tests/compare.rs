@@ -1,0 +1,218 @@
+//! `voxcollide compare` (DESIGN §9) on a coarse breast-like scene: the measurements follow the
+//! physics a surgeon expects, the files are written and hold what they say, and a bad candidate
+//! is a named error that writes nothing.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use voxcollide::Error;
+use voxcollide_cli::compare::{CompareConfig, Comparison, compare};
+use voxcollide_cli::scenario::Backend;
+
+/// A 150 × 150 × 16 mm layer of soft tissue held at its rim over an implant on the chest wall,
+/// at a 10 mm spacing, so that a candidate runs in seconds.
+fn scene(young_kpa: f64) -> String {
+    format!(
+        r#"units = "mm"
+
+[time]
+duration = 0.3
+settle = true
+max_steps = 4000
+
+[[body]]
+name = "tissue"
+kind = "soft"
+shape = {{ box = [150, 150, 16] }}
+spacing = 10
+position = [0, 0, 40]
+material = {{ young_kpa = {young_kpa}, density = 1000.0, damping = 0.5 }}
+fixed = [{{ rim = 1 }}]
+
+[[body]]
+name = "implant"
+kind = "shell"
+shape = {{ implant = {{ volume_ml = 300, base_mm = 115, projection_mm = 40 }} }}
+spacing = 10
+scale = 0.8
+position = [0, 0, 16]
+material = {{ young_kpa = 30.0, density = 1000.0, damping = 0.5 }}
+floor = 0.0
+inflate = {{ volume_ml = 300, ramp = 0.2, ease = "smooth" }}
+
+[[contact]]
+a = "implant"
+b = "tissue"
+direction = "plane-normal"
+
+[output]
+frames = 1
+vtk = false
+images = false
+"#
+    )
+}
+
+const CANDIDATES: &str = r#"
+[[candidate]]
+name = "round 200 mL"
+shape = { implant = { volume_ml = 200, base_mm = 115, projection_mm = 40 } }
+
+[[candidate]]
+name = "round 350 mL"
+shape = { implant = { volume_ml = 350, base_mm = 115, projection_mm = 40 } }
+
+[[candidate]]
+name = "300 mL high <profile>"
+shape = { implant = { volume_ml = 300, base_mm = 100, projection_mm = 50 } }
+
+[[candidate]]
+name = "300 mL low"
+shape = { implant = { volume_ml = 300, base_mm = 130, projection_mm = 30 } }
+"#;
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxcollide-compare-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(d: &Path, scene_text: &str, candidates: &str) -> Result<Comparison, Error> {
+    std::fs::write(d.join("scene.toml"), scene_text).unwrap();
+    std::fs::write(d.join("candidates.toml"), candidates).unwrap();
+    compare(
+        &CompareConfig {
+            scene: d.join("scene.toml"),
+            body: "implant".into(),
+            candidates: d.join("candidates.toml"),
+            out: d.join("out"),
+            backend: Backend::Auto,
+            image: (320, 220),
+        },
+        &mut |_| {},
+        &mut |_| {},
+    )
+}
+
+#[test]
+fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
+    let d = dir("physics");
+    let c = run(&d, &scene(3.0), CANDIDATES).unwrap();
+    let by = |name: &str| c.candidates.iter().find(|r| r.name == name).unwrap();
+    let (small, large) = (by("round 200 mL"), by("round 350 mL"));
+    let (high, low) = (by("300 mL high <profile>"), by("300 mL low"));
+    // A larger volume at the same base and projection lifts the tissue more.
+    assert!(large.apex_lift > 1.2 * small.apex_lift, "{} vs {}", large.apex_lift, small.apex_lift);
+    // A higher profile at the same volume lifts it more.
+    assert!(high.apex_lift > 1.5 * low.apex_lift, "{} vs {}", high.apex_lift, low.apex_lift);
+    for r in &c.candidates {
+        // Each shell is filled close to its own volume, and nothing goes deeper into it than
+        // the contact's voxel size.
+        assert!(
+            (r.volume_ml / r.target_volume_ml - 1.0).abs() < 0.06,
+            "{}: {} of {} mL",
+            r.name,
+            r.volume_ml,
+            r.target_volume_ml
+        );
+        assert!(
+            r.voxel_size > 0.0 && r.max_penetration <= r.voxel_size,
+            "{}: {} > {}",
+            r.name,
+            r.max_penetration,
+            r.voxel_size
+        );
+        assert!(r.apex_lift > 0.0 && r.max_tissue_displacement >= r.apex_lift, "{r:?}");
+        assert!(r.steps > 0);
+    }
+    // A stiffer skin lifts less under the same implant.
+    let d2 = dir("stiff");
+    let one = &CANDIDATES[..CANDIDATES.find("[[candidate]]\nname = \"300 mL low\"").unwrap()];
+    let stiff = run(&d2, &scene(12.0), one).unwrap();
+    let stiff_high = stiff.candidates.iter().find(|r| r.name == high.name).unwrap();
+    assert!(stiff_high.apex_lift < 0.95 * high.apex_lift, "{} vs {}", stiff_high.apex_lift, high.apex_lift);
+
+    // The files: compare.json with DESIGN §9's keys, a CSV row per candidate, and a
+    // self-contained report with the table and (with an adapter) two pictures a candidate.
+    let out = d.join("out");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
+    let list = json["candidates"].as_array().unwrap();
+    assert_eq!(list.len(), 4);
+    for key in [
+        "name",
+        "volume_ml",
+        "apex_lift",
+        "max_tissue_displacement",
+        "peak_contact_pressure_kpa",
+        "contact_area",
+        "max_penetration",
+        "settled",
+    ] {
+        assert!(list.iter().all(|c| c.get(key).is_some()), "compare.json lacks {key}");
+    }
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    assert!(csv.starts_with("name,volume_ml,apex_lift_mm,"), "{csv}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(!html.contains("http://") && !html.contains("https://") && !html.contains("<script"));
+    assert_eq!(html.matches("<tr><th scope=\"row\">").count(), 4);
+    assert!(html.contains("300 mL high &lt;profile&gt;"), "names are escaped");
+    let pictures = html.matches("src=\"data:image/png;base64,").count();
+    if common::gpu().is_some() {
+        assert_eq!(pictures, 8);
+        assert!(
+            c.candidates
+                .iter()
+                .all(|r| r.pictures.len() == 2 && r.pictures.iter().all(|p| out.join(p).is_file()))
+        );
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+    std::fs::remove_dir_all(&d2).unwrap();
+}
+
+#[test]
+fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
+    let d = dir("errors");
+    let bad = format!(
+        "{CANDIDATES}\n[[candidate]]\nname = \"too full\"\nshape = {{ implant = {{ volume_ml = 900, base_mm = 100, projection_mm = 30 }} }}\n"
+    );
+    match run(&d, &scene(3.0), &bad).unwrap_err() {
+        Error::SceneFile { line, key, message, .. } => {
+            assert_eq!(key, "candidate[4].shape.implant.volume_ml", "{message}");
+            assert_eq!(line, bad.lines().position(|l| l.contains("too full")).unwrap() + 2);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(!d.join("out").exists(), "a bad catalogue wrote files");
+    // A candidate that parses but cannot be built (a mesh that is not a closed surface).
+    std::fs::write(d.join("open.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let open = format!("{CANDIDATES}\n[[candidate]]\nname = \"open mesh\"\nmesh = \"open.obj\"\n");
+    let e = run(&d, &scene(3.0), &open).unwrap_err().to_string();
+    assert!(e.contains("candidate[4]") && e.contains("open mesh"), "{e}");
+    assert!(!d.join("out").exists(), "a candidate that cannot be built wrote files");
+    // A body the scene lacks, and one that is not a shell.
+    std::fs::write(d.join("candidates.toml"), CANDIDATES).unwrap();
+    let mut config = CompareConfig {
+        scene: d.join("scene.toml"),
+        body: "nipple".into(),
+        candidates: d.join("candidates.toml"),
+        out: d.join("out"),
+        backend: Backend::Cpu,
+        image: (320, 220),
+    };
+    let e = compare(&config, &mut |_| {}, &mut |_| {}).unwrap_err();
+    assert!(matches!(&e, Error::Invalid { rule, .. } if rule.contains("tissue, implant")), "{e}");
+    config.body = "tissue".into();
+    match compare(&config, &mut |_| {}, &mut |_| {}).unwrap_err() {
+        Error::SceneFile { key, message, .. } => {
+            assert!(key.ends_with("kind") && message.contains("shell"), "{key}: {message}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(!d.join("out").exists());
+    std::fs::remove_dir_all(&d).unwrap();
+}
