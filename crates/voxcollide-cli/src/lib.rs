@@ -1,6 +1,7 @@
-//! The `voxcollide` command's library: the paper's scenes run end to end, with progress,
-//! offscreen pictures, ParaView files and a summary; and the benchmark of every collision backend
-//! against a k-d tree. The binary (`src/main.rs`) is its command line.
+//! The `voxcollide` command's library: the paper's scenes and scene files run end to end, with
+//! progress, offscreen pictures, ParaView files and a summary; implant candidates compared in
+//! one report; and the benchmark of every collision backend against its workload's baseline.
+//! The binary (`src/main.rs`) is its command line.
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 

@@ -387,8 +387,9 @@ fn compare(args: &CompareArgs) -> ExitCode {
     current.finish_and_clear();
     match result {
         Ok(c) => {
+            let w = c.candidates.iter().map(|r| r.name.chars().count()).max().unwrap_or(0).max(9);
             println!(
-                "{:<24} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8}",
+                "{:<w$} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8}",
                 "candidate",
                 "volume mL",
                 format!("lift {}", c.units),
@@ -399,7 +400,7 @@ fn compare(args: &CompareArgs) -> ExitCode {
             );
             for r in &c.candidates {
                 println!(
-                    "{:<24} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8}",
+                    "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8}",
                     r.name,
                     r.volume_ml,
                     r.apex_lift,

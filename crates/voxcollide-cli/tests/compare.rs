@@ -216,3 +216,78 @@ fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
     assert!(!d.join("out").exists());
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+/// Headless Chromium, where it is installed (Debian's `chromium`): `None` with "skipped" —
+/// unless `VOXCOLLIDE_REQUIRE_BROWSER=1` (CI), when a missing browser fails the test.
+fn chromium() -> Option<PathBuf> {
+    let found = ["/usr/bin/chromium", "/usr/bin/chromium-browser"]
+        .into_iter()
+        .map(PathBuf::from)
+        .find(|p| p.is_file());
+    if found.is_none() {
+        assert!(
+            std::env::var("VOXCOLLIDE_REQUIRE_BROWSER").as_deref() != Ok("1"),
+            "VOXCOLLIDE_REQUIRE_BROWSER=1 but there is no chromium"
+        );
+        eprintln!("skipped: no chromium");
+    }
+    found
+}
+
+#[test]
+fn the_report_shows_its_table_and_pictures_in_a_real_browser() {
+    let Some(browser) = chromium() else { return };
+    if common::gpu().is_none() {
+        return; // no pictures to show without an adapter
+    }
+    let d = dir("browser");
+    let one = &CANDIDATES[..CANDIDATES.find("[[candidate]]\nname = \"300 mL high").unwrap()];
+    run(&d, &scene(3.0), one).unwrap();
+    let report = d.join("out/report.html");
+    let shot = d.join("shot.png");
+    let profile = d.join("profile");
+    let headless = |extra: &[&str]| {
+        let output = std::process::Command::new(&browser)
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--hide-scrollbars",
+                "--window-size=1100,1500",
+            ])
+            .arg(format!("--user-data-dir={}", profile.display()))
+            .args(extra)
+            .arg(format!("file://{}", report.display()))
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        String::from_utf8_lossy(&output.stdout).into_owned()
+    };
+    // The DOM as the browser built it: the table's rows and the pictures.
+    let dom = headless(&["--dump-dom"]);
+    assert_eq!(dom.matches("<tr><th scope=\"row\">").count(), 2, "{dom}");
+    assert_eq!(dom.matches("<img ").count(), 4);
+    // The page as it looks: not blank, the pictures' colours (the colour map's greens and
+    // yellows, and the implant's orange) on it, not a broken-image icon.
+    headless(&[&format!("--screenshot={}", shot.display())]);
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    let channels = info.color_type.samples();
+    let pixels: Vec<&[u8]> = buf[..info.buffer_size()].chunks(channels).collect();
+    let colours: std::collections::HashSet<[u8; 3]> = pixels.iter().map(|p| [p[0], p[1], p[2]]).collect();
+    assert!(colours.len() > 500, "{} colours: a blank or broken page", colours.len());
+    let share =
+        |f: &dyn Fn(&[u8]) -> bool| pixels.iter().filter(|p| f(p)).count() as f64 / pixels.len() as f64;
+    let viridis_green = share(&|p| p[1] > 120 && p[1] > p[0] + 30 && p[1] > p[2]);
+    let implant_orange = share(&|p| p[0] > 150 && p[0] > p[1] + 30 && p[1] > p[2] + 20);
+    assert!(viridis_green > 0.002, "{viridis_green}: no coloured tissue on the page");
+    assert!(implant_orange > 0.002, "{implant_orange}: no implant on the page");
+    std::fs::remove_dir_all(&d).unwrap();
+}
