@@ -3,9 +3,9 @@
 //! candidates' resting shapes and measurements side by side in `report.html` (self-contained),
 //! `compare.json` and `compare.csv`.
 //!
-//! The compared body is a shell: it starts as the scene places it (the shipped scene puts it at
-//! 80 % of its size on the chest wall) and fills to the candidate's own volume over the scene's
-//! inflation ramp, then the scene settles. Every candidate is built before anything runs, so a
+//! The compared body is a shell: it starts deflated on its base under the tissue — at the
+//! scene's scale, or smaller where the candidate would not fit under the tissue — and fills to
+//! the candidate's own volume over the scene's inflation ramp, then the scene settles. Every candidate is built before anything runs, so a
 //! bad one is an error naming it and nothing is written.
 
 use std::path::{Path, PathBuf};
@@ -95,12 +95,28 @@ fn io(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Io { path: path.display().to_string(), message: e.to_string() }
 }
 
-/// The scene with `body` replaced by candidate `c`, filled to `volume_ml`, settling on.
-fn with_candidate(scene: &SceneFile, body: usize, c: &Candidate, volume_ml: Option<f64>) -> SceneFile {
+/// The scene with `body` replaced by candidate `c`, filled to `volume_ml`, settling on. With
+/// `room` (the height between the body's position and the tissue above it, scene units), an
+/// implant starts deflated to fit under the tissue: at the scene's scale, or smaller where its
+/// projection at that scale would not leave a tenth of the room free.
+fn with_candidate(
+    scene: &SceneFile,
+    body: usize,
+    c: &Candidate,
+    volume_ml: Option<f64>,
+    room: Option<f64>,
+) -> SceneFile {
     let mut s = scene.clone();
     s.time.settle = true;
+    let metres = scene.metres();
     let b = &mut s.bodies[body];
     b.geometry = c.geometry.clone();
+    if let (Some(room), Geometry::Shape(Shape::Implant { projection_mm, .. })) = (room, &c.geometry) {
+        let height = projection_mm * 1e-3 / metres;
+        if room > 0.0 && b.scale * height > 0.9 * room {
+            b.scale = 0.9 * room / height;
+        }
+    }
     if let Some(volume_ml) = volume_ml {
         let ramp = b.inflate.map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
         let ease = b.inflate.map_or(Ease::Smooth, |i| i.ease);
@@ -115,7 +131,7 @@ fn own_volume_ml(scene: &SceneFile, body: usize, c: &Candidate) -> Result<f64, E
     if let Geometry::Shape(Shape::Implant { volume_ml, .. }) = c.geometry {
         return Ok(volume_ml);
     }
-    let mut s = with_candidate(scene, body, c, None);
+    let mut s = with_candidate(scene, body, c, None, None);
     s.bodies[body].scale = 1.0;
     s.bodies[body].inflate = None;
     let built = build_world(&s)?;
@@ -184,6 +200,17 @@ pub fn compare(
         ));
     }
 
+    // The room under the tissue: from the compared body's position up to the lowest tissue
+    // vertex at rest (the scene as given).
+    let given = build_world(&scene)?;
+    let floor_of_tissue = tissue
+        .iter()
+        .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
+        .fold(f64::INFINITY, f64::min);
+    let room = (floor_of_tissue - scene.bodies[body].position[2])
+        .is_finite()
+        .then(|| floor_of_tissue - scene.bodies[body].position[2]);
+
     // Every candidate is built first: a bad one is named before anything is written.
     let mut runs = Vec::with_capacity(catalogue.candidates.len());
     for (k, c) in catalogue.candidates.iter().enumerate() {
@@ -193,7 +220,7 @@ pub fn compare(
             rule: e.to_string(),
         };
         let volume = own_volume_ml(&scene, body, c).map_err(named)?;
-        let s = with_candidate(&scene, body, c, Some(volume));
+        let s = with_candidate(&scene, body, c, Some(volume), room);
         build_world(&s).map_err(named)?;
         runs.push((c, volume, s));
     }

@@ -37,7 +37,7 @@ kind = "shell"
 shape = {{ implant = {{ volume_ml = 300, base_mm = 115, projection_mm = 40 }} }}
 spacing = 10
 scale = 0.8
-position = [0, 0, 16]
+position = [0, 0, 0]
 material = {{ young_kpa = 30.0, density = 1000.0, damping = 0.5 }}
 floor = 0.0
 inflate = {{ volume_ml = 300, ramp = 0.2, ease = "smooth" }}

@@ -184,7 +184,10 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                     anatomical: *style == ImplantStyle::Anatomical,
                 };
                 let (positions, mesh) = implant_surface(shape, f64::from(edge / scale))?;
-                let made = Surface { positions, mesh };
+                // DESIGN §9: it stands on its base in the plane z = 0 of its position, apex up
+                // (the outline's base is at z = −projection/2).
+                let lift = Vec3::new(0.0, 0.0, (0.5 * shape.projection) as f32);
+                let made = Surface { positions: positions.into_iter().map(|p| p + lift).collect(), mesh };
                 let volume = made.mesh.volume(&made.positions);
                 remark = Some(format!(
                     "a {} implant of {volume_ml} mL, base {base_mm} mm, projection {projection_mm} mm (profile exponent {:.3}): its {} triangles enclose {:.1} mL",

@@ -158,7 +158,10 @@ fn implants_have_their_catalogue_volume_base_and_projection() {
                 "projection {}",
                 hi.z - lo.z
             );
-            assert!((0.5 * (lo.z + hi.z) - 100.0).abs() < 0.01, "centred on its position");
+            assert!(
+                (lo.z - 100.0).abs() < 0.01,
+                "its base in the plane z = 0 of its position (DESIGN §9): {lo}"
+            );
             let r = 0.5 * base as f32;
             if style == "round" {
                 assert!(apex.y.abs() < 0.05 * r, "{apex}");
