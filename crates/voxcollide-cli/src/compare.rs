@@ -17,6 +17,7 @@ use voxcollide::{ContactReport, Error};
 use voxcollide_sim::World;
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
+use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
 
 use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
@@ -53,20 +54,28 @@ pub struct CandidateResult {
     /// The largest distance a tissue vertex moved from its rest position over the run (scene
     /// units).
     pub max_tissue_displacement: f32,
-    /// The largest contact pressure on a tissue vertex at the end, in kPa: its contact force
-    /// over the area a surface vertex stands for (its body's spacing squared).
+    /// The largest contact pressure on a tissue vertex at the end, in kPa: its penalty force
+    /// over the area a surface vertex stands for (its body's spacing squared). The paper's
+    /// penalty forces all have one magnitude, so this is that magnitude's pressure wherever a
+    /// force acts (0 when none acts at the last step).
     pub peak_contact_pressure_kpa: f64,
-    /// The area the tissue touches the shell over at the end (contacting tissue vertices times
-    /// the spacing squared), in scene units squared.
+    /// The area the tissue touches the shell over at the end, in scene units squared: the
+    /// tissue's surface vertices within half a voxel of the shell's surface (or inside it)
+    /// times the tissue's spacing squared. Measured on the geometry, not on which penalty forces happen
+    /// to act at the last step: at rest, penalty contacts flicker from step to step.
     pub contact_area: f64,
     /// The deepest a tissue vertex got inside the shell over the run (scene units).
     pub max_penetration: f32,
+    /// The implant's footprint on the outer surface, in scene units squared: the area of the
+    /// tissue's top surface that rose more than a tenth of the apex lift (its top vertices
+    /// that did, times the spacing squared).
+    pub footprint_area: f64,
     /// Whether the scene came to rest before `max_steps`.
     pub settled: bool,
     /// The voxel size of the compared body's contact (scene units): the model removes
     /// penetrations deeper than that within a few steps.
     pub voxel_size: f32,
-    /// The total contact force over the contact area, in kPa.
+    /// The total penalty force at the end over the contact area, in kPa.
     pub mean_contact_pressure_kpa: f64,
     /// The volume the candidate was filled to, in mL: its own.
     pub target_volume_ml: f64,
@@ -305,6 +314,47 @@ fn measure_end(
         })
         .fold(f32::MIN, f32::max);
     let (mut peak, mut total, mut area) = (0.0f64, 0.0f64, 0.0f64);
+    // The contact area, from the geometry.
+    let (shell_positions, shell_mesh) = shown_surface(&world.bodies[body]);
+    if let Ok(surface) = ClosedSurface::new(&shell_positions, shell_mesh) {
+        let voxel = world
+            .contacts
+            .iter()
+            .filter(|p| p.a == body || p.b == body)
+            .map(|p| p.grid.voxel_size())
+            .fold(0.0, f32::max);
+        for &t in tissue {
+            let b = &world.bodies[t];
+            let h = f64::from(mean_spring(b));
+            let mut on_surface = vec![false; b.len()];
+            b.surface.triangles.iter().flatten().for_each(|&i| on_surface[i as usize] = true);
+            let touching = b
+                .pos
+                .iter()
+                .zip(&on_surface)
+                .filter(|(p, on)| **on && (surface.distance(**p) <= 0.5 * voxel || surface.contains(**p)))
+                .count();
+            area += touching as f64 * h * h;
+        }
+    }
+    out.contact_area = area;
+    // The footprint: the top surface's vertices (at rest within a quarter spacing of the top)
+    // that rose more than a tenth of the apex lift.
+    out.footprint_area = tissue
+        .iter()
+        .map(|&t| {
+            let b = &world.bodies[t];
+            let h = mean_spring(b);
+            let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+            let rose = b
+                .pos
+                .iter()
+                .zip(&b.rest_pos)
+                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.1 * out.apex_lift)
+                .count();
+            rose as f64 * f64::from(h) * f64::from(h)
+        })
+        .sum();
     out.voxel_size = world
         .contacts
         .iter()
@@ -329,11 +379,9 @@ fn measure_end(
             let kpa = newtons / (vertex_area * metres * metres) / 1e3;
             peak = peak.max(kpa);
             total += newtons;
-            area += vertex_area;
         }
     }
     out.peak_contact_pressure_kpa = peak;
-    out.contact_area = area;
     out.mean_contact_pressure_kpa = if area > 0.0 { total / (area * metres * metres) / 1e3 } else { 0.0 };
 }
 
@@ -414,6 +462,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         "mean_contact_pressure_kpa".into(),
         format!("contact_area_{u}2"),
         format!("max_penetration_{u}"),
+        format!("footprint_area_{u}2"),
         "settled".into(),
         "steps".into(),
     ])
@@ -428,6 +477,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             format!("{:.3}", c.mean_contact_pressure_kpa),
             format!("{:.1}", c.contact_area),
             format!("{:.3}", c.max_penetration),
+            format!("{:.1}", c.footprint_area),
             c.settled.to_string(),
             c.steps.to_string(),
         ])
@@ -452,7 +502,7 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     let mut rows = String::new();
     for c in &comparison.candidates {
         rows += &format!(
-            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{}</td></tr>\n",
+            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
             escape(&c.name),
             c.volume_ml,
             c.apex_lift,
@@ -461,6 +511,7 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             c.mean_contact_pressure_kpa,
             c.contact_area,
             c.max_penetration,
+            c.footprint_area,
             if c.settled { "yes" } else { "no (max_steps)" }
         );
     }
@@ -494,7 +545,7 @@ th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0
 <p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
 <h2>Measurements</h2>
 <table id="measurements">
-<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>settled</th></tr></thead>
+<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
 <tbody>
 {rows}</tbody></table>
 <h2>Resting shapes</h2>

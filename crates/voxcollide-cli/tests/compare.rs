@@ -106,8 +106,9 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     let (high, low) = (by("300 mL high <profile>"), by("300 mL low"));
     // A larger volume at the same base and projection lifts the tissue more.
     assert!(large.apex_lift > 1.2 * small.apex_lift, "{} vs {}", large.apex_lift, small.apex_lift);
-    // A higher profile at the same volume lifts it more.
+    // A higher profile at the same volume lifts it more, over a smaller footprint.
     assert!(high.apex_lift > 1.5 * low.apex_lift, "{} vs {}", high.apex_lift, low.apex_lift);
+    assert!(high.footprint_area < low.footprint_area, "{} vs {}", high.footprint_area, low.footprint_area);
     for r in &c.candidates {
         // Each shell is filled close to its own volume, and nothing goes deeper into it than
         // the contact's voxel size.
@@ -126,6 +127,7 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
             r.voxel_size
         );
         assert!(r.apex_lift > 0.0 && r.max_tissue_displacement >= r.apex_lift, "{r:?}");
+        assert!(r.footprint_area > 0.0 && r.contact_area > 0.0, "{r:?}");
         assert!(r.steps > 0);
     }
     // A stiffer skin lifts less under the same implant.
