@@ -22,7 +22,7 @@ use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, S
 
 use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use crate::scenario::Backend;
-use crate::scene_run::{FileRunConfig, mean_spring, run_scene, shown_surface};
+use crate::scene_run::{FileRunConfig, mean_spring, run_scene, shown_and_moved, shown_surface};
 
 /// What to compare, and where.
 #[derive(Clone, Debug)]
@@ -397,16 +397,7 @@ fn pictures(
     folder: &str,
     units: &str,
 ) -> Result<Vec<String>, Error> {
-    let shown: Vec<(Vec<Vec3>, Vec<f32>)> = world
-        .bodies
-        .iter()
-        .map(|b| {
-            let (p, _) = shown_surface(b);
-            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
-            let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
-            (p.into_owned(), moved)
-        })
-        .collect();
+    let shown = shown_and_moved(world);
     let extent = tissue
         .iter()
         .flat_map(|&t| world.bodies[t].rest_pos.iter())

@@ -276,16 +276,7 @@ pub fn run_scene(
         };
         if let Some(r) = renderer.as_mut() {
             let name = format!("{scenario}_{frame:04}.png");
-            let shown: Vec<(Vec<Vec3>, Vec<f32>)> = world
-                .bodies
-                .iter()
-                .map(|b| {
-                    let (p, _) = shown_surface(b);
-                    let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
-                    let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
-                    (p.into_owned(), moved)
-                })
-                .collect();
+            let shown = shown_and_moved(world);
             let scene = picture(world, &shown, &soft, size);
             let legend = Legend::new(format!("displacement ({})", summary.units), scene.scalar_range);
             r.render_png_with_legend(&scene, Some(&legend), &config.out.join(&name))?;
@@ -386,6 +377,21 @@ pub fn run_scene(
     std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
     summary.files.push("summary.json".into());
     Ok(summary)
+}
+
+/// Every body's shown surface ([`shown_surface`]) and how far each of its vertices is from
+/// where it started.
+pub(crate) fn shown_and_moved(world: &World) -> Vec<(Vec<Vec3>, Vec<f32>)> {
+    world
+        .bodies
+        .iter()
+        .map(|b| {
+            let (p, _) = shown_surface(b);
+            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
+            let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
+            (p.into_owned(), moved)
+        })
+        .collect()
 }
 
 /// The surface a body is shown and measured by: the user's own where the lattice carries one

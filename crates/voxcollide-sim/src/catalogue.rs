@@ -17,7 +17,7 @@ use serde::Deserialize;
 use toml::Spanned;
 use voxcollide::Error;
 
-use crate::scene_file::{Geometry, Shape, at, check_shape, key_at, nth_table};
+use crate::scene_file::{Geometry, Shape, at, check_shape, nth_table, read_text, toml_error};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -73,13 +73,7 @@ impl Catalogue {
     /// at line 0, a file that cannot be read.
     pub fn read(path: impl AsRef<Path>) -> Result<Catalogue, Error> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
-            file: path.display().to_string(),
-            line: 0,
-            column: 0,
-            key: String::new(),
-            message: format!("cannot read the catalogue: {e}"),
-        })?;
+        let text = read_text(path, "the catalogue")?;
         let catalogue = Catalogue::parse(path, &text)?;
         let file = path.display().to_string();
         for (k, c) in catalogue.candidates.iter().enumerate() {
@@ -109,20 +103,7 @@ impl Catalogue {
     pub fn parse(path: impl AsRef<Path>, text: &str) -> Result<Catalogue, Error> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let raw: RawCatalogue = toml::from_str(text).map_err(|e| {
-            let span = e.span().unwrap_or(0..0);
-            let message = e.message().trim().to_string();
-            let key =
-                message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
-                    let context = key_at(text, span.start);
-                    if context.ends_with(unknown) || context.is_empty() {
-                        if context.is_empty() { unknown.to_string() } else { context }
-                    } else {
-                        format!("{context}.{unknown}")
-                    }
-                });
-            at(&file, text, span, key.as_deref(), message)
-        })?;
+        let raw: RawCatalogue = toml::from_str(text).map_err(|e| toml_error(&file, text, &e))?;
         if raw.candidate.is_empty() {
             return Err(at(
                 &file,

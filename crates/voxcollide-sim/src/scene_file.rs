@@ -681,6 +681,35 @@ pub(crate) fn at(
     }
 }
 
+/// The text of `path` (`what` it is, for the message), or its error at line 0.
+pub(crate) fn read_text(path: &Path, what: &str) -> Result<String, Error> {
+    std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
+        file: path.display().to_string(),
+        line: 0,
+        column: 0,
+        key: String::new(),
+        message: format!("cannot read {what}: {e}"),
+    })
+}
+
+/// A TOML syntax or type error of `file` as [`Error::SceneFile`]: its line, column and key (an
+/// unknown key's span is the key itself, named by its table's path).
+pub(crate) fn toml_error(file: &str, text: &str, e: &toml::de::Error) -> Error {
+    let span = e.span().unwrap_or(0..0);
+    let message = e.message().trim().to_string();
+    let key = message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
+        let context = key_at(text, span.start);
+        if context.ends_with(unknown) {
+            context
+        } else if context.is_empty() {
+            unknown.to_string()
+        } else {
+            format!("{context}.{unknown}")
+        }
+    });
+    at(file, text, span, key.as_deref(), message)
+}
+
 impl SceneFile {
     /// Reads and checks the scene file at `path`; meshes are resolved against its folder and
     /// must exist.
@@ -690,13 +719,7 @@ impl SceneFile {
     /// wrong, or, at line 0, for a file that cannot be read.
     pub fn read(path: impl AsRef<Path>) -> Result<SceneFile, Error> {
         let path = path.as_ref();
-        let text = std::fs::read_to_string(path).map_err(|e| Error::SceneFile {
-            file: path.display().to_string(),
-            line: 0,
-            column: 0,
-            key: String::new(),
-            message: format!("cannot read the scene file: {e}"),
-        })?;
+        let text = read_text(path, "the scene file")?;
         let scene = SceneFile::parse(path, &text)?;
         let name = path.display().to_string();
         for (k, body) in scene.bodies.iter().enumerate() {
@@ -724,23 +747,7 @@ impl SceneFile {
     pub fn parse(path: impl AsRef<Path>, text: &str) -> Result<SceneFile, Error> {
         let path = path.as_ref();
         let file = path.display().to_string();
-        let raw: RawScene = toml::from_str(text).map_err(|e| {
-            let span = e.span().unwrap_or(0..0);
-            let message = e.message().trim().to_string();
-            // An unknown key's span is the key itself.
-            let key =
-                message.strip_prefix("unknown field `").and_then(|m| m.split('`').next()).map(|unknown| {
-                    let context = key_at(text, span.start);
-                    if context.ends_with(unknown) {
-                        context
-                    } else if context.is_empty() {
-                        unknown.to_string()
-                    } else {
-                        format!("{context}.{unknown}")
-                    }
-                });
-            at(&file, text, span, key.as_deref(), message)
-        })?;
+        let raw: RawScene = toml::from_str(text).map_err(|e| toml_error(&file, text, &e))?;
         let dir = path.parent().unwrap_or(Path::new(""));
         let err = |span: Range<usize>, message: String| at(&file, text, span, None, message);
 
