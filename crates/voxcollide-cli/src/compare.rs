@@ -20,9 +20,9 @@ use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
 
-use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
+use crate::render::{Legend, Renderer, Scene as RenderScene};
 use crate::scenario::Backend;
-use crate::scene_run::{FileRunConfig, mean_spring, run_scene, shown_and_moved, shown_surface};
+use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene, shown_and_moved, shown_surface};
 
 /// What to compare, and where.
 #[derive(Clone, Debug)]
@@ -230,8 +230,8 @@ pub fn compare(
         };
         let volume = own_volume_ml(&scene, body, c).map_err(named)?;
         let s = with_candidate(&scene, body, c, Some(volume), room);
-        build_world(&s).map_err(named)?;
-        runs.push((c, volume, s));
+        let built = build_world(&s).map_err(named)?;
+        runs.push((c, volume, s, built));
     }
 
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
@@ -247,8 +247,9 @@ pub fn compare(
         units: units.clone(),
         candidates: Vec::new(),
     };
-    for (k, (c, volume, s)) in runs.iter().enumerate() {
-        note(&format!("candidate {}/{}: {} ({volume:.0} mL)", k + 1, runs.len(), c.name));
+    let count = runs.len();
+    for (k, (c, volume, s, built)) in runs.into_iter().enumerate() {
+        note(&format!("candidate {}/{count}: {} ({volume:.0} mL)", k + 1, c.name));
         let folder = c.folder();
         let run_config = FileRunConfig {
             path: config.scene.clone(),
@@ -258,14 +259,14 @@ pub fn compare(
         };
         let mut result = CandidateResult {
             name: c.name.clone(),
-            target_volume_ml: *volume,
+            target_volume_ml: volume,
             folder: folder.clone(),
             ..CandidateResult::default()
         };
         let metres = scene.metres();
-        let count = runs.len();
         let summary = run_scene(
-            s,
+            &s,
+            built,
             &run_config,
             &mut |done, planned| progress(Progress { index: k, count, name: &c.name, done, planned }),
             &mut |_| {},
@@ -314,15 +315,16 @@ fn measure_end(
         })
         .fold(f32::MIN, f32::max);
     let (mut peak, mut total, mut area) = (0.0f64, 0.0f64, 0.0f64);
+    out.voxel_size = world
+        .contacts
+        .iter()
+        .filter(|p| p.a == body || p.b == body)
+        .map(|p| p.grid.voxel_size())
+        .fold(0.0, f32::max);
     // The contact area, from the geometry.
     let (shell_positions, shell_mesh) = shown_surface(&world.bodies[body]);
     if let Ok(surface) = ClosedSurface::new(&shell_positions, shell_mesh) {
-        let voxel = world
-            .contacts
-            .iter()
-            .filter(|p| p.a == body || p.b == body)
-            .map(|p| p.grid.voxel_size())
-            .fold(0.0, f32::max);
+        let voxel = out.voxel_size;
         for &t in tissue {
             let b = &world.bodies[t];
             let h = f64::from(mean_spring(b));
@@ -355,12 +357,6 @@ fn measure_end(
             rose as f64 * f64::from(h) * f64::from(h)
         })
         .sum();
-    out.voxel_size = world
-        .contacts
-        .iter()
-        .filter(|p| p.a == body || p.b == body)
-        .map(|p| p.grid.voxel_size())
-        .fold(0.0, f32::max);
     for (pair, r) in world.contacts.iter().zip(reports) {
         // The tissue's side of a contact with the compared body.
         let (t, forces) = if pair.a == body && tissue.contains(&pair.b) {
@@ -411,17 +407,12 @@ fn pictures(
     // From a little above, so the tissue's surface shows its colours beside the cut.
     for (view, dir) in [("front", Vec3::new(0.0, 1.0, -0.35)), ("side", Vec3::new(1.0, 0.0, -0.35))] {
         let scene = RenderScene {
-            meshes: world
-                .bodies
-                .iter()
-                .enumerate()
-                .map(|(k, b)| SceneMesh {
-                    positions: &shown[k].0,
-                    triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
-                    scalars: tissue.contains(&k).then(|| shown[k].1.as_slice()),
-                    base_color: if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
-                })
-                .collect(),
+            meshes: meshes(
+                world,
+                &shown,
+                |k| tissue.contains(&k),
+                |k| if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
+            ),
             scalar_range: range,
             clip: Some((centre, Vec3::new(dir.x, dir.y, 0.0))),
             view_dir: dir,

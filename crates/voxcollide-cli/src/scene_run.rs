@@ -16,7 +16,7 @@ use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use crate::scenario::Backend;
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
-use voxcollide_sim::build::{BodyNote, build_world};
+use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
 use voxcollide_sim::{CpuWorld, GpuWorld, MassSpring, World};
@@ -160,26 +160,27 @@ pub fn run_file(
     note: &mut dyn FnMut(&str),
 ) -> Result<FileSummary, Error> {
     let file = SceneFile::read(&config.path)?;
-    run_scene(&file, config, progress, note, &mut |_, _| Ok(()))
+    let built = build_world(&file)?;
+    run_scene(&file, built, config, progress, note, &mut |_, _| Ok(()))
 }
 
 /// What [`run_scene`] calls with the world and the contact reports of the last frame.
 pub type Finished<'a> = dyn FnMut(&World, &[ContactReport]) -> Result<(), Error> + 'a;
 
-/// [`run_file`] on a scene already read (`config.path` names it), calling `finished` with the
-/// world and the contact reports of the last frame before `summary.json` is written.
+/// [`run_file`] on a scene already read (`config.path` names it) and built from it, calling
+/// `finished` with the world and the contact reports of the last frame before `summary.json`
+/// is written.
 ///
 /// # Errors
 /// As [`run_file`], and `finished`'s.
 pub fn run_scene(
     file: &SceneFile,
+    built: Built,
     config: &FileRunConfig,
     progress: &mut dyn FnMut(u64, u64),
     note: &mut dyn FnMut(&str),
     finished: &mut Finished<'_>,
 ) -> Result<FileSummary, Error> {
-    let file = file.clone();
-    let built = build_world(&file)?;
     for n in &built.notes {
         for r in &n.remarks {
             note(&format!("{}: {r}", n.name));
@@ -482,6 +483,28 @@ fn measure(world: &World, summary: &mut FileSummary) -> Result<(), Error> {
     Ok(())
 }
 
+/// Every body's mesh for a picture, by its shown surface (`shown`: positions and how far each
+/// moved): the bodies for which `coloured` says so coloured by that distance, the others in
+/// `colour(body)`.
+pub(crate) fn meshes<'a>(
+    world: &'a World,
+    shown: &'a [(Vec<Vec3>, Vec<f32>)],
+    coloured: impl Fn(usize) -> bool,
+    colour: impl Fn(usize) -> [f32; 3],
+) -> Vec<SceneMesh<'a>> {
+    world
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(k, b)| SceneMesh {
+            positions: &shown[k].0,
+            triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
+            scalars: coloured(k).then(|| shown[k].1.as_slice()),
+            base_color: colour(k),
+        })
+        .collect()
+}
+
 /// Every body by its shown surface (`shown`: positions and how far each moved), the soft ones
 /// coloured by that distance (up to a tenth of the scene), the others in plain colours, seen
 /// from the front and a little above.
@@ -493,17 +516,7 @@ fn picture<'a>(
 ) -> RenderScene<'a> {
     const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
     RenderScene {
-        meshes: world
-            .bodies
-            .iter()
-            .enumerate()
-            .map(|(k, b)| SceneMesh {
-                positions: &shown[k].0,
-                triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
-                scalars: soft[k].then(|| shown[k].1.as_slice()),
-                base_color: COLOURS[k % COLOURS.len()],
-            })
-            .collect(),
+        meshes: meshes(world, shown, |k| soft[k], |k| COLOURS[k % COLOURS.len()]),
         scalar_range: (0.0, 0.1 * size),
         clip: None,
         view_dir: Vec3::new(0.3, 1.0, -0.35).normalize(),

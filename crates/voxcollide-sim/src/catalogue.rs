@@ -17,7 +17,7 @@ use serde::Deserialize;
 use toml::Spanned;
 use voxcollide::Error;
 
-use crate::scene_file::{Geometry, Shape, at, check_shape, nth_table, read_text, toml_error};
+use crate::scene_file::{Geometry, Shape, at, check_shape, missing_mesh, read_text, toml_error};
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -75,23 +75,8 @@ impl Catalogue {
         let path = path.as_ref();
         let text = read_text(path, "the catalogue")?;
         let catalogue = Catalogue::parse(path, &text)?;
-        let file = path.display().to_string();
-        for (k, c) in catalogue.candidates.iter().enumerate() {
-            if let Geometry::Mesh(mesh) = &c.geometry
-                && !mesh.is_file()
-            {
-                let offset =
-                    nth_table(&text, "candidate", k).and_then(|t| text[t..].find("mesh").map(|i| t + i));
-                let offset = offset.unwrap_or(0);
-                return Err(at(
-                    &file,
-                    &text,
-                    offset..offset,
-                    Some(&format!("candidate[{k}].mesh")),
-                    format!("{} does not exist or is not a file", mesh.display()),
-                ));
-            }
-        }
+        let geometries = catalogue.candidates.iter().map(|c| &c.geometry);
+        missing_mesh(&path.display().to_string(), &text, "candidate", geometries)?;
         Ok(catalogue)
     }
 

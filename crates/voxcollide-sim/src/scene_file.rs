@@ -710,6 +710,32 @@ pub(crate) fn toml_error(file: &str, text: &str, e: &toml::de::Error) -> Error {
     at(file, text, span, key.as_deref(), message)
 }
 
+/// The error for the first of the `[[table]]`s' geometries (in order) whose mesh is not a
+/// file, pointing at its `mesh` key.
+pub(crate) fn missing_mesh<'a>(
+    file: &str,
+    text: &str,
+    table: &str,
+    geometries: impl Iterator<Item = &'a Geometry>,
+) -> Result<(), Error> {
+    for (k, geometry) in geometries.enumerate() {
+        if let Geometry::Mesh(mesh) = geometry
+            && !mesh.is_file()
+        {
+            let offset =
+                nth_table(text, table, k).and_then(|t| text[t..].find("mesh").map(|i| t + i)).unwrap_or(0);
+            return Err(at(
+                file,
+                text,
+                offset..offset,
+                Some(&format!("{table}[{k}].mesh")),
+                format!("{} does not exist or is not a file", mesh.display()),
+            ));
+        }
+    }
+    Ok(())
+}
+
 impl SceneFile {
     /// Reads and checks the scene file at `path`; meshes are resolved against its folder and
     /// must exist.
@@ -721,21 +747,8 @@ impl SceneFile {
         let path = path.as_ref();
         let text = read_text(path, "the scene file")?;
         let scene = SceneFile::parse(path, &text)?;
-        let name = path.display().to_string();
-        for (k, body) in scene.bodies.iter().enumerate() {
-            if let Geometry::Mesh(mesh) = &body.geometry
-                && !mesh.is_file()
-            {
-                let offset = nth_table(&text, "body", k).and_then(|t| text[t..].find("mesh").map(|i| t + i));
-                return Err(at(
-                    &name,
-                    &text,
-                    offset.unwrap_or(0)..offset.unwrap_or(0),
-                    Some(&format!("body[{k}].mesh")),
-                    format!("{} does not exist or is not a file", mesh.display()),
-                ));
-            }
-        }
+        let meshes = scene.bodies.iter().map(|b| &b.geometry);
+        missing_mesh(&path.display().to_string(), &text, "body", meshes)?;
         Ok(scene)
     }
 
