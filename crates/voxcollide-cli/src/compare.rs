@@ -20,6 +20,7 @@ use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
 
+use crate::plots::{Chart, Series, line_chart_svg};
 use crate::render::{Legend, Renderer, Scene as RenderScene};
 use crate::scenario::Backend;
 use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene, shown_and_moved, shown_surface};
@@ -85,6 +86,32 @@ pub struct CandidateResult {
     pub folder: String,
     /// Its pictures (front and side), relative to the output folder; none without an adapter.
     pub pictures: Vec<String>,
+    /// The mean distance of the tissue's vertices from their rest positions at the end (scene
+    /// units).
+    pub mean_tissue_displacement: f32,
+    /// The largest strain of a tissue spring at the end: `|length / rest length − 1|`.
+    pub max_tissue_strain: f32,
+    /// The tissue's outer surface along the line through its apex parallel to x, at the end:
+    /// `[x, rise]` pairs in x order (scene units), x from the implant's centre, the rise above
+    /// where that point of the surface rests.
+    pub profile: Vec<[f32; 2]>,
+    /// The metrics at each frame of the run.
+    pub history: Vec<Sample>,
+}
+
+/// A candidate's metrics at one frame of its run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Sample {
+    /// Simulated time, in seconds.
+    pub time: f64,
+    /// The apex lift (scene units).
+    pub apex_lift: f32,
+    /// The compared shell's volume, in mL.
+    pub volume_ml: f64,
+    /// The largest distance of a tissue vertex from its rest position (scene units).
+    pub max_tissue_displacement: f32,
+    /// Tissue vertices in contact with the compared body (the detector's colliding count).
+    pub contacts: usize,
 }
 
 /// What `compare` measured, as written to `compare.json`.
@@ -248,7 +275,10 @@ pub fn compare(
         candidates: Vec::new(),
     };
     let count = runs.len();
-    for (k, (c, volume, s, built)) in runs.into_iter().enumerate() {
+    for (k, (c, volume, mut s, built)) in runs.into_iter().enumerate() {
+        // Frames for the metrics over time; compare draws its own pictures.
+        s.output.frames = s.output.frames.max(HISTORY_FRAMES);
+        s.output.images = false;
         note(&format!("candidate {}/{count}: {} ({volume:.0} mL)", k + 1, c.name));
         let folder = c.folder();
         let run_config = FileRunConfig {
@@ -270,10 +300,13 @@ pub fn compare(
             &run_config,
             &mut |done, planned| progress(Progress { index: k, count, name: &c.name, done, planned }),
             &mut |_| {},
-            &mut |world, reports| {
-                measure_end(world, reports, body, &tissue, metres, &mut result);
-                if let Some(r) = renderer.as_mut() {
-                    result.pictures = pictures(r, world, body, &tissue, &config.out, &folder, &units)?;
+            &mut |world, reports, at| {
+                result.history.push(sample(world, reports, body, &tissue, metres, at.time));
+                if at.last {
+                    measure_end(world, reports, body, &tissue, metres, &mut result);
+                    if let Some(r) = renderer.as_mut() {
+                        result.pictures = pictures(r, world, body, &tissue, &config.out, &folder, &units)?;
+                    }
                 }
                 Ok(())
             },
@@ -295,7 +328,77 @@ pub fn compare(
     Ok(comparison)
 }
 
-/// The end-of-run measurements that need the world: the apex lift and the contact pressures.
+/// Frames at least, over the schedule, for the metrics over time.
+const HISTORY_FRAMES: u32 = 40;
+
+/// How far the tissue's outer surface rose at its highest point.
+fn apex_lift(world: &World, tissue: &[usize]) -> f32 {
+    let top = |p: &[Vec3]| p.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    tissue
+        .iter()
+        .map(|&t| {
+            let b = &world.bodies[t];
+            let (now, _) = shown_surface(b);
+            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
+            top(&now) - top(rest)
+        })
+        .fold(f32::MIN, f32::max)
+}
+
+/// The metrics of one frame.
+fn sample(
+    world: &World,
+    reports: &[ContactReport],
+    body: usize,
+    tissue: &[usize],
+    metres: f64,
+    time: f64,
+) -> Sample {
+    let moved = |t: usize| {
+        let b = &world.bodies[t];
+        b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r))
+    };
+    Sample {
+        time,
+        apex_lift: apex_lift(world, tissue),
+        volume_ml: world.bodies[body].enclosed_volume() * metres.powi(3) * 1e6,
+        max_tissue_displacement: tissue.iter().flat_map(|&t| moved(t)).fold(0.0, f32::max),
+        contacts: world
+            .contacts
+            .iter()
+            .zip(reports)
+            .filter(|(p, _)| (p.a == body && tissue.contains(&p.b)) || (p.b == body && tissue.contains(&p.a)))
+            .map(|(_, r)| r.colliding_b.len())
+            .sum(),
+    }
+}
+
+/// The tissue's top surface (vertices that rest within a quarter spacing of its top) along the
+/// line through its highest point parallel to x: `[x − centre.x, rise]` in x order.
+fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
+    let mut points = Vec::new();
+    for &t in tissue {
+        let b = &world.bodies[t];
+        let h = mean_spring(b);
+        let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+        let on_top: Vec<usize> = (0..b.len()).filter(|&i| b.rest_pos[i].z >= top - 0.25 * h).collect();
+        let Some(&apex) = on_top.iter().max_by(|&&i, &&j| b.pos[i].z.total_cmp(&b.pos[j].z)) else {
+            continue;
+        };
+        let y = b.rest_pos[apex].y;
+        points.extend(
+            on_top
+                .iter()
+                .filter(|&&i| (b.rest_pos[i].y - y).abs() <= 0.5 * h)
+                .map(|&i| [b.rest_pos[i].x - centre.x, b.pos[i].z - b.rest_pos[i].z]),
+        );
+    }
+    points.sort_by(|a, b| a[0].total_cmp(&b[0]));
+    points
+}
+
+/// The end-of-run measurements that need the world: the apex lift, the tissue's mean
+/// displacement, strain and profile, the contact area and pressures, and the footprint.
 fn measure_end(
     world: &World,
     reports: &[ContactReport],
@@ -304,16 +407,25 @@ fn measure_end(
     metres: f64,
     out: &mut CandidateResult,
 ) {
-    let top = |p: &[Vec3]| p.iter().map(|p| p.z).fold(f32::MIN, f32::max);
-    out.apex_lift = tissue
-        .iter()
-        .map(|&t| {
-            let b = &world.bodies[t];
-            let (now, _) = shown_surface(b);
-            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
-            top(&now) - top(rest)
-        })
-        .fold(f32::MIN, f32::max);
+    out.apex_lift = apex_lift(world, tissue);
+    let (mut moved, mut vertices) = (0.0f64, 0usize);
+    let mut strain = 0.0f32;
+    for &t in tissue {
+        let b = &world.bodies[t];
+        moved += b.pos.iter().zip(&b.rest_pos).map(|(p, r)| f64::from(p.distance(*r))).sum::<f64>();
+        vertices += b.len();
+        for s in &b.springs {
+            let length = b.pos[s.i as usize].distance(b.pos[s.j as usize]);
+            strain = strain.max((length / s.rest - 1.0).abs());
+        }
+    }
+    out.mean_tissue_displacement = if vertices > 0 { (moved / vertices as f64) as f32 } else { 0.0 };
+    out.max_tissue_strain = strain;
+    let centre = {
+        let p = &world.bodies[body].pos;
+        p.iter().copied().sum::<Vec3>() / p.len().max(1) as f32
+    };
+    out.profile = profile(world, tissue, centre);
     let (mut peak, mut total, mut area) = (0.0f64, 0.0f64, 0.0f64);
     out.voxel_size = world
         .contacts
@@ -440,6 +552,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         "volume_ml".into(),
         format!("apex_lift_{u}"),
         format!("max_tissue_displacement_{u}"),
+        format!("mean_tissue_displacement_{u}"),
+        "max_tissue_strain".into(),
         "peak_contact_pressure_kpa".into(),
         "mean_contact_pressure_kpa".into(),
         format!("contact_area_{u}2"),
@@ -455,6 +569,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             format!("{:.1}", c.volume_ml),
             format!("{:.3}", c.apex_lift),
             format!("{:.3}", c.max_tissue_displacement),
+            format!("{:.3}", c.mean_tissue_displacement),
+            format!("{:.4}", c.max_tissue_strain),
             format!("{:.3}", c.peak_contact_pressure_kpa),
             format!("{:.3}", c.mean_contact_pressure_kpa),
             format!("{:.1}", c.contact_area),
@@ -472,6 +588,53 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
     std::fs::write(&path, html).map_err(|e| io(&path, e))
 }
 
+/// The report's charts, inline SVG in `<figure>`s: the outer surface's profile through the
+/// apex, one curve per candidate, and the metrics over time.
+fn plots(comparison: &Comparison) -> Result<String, Error> {
+    let u = &comparison.units;
+    let each = |f: &dyn Fn(&CandidateResult) -> Vec<(f64, f64)>| -> Vec<Series> {
+        comparison.candidates.iter().map(|c| Series { label: c.name.clone(), points: f(c) }).collect()
+    };
+    let over_time = |f: fn(&Sample) -> f64| {
+        each(&|c: &CandidateResult| c.history.iter().map(|s| (s.time, f(s))).collect())
+    };
+    let profile = each(&|c: &CandidateResult| {
+        c.profile.iter().map(|p| (f64::from(p[0]), f64::from(p[1]))).collect()
+    });
+    let charts = [
+        (
+            "profile",
+            "The outer surface through the apex, at rest",
+            format!("x from the implant's centre ({u})"),
+            format!("rise of the surface ({u})"),
+            profile,
+        ),
+        (
+            "lift",
+            "Apex lift over time",
+            "time (s)".into(),
+            format!("apex lift ({u})"),
+            over_time(|s| f64::from(s.apex_lift)),
+        ),
+        ("volume", "Implant volume over time", "time (s)".into(), "volume (mL)".into(), over_time(|s| s.volume_ml)),
+        (
+            "displacement",
+            "Max tissue displacement over time",
+            "time (s)".into(),
+            format!("max tissue displacement ({u})"),
+            over_time(|s| f64::from(s.max_tissue_displacement)),
+        ),
+    ];
+    let mut html = String::new();
+    for (id, title, x, y, series) in &charts {
+        let svg = line_chart_svg(&Chart { title, x, y, series }, 640, 400)?;
+        // Inline in HTML the parser puts <svg> in its namespace: the page names no URL at all.
+        let svg = svg.replacen(" xmlns=\"http://www.w3.org/2000/svg\"", "", 1);
+        html += &format!("<figure class=\"plot\" id=\"plot-{id}\">{svg}</figure>\n");
+    }
+    Ok(html)
+}
+
 /// `s` with `&`, `<`, `>` and `"` escaped for HTML.
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
@@ -484,11 +647,13 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     let mut rows = String::new();
     for c in &comparison.candidates {
         rows += &format!(
-            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
+            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1} %</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
             escape(&c.name),
             c.volume_ml,
             c.apex_lift,
             c.max_tissue_displacement,
+            c.mean_tissue_displacement,
+            100.0 * c.max_tissue_strain,
             c.peak_contact_pressure_kpa,
             c.mean_contact_pressure_kpa,
             c.contact_area,
@@ -527,14 +692,17 @@ th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0
 <p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
 <h2>Measurements</h2>
 <table id="measurements">
-<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
+<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
 <tbody>
 {rows}</tbody></table>
+<h2>Plots</h2>
+{plots}
 <h2>Resting shapes</h2>
 <p>Cut open through the implant's centre; the tissue coloured by how far it moved, on one scale for every candidate.</p>
 {figures}</body></html>
 "#,
         scene = escape(&comparison.scene),
         body = escape(&comparison.body),
+        plots = plots(comparison)?,
     ))
 }

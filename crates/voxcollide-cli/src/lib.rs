@@ -8,6 +8,7 @@
 pub mod bench; //    `voxcollide bench`: every backend against its workload's baseline
 pub mod compare; //  `voxcollide compare`: implant candidates through one scene, and the report
 pub mod output; //   VTK / ParaView files of the bodies
+pub mod plots; //    line charts as SVG (compare's report)
 pub mod render; //   offscreen PNG pictures with wgpu
 pub mod scenario; // a scene run end to end: backend, frames, files, summary
 pub mod scene_run; // a scene file run end to end: any bodies and contacts

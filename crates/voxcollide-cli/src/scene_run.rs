@@ -161,25 +161,37 @@ pub fn run_file(
 ) -> Result<FileSummary, Error> {
     let file = SceneFile::read(&config.path)?;
     let built = build_world(&file)?;
-    run_scene(&file, built, config, progress, note, &mut |_, _| Ok(()))
+    run_scene(&file, built, config, progress, note, &mut |_, _, _| Ok(()))
 }
 
-/// What [`run_scene`] calls with the world and the contact reports of the last frame.
-pub type Finished<'a> = dyn FnMut(&World, &[ContactReport]) -> Result<(), Error> + 'a;
+/// Where a run is at one of its frames, for [`run_scene`]'s observer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FrameAt {
+    /// Steps done.
+    pub step: u64,
+    /// Simulated time, in seconds.
+    pub time: f64,
+    /// Whether this is the run's last frame (the one `summary.json` describes).
+    pub last: bool,
+}
+
+/// What [`run_scene`] calls at each frame with the world and the frame's contact reports.
+pub type Observer<'a> = dyn FnMut(&World, &[ContactReport], FrameAt) -> Result<(), Error> + 'a;
 
 /// [`run_file`] on a scene already read (`config.path` names it) and built from it, calling
-/// `finished` with the world and the contact reports of the last frame before `summary.json`
-/// is written.
+/// `observe` with the world and the contact reports at every frame (the scene's `frames` over
+/// the schedule, then one a settling window apart while it settles), the last one before
+/// `summary.json` is written.
 ///
 /// # Errors
-/// As [`run_file`], and `finished`'s.
+/// As [`run_file`], and `observe`'s.
 pub fn run_scene(
     file: &SceneFile,
     built: Built,
     config: &FileRunConfig,
     progress: &mut dyn FnMut(u64, u64),
     note: &mut dyn FnMut(&str),
-    finished: &mut Finished<'_>,
+    observe: &mut Observer<'_>,
 ) -> Result<FileSummary, Error> {
     for n in &built.notes {
         for r in &n.remarks {
@@ -338,6 +350,7 @@ pub fn run_scene(
             }
             summary.files.push(name);
         }
+        observe(world, &reports, FrameAt { step: done, time: done as f64 * f64::from(built.dt), last })?;
         if last {
             summary.settled = file.time.settle && at_rest;
             for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
@@ -349,7 +362,6 @@ pub fn run_scene(
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
-            finished(world, &reports)?;
             break;
         }
         // Past the schedule, frames a settling window apart.

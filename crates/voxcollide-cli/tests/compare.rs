@@ -129,6 +129,25 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
         assert!(r.apex_lift > 0.0 && r.max_tissue_displacement >= r.apex_lift, "{r:?}");
         assert!(r.footprint_area > 0.0 && r.contact_area > 0.0, "{r:?}");
         assert!(r.steps > 0);
+        // The tissue is stretched, and moved less on average than at most.
+        assert!(r.max_tissue_strain > 0.0 && r.max_tissue_strain.is_finite(), "{r:?}");
+        assert!(r.mean_tissue_displacement > 0.0 && r.mean_tissue_displacement < r.max_tissue_displacement);
+        // The profile through the apex rises to the apex lift near the implant's centre and
+        // stays put at the held rim.
+        let peak = r.profile.iter().copied().max_by(|a, b| a[1].total_cmp(&b[1])).unwrap();
+        assert!((peak[1] - r.apex_lift).abs() < 1e-4, "{peak:?} vs {}", r.apex_lift);
+        assert!(peak[0].abs() <= 20.0, "the apex is {} mm off centre", peak[0]);
+        assert!(r.profile.windows(2).all(|w| w[0][0] <= w[1][0]), "the profile is in x order");
+        let ends = [r.profile[0], r.profile[r.profile.len() - 1]];
+        assert!(ends.iter().all(|e| e[1].abs() < 0.05 * r.apex_lift), "{ends:?}");
+        // The metrics over time: the shell fills from deflated to its volume, in time order.
+        let h = &r.history;
+        assert!(h.len() >= 20, "{} samples", h.len());
+        assert!(h.windows(2).all(|w| w[0].time < w[1].time));
+        // (It starts at the scene's scale, 0.8: about half its volume.)
+        assert!(h[0].volume_ml < 0.6 * r.target_volume_ml && h[0].apex_lift.abs() < 1e-3, "{:?}", h[0]);
+        let last = &h[h.len() - 1];
+        assert_eq!((last.apex_lift, last.volume_ml), (r.apex_lift, r.volume_ml));
     }
     // A stiffer skin lifts less under the same implant.
     let d2 = dir("stiff");
@@ -163,6 +182,10 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     assert!(!html.contains("http://") && !html.contains("https://") && !html.contains("<script"));
     assert_eq!(html.matches("<tr><th scope=\"row\">").count(), 4);
     assert!(html.contains("300 mL high &lt;profile&gt;"), "names are escaped");
+    // Four charts, inline SVG, each with a curve per candidate and its legend.
+    assert_eq!(html.matches("<figure class=\"plot\"").count(), 4);
+    assert_eq!(html.matches("<svg ").count(), 4);
+    assert_eq!(html.matches("\n300 mL high &lt;profile&gt;\n").count(), 4, "a legend lacks a candidate");
     let pictures = html.matches("src=\"data:image/png;base64,").count();
     if common::gpu().is_some() {
         assert_eq!(pictures, 8);
@@ -274,6 +297,8 @@ fn the_report_shows_its_table_and_pictures_in_a_real_browser() {
     let dom = headless(&["--dump-dom"]);
     assert_eq!(dom.matches("<tr><th scope=\"row\">").count(), 2, "{dom}");
     assert_eq!(dom.matches("<img ").count(), 4);
+    assert_eq!(dom.matches("<svg ").count(), 4, "a chart is missing");
+    assert_eq!(dom.matches("<polyline fill=\"none\" opacity=\"1\" stroke=\"#1F77B4\"").count(), 8);
     // The page as it looks: not blank, the pictures' colours (the colour map's greens and
     // yellows, and the implant's orange) on it, not a broken-image icon.
     headless(&[&format!("--screenshot={}", shot.display())]);
@@ -291,5 +316,8 @@ fn the_report_shows_its_table_and_pictures_in_a_real_browser() {
     let implant_orange = share(&|p| p[0] > 150 && p[0] > p[1] + 30 && p[1] > p[2] + 20);
     assert!(viridis_green > 0.002, "{viridis_green}: no coloured tissue on the page");
     assert!(implant_orange > 0.002, "{implant_orange}: no implant on the page");
+    // The charts' first curve, tab10's blue (31, 119, 180), drawn.
+    let blue = share(&|p| p[0].abs_diff(31) < 12 && p[1].abs_diff(119) < 12 && p[2].abs_diff(180) < 12);
+    assert!(blue > 0.0002, "{blue}: no chart curve on the page");
     std::fs::remove_dir_all(&d).unwrap();
 }

@@ -1,11 +1,10 @@
 //! The Hertz indentation of tests/hertz.rs, run once: the measured curve as CSV and its plot.
 //!
-//!     cargo run --release -p voxcollide-sim --example hertz -- [CSV [PNG]] [--font TTF]
+//!     cargo run --release -p voxcollide-sim --example hertz -- [CSV [SVG]]
 //!         [--history CSV] [--set key=value]…
 //!
-//! CSV defaults to out/hertz.csv and PNG to docs/hertz.png, under the workspace root. The
-//! plot's text is drawn with a TrueType font read at run time, DejaVu Sans where Debian's
-//! fonts-dejavu-core puts it unless `--font` names another. `--set` changes the set-up
+//! CSV defaults to out/hertz.csv and SVG to docs/hertz.svg, under the workspace root. The
+//! plot is an SVG whose text the viewer draws, so no font file is needed. `--set` changes the set-up
 //! (thickness, width, spacing, radius, ball_spacing, damping, magnitude (N or auto), ramp,
 //! hold, window, depths (fractions of T, comma-separated), stiffening); `--history` writes
 //! the force against time.
@@ -19,30 +18,22 @@ use std::path::{Path, PathBuf};
 use hertz::{Curve, LATTICE_POISSON, Setup, bonded_layer, measure, summary, table};
 use plotters::prelude::*;
 
-const DEFAULT_FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
-
 fn main() -> Result<(), Box<dyn Error>> {
     // The workspace root, two folders above this crate's.
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).ancestors().nth(2).unwrap_or(Path::new("."));
     let mut setup = Setup::standard();
-    let (mut paths, mut font, mut history) = (Vec::new(), PathBuf::from(DEFAULT_FONT), None);
+    let (mut paths, mut history) = (Vec::new(), None);
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = || args.next().ok_or_else(|| format!("{arg} needs a value"));
         match arg.as_str() {
-            "--font" => font = value()?.into(),
             "--history" => history = Some(PathBuf::from(value()?)),
             "--set" => set(&mut setup, &value()?)?,
             _ => paths.push(PathBuf::from(arg)),
         }
     }
     let csv = paths.first().cloned().unwrap_or_else(|| root.join("out/hertz.csv"));
-    let png = paths.get(1).cloned().unwrap_or_else(|| root.join("docs/hertz.png"));
-    // Read the font before the minute-long run, so that a missing one fails at once.
-    let font: &'static [u8] = Vec::leak(
-        std::fs::read(&font)
-            .map_err(|e| format!("{}: {e} (name a TrueType font with --font)", font.display()))?,
-    );
+    let svg = paths.get(1).cloned().unwrap_or_else(|| root.join("docs/hertz.svg"));
 
     let curve = measure(&setup)?;
     println!("{}\n\n{}", summary(&curve), table(&curve));
@@ -54,8 +45,8 @@ fn main() -> Result<(), Box<dyn Error>> {
         }
         write(&path, &text)?;
     }
-    plot(&curve, &png, font)?;
-    println!("wrote {} and {}", csv.display(), png.display());
+    plot(&curve, &svg)?;
+    println!("wrote {} and {}", csv.display(), svg.display());
     Ok(())
 }
 
@@ -109,9 +100,7 @@ fn samples_csv(curve: &Curve) -> String {
 
 /// Force against depth: the measured base load and contact force, Hertz's curve for `R + r`
 /// with its ±25 % band, and the bonded layer's curve; forces in mN.
-fn plot(curve: &Curve, path: &Path, font: &'static [u8]) -> Result<(), Box<dyn Error>> {
-    plotters::style::register_font("sans-serif", FontStyle::Normal, font)
-        .map_err(|_| "the font is not a TrueType font")?;
+fn plot(curve: &Curve, path: &Path) -> Result<(), Box<dyn Error>> {
     let s = &curve.setup;
     let envelope = s.radius + curve.contact_radius;
     let hertz_mn = |d: f64| 1e3 * hertz::hertz(s.young_kpa, LATTICE_POISSON, envelope, d);
@@ -121,9 +110,9 @@ fn plot(curve: &Curve, path: &Path, font: &'static [u8]) -> Result<(), Box<dyn E
     let xs: Vec<f64> = (0..=200).map(|i| d_max * f64::from(i) / 200.0).collect();
 
     let (width, height) = (960u32, 880u32);
-    let mut pixels = vec![255u8; (width * height * 3) as usize];
+    let mut text = String::new();
     {
-        let area = BitMapBackend::with_buffer(&mut pixels, (width, height)).into_drawing_area();
+        let area = SVGBackend::with_string(&mut text, (width, height)).into_drawing_area();
         area.fill(&WHITE)?;
         let (top, bottom) = area.split_vertically(600);
         let mut chart = ChartBuilder::on(&top)
@@ -246,10 +235,6 @@ fn plot(curve: &Curve, path: &Path, font: &'static [u8]) -> Result<(), Box<dyn E
     if let Some(dir) = path.parent() {
         std::fs::create_dir_all(dir)?;
     }
-    let file = std::fs::File::create(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    encoder.write_header()?.write_image_data(&pixels)?;
+    std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(())
 }

@@ -1,7 +1,7 @@
 //! A rigid sphere indenting a soft block, from a scene file in mm and kPa: the force–depth curve
 //! must stay within 25 % of Hertz's `F = 4/3 · E/(1−ν²) · √R · d^{3/2}` (issue 11, item 5; the
 //! set-up, the measurement and the result are in docs/hertz.md). `examples/hertz.rs` includes
-//! this file to write the curve as CSV and draw docs/hertz.png.
+//! this file to write the curve as CSV and draw docs/hertz.svg.
 #![allow(dead_code)] // the example uses what the test does not, and the other way round
 
 use std::time::Instant;
