@@ -154,9 +154,16 @@ fn with_candidate(
         }
     }
     if let Some(volume_ml) = volume_ml {
-        let ramp = b.inflate.map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
-        let ease = b.inflate.map_or(Ease::Smooth, |i| i.ease);
-        b.inflate = Some(Inflate { pressure_kpa: None, volume_ml: Some(volume_ml), ramp, ease });
+        let ramp = b.inflate.as_ref().map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
+        let ease = b.inflate.as_ref().map_or(Ease::Smooth, |i| i.ease);
+        // An expander's schedule keeps its times, its volumes scaled to the candidate's.
+        let schedule = match b.inflate.as_ref().and_then(|i| i.schedule.last().map(|l| (l[1], &i.schedule))) {
+            Some((last, schedule)) if last > 0.0 => {
+                schedule.iter().map(|&[t, ml]| [t, ml * volume_ml / last]).collect()
+            }
+            _ => Vec::new(),
+        };
+        b.inflate = Some(Inflate { pressure_kpa: None, volume_ml: Some(volume_ml), schedule, ramp, ease });
     }
     s
 }

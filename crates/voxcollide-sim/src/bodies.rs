@@ -912,6 +912,11 @@ impl ImplantShape {
 /// apex down the dome to the rim and across the flat base to its centre. The rings are spaced
 /// evenly in `asin ρ` on the dome, closer near the rim where it turns down.
 ///
+/// The facets lie inside the smooth dome, so its profile exponent is fitted (by bisection) so
+/// that the facets themselves enclose `shape.volume`, to a millionth where the base and
+/// projection allow it; a volume so close to the cylinder's that even the fullest faceted dome
+/// falls short gets that fullest dome.
+///
 /// # Errors
 /// Those of [`ImplantShape::exponent`], and [`Error::Invalid`] for an edge that is not positive
 /// or gives over 4 million vertices.
@@ -938,6 +943,35 @@ pub fn implant_surface(shape: ImplantShape, edge: f64) -> Result<(Vec<Vec3>, Tri
             rule: format!("gives {count} vertices; at most 4,000,000"),
         });
     }
+    let build = |alpha: f64| implant_facets(shape, alpha, segments, dome, flat);
+    // Fewer facets enclose less: the volume falls as the exponent grows.
+    let enclosed = |alpha: f64| {
+        let (pos, mesh) = build(alpha);
+        mesh.volume(&pos)
+    };
+    let (mut lo, mut hi) = (1e-6, alpha.max(1e-6));
+    while enclosed(hi) > shape.volume && hi < MAX_IMPLANT_EXPONENT {
+        hi = (2.0 * hi).min(MAX_IMPLANT_EXPONENT);
+    }
+    let fitted = if enclosed(lo) <= shape.volume {
+        lo
+    } else {
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if enclosed(mid) > shape.volume { lo = mid } else { hi = mid }
+            if hi - lo < 1e-9 * hi {
+                break;
+            }
+        }
+        0.5 * (lo + hi)
+    };
+    Ok(build(fitted))
+}
+
+/// [`implant_surface`]'s facets for the profile exponent `alpha`.
+fn implant_facets(shape: ImplantShape, alpha: f64, segments: u32, dome: u32, flat: u32) -> (Vec<Vec3>, TriangleMesh) {
+    let r = 0.5 * shape.base;
+    let p = shape.projection;
     // The foot of the apex, and the distance from it to the rim along direction θ.
     let foot = if shape.anatomical { DVec3::new(0.0, -0.25 * r, 0.0) } else { DVec3::ZERO };
     let reach = |dir: DVec3| {
@@ -986,5 +1020,5 @@ pub fn implant_surface(shape: ImplantShape, edge: f64) -> Result<(Vec<Vec3>, Tri
         }
         tri(&mut mesh, &pos, [bottom, ring(last, s + 1), ring(last, s)], down);
     }
-    Ok((pos, mesh))
+    (pos, mesh)
 }

@@ -404,6 +404,8 @@ struct BodySchedule {
     growth: Option<f64>,
     /// And its fill: the first volume, the final one, and the fill's bulk modulus.
     fill: Option<(f64, f64, f32)>,
+    /// An expander's schedule: (time, fraction of the way from the first volume to the last).
+    steps: Vec<(f64, f64)>,
     ramp: f64,
     ease: Ease,
     floor: f32,
@@ -435,7 +437,13 @@ impl BodySchedule {
             let turn = rotation(degrees.to_array()) * rotation(first.to_array()).transpose();
             (offset + self.pivot - turn * self.pivot, turn)
         };
-        let ramped = if self.ramp > 0.0 { self.ease.at((t / self.ramp) as f32) } else { 1.0 };
+        let ramped = if !self.steps.is_empty() {
+            along(&self.steps, t) as f32
+        } else if self.ramp > 0.0 {
+            self.ease.at((t / self.ramp) as f32)
+        } else {
+            1.0
+        };
         // To a volume: rest lengths grow by the cube root of the volume reached so far.
         let rest_scale = self.growth.map_or(1.0, |g| (1.0 + (g - 1.0) * f64::from(ramped)).cbrt() as f32);
         let (fill_volume, fill_bulk) = self.fill.map_or((0.0, 0.0), |(start, end, bulk)| {
@@ -452,6 +460,18 @@ impl BodySchedule {
             floor: self.floor,
         }
     }
+}
+
+/// `points` (time, value), from (0, 0), linearly at `t`, held after the last.
+fn along(points: &[(f64, f64)], t: f64) -> f64 {
+    let mut before = (0.0, 0.0);
+    for &(pt, v) in points {
+        if t < pt {
+            return before.1 + (v - before.1) * (t - before.0) / (pt - before.0);
+        }
+        before = (pt, v);
+    }
+    before.1
 }
 
 /// The bulk modulus of a shell's fill: stiff enough to hold the volume against the tissue (a
@@ -489,7 +509,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // file units (the voxel model's margin and the schedule both follow from them).
     let mut fills: Vec<Option<(f64, f64)>> = Vec::with_capacity(file.bodies.len());
     for (k, b) in file.bodies.iter().enumerate() {
-        let Some(ml) = b.inflate.and_then(|i| i.volume_ml) else {
+        let Some(ml) = b.inflate.as_ref().and_then(|i| i.volume_ml) else {
             fills.push(None);
             continue;
         };
@@ -550,7 +570,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
         // grid keeps its dims as it follows A; what leaves it is discarded).
         let a = &bodies[c.a].pos;
-        let growth = match (file.bodies[c.a].inflate, fills[c.a]) {
+        let growth = match (file.bodies[c.a].inflate.as_ref(), fills[c.a]) {
             (None, _) => 0.0,
             // To a volume: its linear growth, and a fifth of its size more.
             (Some(_), Some((start, target))) => (target / start).cbrt().clamp(1.0, 10.0) as f32 - 0.8,
@@ -587,6 +607,19 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         (None, Some(d)) => ((d / f64::from(dt)).ceil() as u64).max(1),
         (None, None) => 1,
     };
+    // An expander's schedule runs within the run: a settling run would stop at a pause.
+    let end = steps as f64 * f64::from(dt);
+    for (k, b) in file.bodies.iter().enumerate() {
+        if let Some(&[t, _]) = b.inflate.as_ref().and_then(|i| i.schedule.last()) {
+            if t > end * (1.0 + 1e-9) {
+                return Err(file.body_error(
+                    k,
+                    "inflate.schedule",
+                    format!("its last fill is at {t} s, after the run's {end} s: lengthen [time] duration"),
+                ));
+            }
+        }
+    }
     let extent = bodies
         .iter()
         .flat_map(|b| b.pos.iter())
@@ -606,12 +639,23 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             })
             .collect();
         let (mut pressure, mut growth, mut fill, mut ramp, mut ease) = (0.0, None, None, 0.0, Ease::Linear);
-        if let Some(i) = b.inflate {
+        let mut steps = Vec::new();
+        if let Some(i) = &b.inflate {
             (ramp, ease) = (i.ramp, i.ease);
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
             if let Some((start, target)) = fills[k] {
                 growth = Some(target / start);
                 fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k])));
+                // The schedule's volumes as fractions of the way from the first to the last.
+                let span = target - start;
+                steps = i
+                    .schedule
+                    .iter()
+                    .map(|&[t, ml]| {
+                        let v = ml * 1e-6 / s.powi(3);
+                        (t, if span.abs() > 0.0 { (v - start) / span } else { 1.0 })
+                    })
+                    .collect();
             }
         }
         schedule_specs.push(BodySchedule {
@@ -620,6 +664,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             pressure,
             growth,
             fill,
+            steps,
             ramp,
             ease,
             floor: b.floor.map_or(f32::MIN, |f| f as f32),

@@ -171,6 +171,65 @@ pub enum ImplantStyle {
     Anatomical,
 }
 
+/// An implant's profile: its projection as a fraction of its base width, as catalogues group
+/// them. For 300 mL, a high profile is about 111 mm wide and 45 mm high, a low one about 135 mm
+/// wide and 30 mm high.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Profile {
+    /// `"low"`: projection 0.22 × base.
+    Low,
+    /// `"moderate"`: projection 0.30 × base.
+    Moderate,
+    /// `"high"`: projection 0.40 × base.
+    High,
+    /// `"extra-high"`: projection 0.48 × base.
+    ExtraHigh,
+}
+
+impl Profile {
+    /// The projection over the base width.
+    pub fn ratio(self) -> f64 {
+        match self {
+            Profile::Low => 0.22,
+            Profile::Moderate => 0.30,
+            Profile::High => 0.40,
+            Profile::ExtraHigh => 0.48,
+        }
+    }
+}
+
+/// An `implant = { … }` table as written: a projection or a profile.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ImplantTable {
+    volume_ml: f64,
+    base_mm: f64,
+    projection_mm: Option<f64>,
+    profile: Option<Profile>,
+    #[serde(default)]
+    style: ImplantStyle,
+}
+
+/// [`Shape::Implant`]'s fields from its table, the projection from the profile where one is
+/// named.
+fn implant_fields<'de, D: Deserializer<'de>>(d: D) -> Result<(f64, f64, f64, ImplantStyle), D::Error> {
+    let t = ImplantTable::deserialize(d)?;
+    let projection = match (t.projection_mm, t.profile) {
+        (Some(p), None) => p,
+        (None, Some(profile)) => profile.ratio() * t.base_mm,
+        (Some(_), Some(_)) => {
+            return Err(de::Error::custom("give `projection_mm` or `profile`, not both"));
+        }
+        (None, None) => {
+            return Err(de::Error::custom(
+                "missing `projection_mm` (mm) or `profile` (\"low\", \"moderate\", \"high\" or \"extra-high\")",
+            ));
+        }
+    };
+    Ok((t.volume_ml, t.base_mm, projection, t.style))
+}
+
 /// A built-in shape, centred at the origin.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(rename_all = "lowercase", deny_unknown_fields)]
@@ -188,7 +247,10 @@ pub enum Shape {
         /// Height.
         height: f64,
     },
-    /// `implant = { volume_ml, base_mm, projection_mm, style }`.
+    /// `implant = { volume_ml, base_mm, projection_mm, style }`, or `profile` (a
+    /// [`Profile`] name) in place of `projection_mm`: the projection that profile gives the
+    /// base.
+    #[serde(deserialize_with = "implant_fields")]
     Implant {
         /// Volume in millilitres.
         volume_ml: f64,
@@ -332,14 +394,20 @@ pub struct Keyframe {
     pub ease: Ease,
 }
 
-/// A shell's inflation: by pressure or to a volume, ramped.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+/// A shell's inflation: by pressure or to a volume, ramped; or, as a tissue expander is filled,
+/// by a schedule of volumes.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Inflate {
     /// The final internal pressure in kPa.
     pub pressure_kpa: Option<f64>,
-    /// Or the final volume in mL.
+    /// Or the final volume in mL. With a `schedule`, its last volume.
     pub volume_ml: Option<f64>,
+    /// Or `[[t, volume_ml], …]`: the volume it holds at each time (seconds, increasing),
+    /// linear between them, from the volume it starts with at t = 0, held after the last. An
+    /// expander only fills: the volumes do not decrease. `ramp` and `ease` are unused.
+    #[serde(default)]
+    pub schedule: Vec<[f64; 2]>,
     /// Seconds over which it is ramped (default 1).
     #[serde(default = "default_ramp")]
     pub ramp: f64,
@@ -920,10 +988,34 @@ impl SceneFile {
                     if b.kind != BodyKind::Shell {
                         return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", b.kind)));
                     }
+                    let mut i = i;
+                    if let Some(&[_, last]) = i.schedule.last() {
+                        if i.pressure_kpa.is_some() || i.volume_ml.is_some() {
+                            return Err(err(
+                                span,
+                                "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
+                            ));
+                        }
+                        let finite = i.schedule.iter().flatten().all(|v| v.is_finite());
+                        let rising = i.schedule.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
+                        if !(finite && i.schedule[0][0] > 0.0 && rising) {
+                            return Err(err(
+                                span,
+                                "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and volumes that do not decrease".into(),
+                            ));
+                        }
+                        i.volume_ml = Some(last);
+                        i.ramp = 0.0;
+                    }
                     let amount = match (i.pressure_kpa, i.volume_ml) {
                         (Some(p), None) => p,
                         (None, Some(v)) => v,
-                        _ => return Err(err(span, "give `pressure_kpa` or `volume_ml`, one of them".into())),
+                        _ => {
+                            return Err(err(
+                                span,
+                                "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
+                            ));
+                        }
                     };
                     if !(amount.is_finite() && amount >= 0.0 && i.ramp.is_finite() && i.ramp >= 0.0) {
                         return Err(err(

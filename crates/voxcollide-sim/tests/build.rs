@@ -135,7 +135,7 @@ fn a_soft_body_fills_an_stl_surface() {
 fn implants_have_their_catalogue_volume_base_and_projection() {
     // Round and anatomical implants of three sizes, each as a shell (its surface) at 2 mm
     // edges, and one as a soft lattice and a rigid body: the surface encloses the catalogue's
-    // volume to within the polygon's shortfall, spans the base and the projection, and an
+    // volume, spans the base and the projection, and an
     // anatomical one's apex sits below the centre (−y).
     for (ml, base, projection) in [(300.0, 115.0, 40.0), (250.0, 110.0, 35.0), (450.0, 130.0, 52.0)] {
         for style in ["round", "anatomical"] {
@@ -151,7 +151,8 @@ fn implants_have_their_catalogue_volume_base_and_projection() {
                 "{style} {ml} mL: {volume_ml:.1} mL, {lo} .. {hi}, apex {apex}: {:?}",
                 built.notes[0].remarks
             );
-            assert!((volume_ml - ml).abs() < 0.03 * ml && volume_ml < ml, "{volume_ml} mL for {ml}");
+            // The issue asks for 2 %; the fitted facets hold it to a thousandth.
+            assert!((volume_ml - ml).abs() < 1e-3 * ml, "{volume_ml} mL for {ml}");
             assert!(((hi.x - lo.x) - base as f32).abs() < 0.01 * base as f32, "base {}", hi.x - lo.x);
             assert!(
                 ((hi.z - lo.z) - projection as f32).abs() < 0.01 * projection as f32,
@@ -170,6 +171,16 @@ fn implants_have_their_catalogue_volume_base_and_projection() {
             }
             assert!(built.notes[0].remarks.iter().any(|m| m.contains("mL")), "{:?}", built.notes[0].remarks);
         }
+    }
+    // Coarse facets (10 mm edges on a 115 mm base) hold the volume too, by the profile names'
+    // projections as by lengths.
+    for profile in ["low", "moderate", "high", "extra-high"] {
+        let text = format!(
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = 250, base_mm = 125, profile = \"{profile}\" }} }}\nspacing = 10\n"
+        );
+        let built = build_world(&SceneFile::parse("implant.toml", &text).unwrap()).unwrap();
+        let volume_ml = built.world.bodies[0].enclosed_volume() * 1e-3;
+        assert!((volume_ml - 250.0).abs() < 0.25, "{profile}: {volume_ml} mL");
     }
     for kind in ["soft", "rigid"] {
         let text = format!(
@@ -215,6 +226,53 @@ fn a_shell_inflates_to_its_target_volume() {
     assert!((start - 32.9).abs() < 0.5, "{start}");
     assert!(half > start + 5.0 && half < 55.0, "half way: {half}");
     assert!((end - 60.0).abs() < 0.02 * 60.0, "{end} mL");
+}
+
+#[test]
+fn an_expander_follows_its_fill_schedule() {
+    // A free 20 mm sphere (32.9 mL) filled like a tissue expander: to 45 mL by 0.1 s, held
+    // until 0.2 s, then to 60 mL by 0.3 s, held after. At each sample it holds the schedule's
+    // volume (linear between the fills) within 3 %.
+    let text = "[time]\nduration = 0.45\n[[body]]\nname = \"expander\"\nkind = \"shell\"\nshape = { sphere = 20 }\nspacing = 3\nmaterial = { young_kpa = 50, damping = 0.3 }\ninflate = { schedule = [[0.1, 45], [0.2, 45], [0.3, 60]] }\n";
+    let built = build_world(&SceneFile::parse("expander.toml", text).unwrap()).unwrap();
+    let start = built.world.bodies[0].enclosed_volume() * 1e-3;
+    let expected = |t: f64| match t {
+        t if t < 0.1 => start + (45.0 - start) * t / 0.1,
+        t if t < 0.2 => 45.0,
+        t if t < 0.3 => 45.0 + 15.0 * (t - 0.2) / 0.1,
+        _ => 60.0,
+    };
+    let mut cpu = CpuWorld::new(built.world).unwrap();
+    let dt = f64::from(built.dt);
+    let mut checked = 0;
+    for step in 1..=built.steps {
+        cpu.step().unwrap();
+        let t = step as f64 * dt;
+        // Away from the schedule's corners, where the shell lags a little behind.
+        let near_corner = [0.1, 0.2, 0.3].iter().any(|c| (t - c).abs() < 0.02);
+        if step % 200 == 0 && t > 0.02 && !near_corner {
+            let v = cpu.world.bodies[0].enclosed_volume() * 1e-3;
+            assert!((v - expected(t)).abs() < 0.03 * expected(t), "at {t:.3} s: {v:.2} mL, not {:.2}", expected(t));
+            checked += 1;
+        }
+    }
+    assert!(checked >= 6, "{checked} samples");
+    // A schedule that falls, starts at 0, or ends after the run is refused by its key.
+    for (schedule, says) in [
+        ("[[0.1, 45], [0.2, 40]]", "do not decrease"),
+        ("[[0.0, 45]]", "from above 0"),
+        ("[[0.2, 45], [0.1, 50]]", "increase"),
+    ] {
+        let bad = text.replace("[[0.1, 45], [0.2, 45], [0.3, 60]]", schedule);
+        let err = SceneFile::parse("expander.toml", &bad).unwrap_err();
+        assert!(matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate" && message.contains(says)), "{err}");
+    }
+    let late = text.replace("[0.3, 60]", "[0.6, 60]");
+    let err = build_world(&SceneFile::parse("expander.toml", &late).unwrap()).unwrap_err();
+    assert!(
+        matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate.schedule" && message.contains("lengthen")),
+        "{err}"
+    );
 }
 
 #[test]

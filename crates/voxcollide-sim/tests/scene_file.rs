@@ -90,7 +90,13 @@ fn every_key_of_the_contract_is_read() {
     );
     assert_eq!(
         implant.inflate,
-        Some(Inflate { pressure_kpa: None, volume_ml: Some(300.0), ramp: 1.0, ease: Ease::Linear })
+        Some(Inflate {
+            pressure_kpa: None,
+            volume_ml: Some(300.0),
+            schedule: Vec::new(),
+            ramp: 1.0,
+            ease: Ease::Linear
+        })
     );
     let probe = &s.bodies[2];
     assert_eq!(probe.motion.len(), 2);
@@ -104,6 +110,25 @@ fn every_key_of_the_contract_is_read() {
     assert_eq!((d.a, d.b, d.direction, d.search), (2, 0, DirectionSpec::Pairwise, SearchSpec::Neighbours));
     assert_eq!((d.radius, d.voxel_size, d.magnitude), (Auto::Auto, Auto::Auto, Auto::Auto));
     assert_eq!(s.output, Output { frames: 6, images: false, vtk: true });
+}
+
+#[test]
+fn an_implant_profile_name_gives_its_projection() {
+    for (name, ratio) in [("low", 0.22), ("moderate", 0.30), ("high", 0.40), ("extra-high", 0.48)] {
+        let text = format!(
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = 200, base_mm = 110, profile = \"{name}\" }} }}\nspacing = 5\n"
+        );
+        let s = SceneFile::parse("p.toml", &text).unwrap();
+        let Geometry::Shape(Shape::Implant { base_mm, projection_mm, style, .. }) = s.bodies[0].geometry else {
+            panic!("{:?}", s.bodies[0].geometry)
+        };
+        assert_eq!((base_mm, style), (110.0, ImplantStyle::Round));
+        assert!((projection_mm - ratio * 110.0).abs() < 1e-9, "{name}: {projection_mm}");
+    }
+    // The example: 300 mL high profile ≈ 11.1 cm base and 4.5 cm projection, low
+    // ≈ 13.5 cm and 3.0 cm.
+    assert!((Profile::High.ratio() * 111.0 - 45.0).abs() < 1.0);
+    assert!((Profile::Low.ratio() * 135.0 - 30.0).abs() < 1.0);
 }
 
 #[test]
@@ -172,6 +197,28 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             "every size must be positive",
         ),
         (with("scale = -2\n"), 6, 9, "body[0].scale", "must be positive"),
+        // An implant's projection: a length or a profile name, one of them.
+        (
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 300, base_mm = 111, profile = \"tall\" } }\n",
+            4,
+            65,
+            "body[0].shape.implant.profile",
+            "expected one of `low`, `moderate`, `high`, `extra-high`",
+        ),
+        (
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 300, base_mm = 111, projection_mm = 40, profile = \"low\" } }\n",
+            4,
+            9,
+            "body[0].shape",
+            "not both",
+        ),
+        (
+            "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 300, base_mm = 111 } }\n",
+            4,
+            9,
+            "body[0].shape",
+            "missing `projection_mm` (mm) or `profile`",
+        ),
         ("[time]\nduration = 1\nsteps = 10\n", 3, 1, "time.steps", "not both"),
         ("[time]\nduration = -1\n", 2, 1, "time.duration", "positive seconds"),
         ("[time]\nmax_steps = 0\n", 2, 1, "time.max_steps", "at least 1"),
