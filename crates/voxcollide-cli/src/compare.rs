@@ -24,6 +24,7 @@ use crate::plots::{Chart, Series, line_chart_svg};
 use crate::render::{Legend, Renderer, Scene as RenderScene};
 use crate::scenario::Backend;
 use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene, shown_and_moved, shown_surface};
+use plotters::prelude::SeriesLabelPosition;
 
 /// What to compare, and where.
 #[derive(Clone, Debug)]
@@ -68,7 +69,7 @@ pub struct CandidateResult {
     /// The deepest a tissue vertex got inside the shell over the run (scene units).
     pub max_penetration: f32,
     /// The implant's footprint on the outer surface, in scene units squared: the area of the
-    /// tissue's top surface that rose more than a tenth of the apex lift (its top vertices
+    /// tissue's top surface that rose more than half the apex lift (its top vertices
     /// that did, times the spacing squared).
     pub footprint_area: f64,
     /// Whether the scene came to rest before `max_steps`.
@@ -460,7 +461,7 @@ fn measure_end(
     }
     out.contact_area = area;
     // The footprint: the top surface's vertices (at rest within a quarter spacing of the top)
-    // that rose more than a tenth of the apex lift.
+    // that rose more than half the apex lift.
     out.footprint_area = tissue
         .iter()
         .map(|&t| {
@@ -471,7 +472,7 @@ fn measure_end(
                 .pos
                 .iter()
                 .zip(&b.rest_pos)
-                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.1 * out.apex_lift)
+                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.5 * out.apex_lift)
                 .count();
             rose as f64 * f64::from(h) * f64::from(h)
         })
@@ -605,9 +606,8 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
     let over_time = |f: fn(&Sample) -> f64| {
         each(&|c: &CandidateResult| c.history.iter().map(|s| (s.time, f(s))).collect())
     };
-    let profile = each(&|c: &CandidateResult| {
-        c.profile.iter().map(|p| (f64::from(p[0]), f64::from(p[1]))).collect()
-    });
+    let profile =
+        each(&|c: &CandidateResult| c.profile.iter().map(|p| (f64::from(p[0]), f64::from(p[1]))).collect());
     let charts = [
         (
             "profile",
@@ -623,7 +623,13 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
             format!("apex lift ({u})"),
             over_time(|s| f64::from(s.apex_lift)),
         ),
-        ("volume", "Implant volume over time", "time (s)".into(), "volume (mL)".into(), over_time(|s| s.volume_ml)),
+        (
+            "volume",
+            "Implant volume over time",
+            "time (s)".into(),
+            "volume (mL)".into(),
+            over_time(|s| s.volume_ml),
+        ),
         (
             "displacement",
             "Max tissue displacement over time",
@@ -634,7 +640,10 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
     ];
     let mut html = String::new();
     for (id, title, x, y, series) in &charts {
-        let svg = line_chart_svg(&Chart { title, x, y, series }, 640, 400)?;
+        // The profile peaks in the middle; the metrics over time rise to the upper right.
+        let legend =
+            if *id == "profile" { SeriesLabelPosition::UpperRight } else { SeriesLabelPosition::LowerRight };
+        let svg = line_chart_svg(&Chart { title, x, y, series, legend }, 640, 400)?;
         // Inline in HTML the parser puts <svg> in its namespace: the page names no URL at all.
         let svg = svg.replacen(" xmlns=\"http://www.w3.org/2000/svg\"", "", 1);
         html += &format!("<figure class=\"plot\" id=\"plot-{id}\">{svg}</figure>\n");

@@ -13,8 +13,8 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-/// What a chart shows: its title, its axes' descriptions and its curves.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// What a chart shows: its title, its axes' descriptions, its curves and where its legend goes.
+#[derive(Clone, Debug)]
 pub struct Chart<'a> {
     /// The caption above the plot.
     pub title: &'a str,
@@ -24,6 +24,8 @@ pub struct Chart<'a> {
     pub y: &'a str,
     /// The curves, each in its own colour (matplotlib's ten, then plotters' palette).
     pub series: &'a [Series],
+    /// The legend's corner: where the curves leave room.
+    pub legend: SeriesLabelPosition,
 }
 
 /// The colour of curve `k`: the ten of matplotlib's `tab10` first.
@@ -111,7 +113,7 @@ fn draw(
     }
     if !chart.series.is_empty() {
         c.configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
+            .position(chart.legend.clone())
             .label_font(("sans-serif", 13))
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK.mix(0.3))
@@ -131,7 +133,13 @@ mod tests {
             Series { label: "a & <b>".into(), points: vec![(0.0, 0.0), (1.0, 2.0), (2.0, 1.0)] },
             Series { label: "flat".into(), points: vec![(0.0, 1.0), (2.0, 1.0), (f64::NAN, 3.0)] },
         ];
-        let chart = Chart { title: "lift", x: "x (mm)", y: "lift (mm)", series: &series };
+        let chart = Chart {
+            title: "lift",
+            x: "x (mm)",
+            y: "lift (mm)",
+            series: &series,
+            legend: SeriesLabelPosition::UpperRight,
+        };
         let svg = line_chart_svg(&chart, 400, 300).unwrap();
         assert!(svg.starts_with("<svg"), "{svg:.80}");
         // plotters writes each text on a line of its own.
@@ -142,7 +150,8 @@ mod tests {
         assert!(svg.contains("a &amp; &lt;b&gt;"), "the label is not escaped");
         // Each curve and its legend's line, in its colour; the NaN point is left out.
         for colour in ["#1F77B4", "#FF7F0E"] {
-            let lines = svg.matches(&format!("<polyline fill=\"none\" opacity=\"1\" stroke=\"{colour}\"")).count();
+            let lines =
+                svg.matches(&format!("<polyline fill=\"none\" opacity=\"1\" stroke=\"{colour}\"")).count();
             assert_eq!(lines, 2, "{colour}");
         }
         assert!(!svg.contains("NaN"));
@@ -152,7 +161,7 @@ mod tests {
     fn one_point_and_no_points_still_draw() {
         let one = [Series { label: "one".into(), points: vec![(3.0, 3.0)] }];
         for series in [&one[..], &[]] {
-            let chart = Chart { title: "t", x: "x", y: "y", series };
+            let chart = Chart { title: "t", x: "x", y: "y", series, legend: SeriesLabelPosition::LowerRight };
             assert!(line_chart_svg(&chart, 300, 200).unwrap().contains("</svg>"));
         }
     }

@@ -11,9 +11,10 @@ use voxcollide::Error;
 use voxcollide_cli::compare::{CompareConfig, Comparison, compare};
 use voxcollide_cli::scenario::Backend;
 
-/// A 150 × 150 × 16 mm layer of soft tissue held at its rim over an implant on the chest wall,
-/// at a 10 mm spacing, so that a candidate runs in seconds.
-fn scene(young_kpa: f64) -> String {
+/// A 150 × 150 × 20 mm layer of fat (3 kPa) under skin (its top surface's springs, at
+/// `skin_kpa`), held at its rim over an implant on the chest wall, at a 10 mm spacing, so that
+/// a candidate runs in seconds.
+fn scene(skin_kpa: f64) -> String {
     format!(
         r#"units = "mm"
 
@@ -25,10 +26,11 @@ max_steps = 4000
 [[body]]
 name = "tissue"
 kind = "soft"
-shape = {{ box = [150, 150, 16] }}
+shape = {{ box = [150, 150, 20] }}
 spacing = 10
 position = [0, 0, 40]
-material = {{ young_kpa = {young_kpa}, density = 1000.0, damping = 0.5 }}
+material = {{ young_kpa = 3.0, density = 1000.0, damping = 0.5 }}
+layers = [{{ region = {{ above = {{ z = 45 }} }}, young_kpa = {skin_kpa} }}]
 fixed = [{{ rim = 1 }}]
 
 [[body]]
@@ -100,7 +102,7 @@ fn run(d: &Path, scene_text: &str, candidates: &str) -> Result<Comparison, Error
 #[test]
 fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     let d = dir("physics");
-    let c = run(&d, &scene(3.0), CANDIDATES).unwrap();
+    let c = run(&d, &scene(12.0), CANDIDATES).unwrap();
     let by = |name: &str| c.candidates.iter().find(|r| r.name == name).unwrap();
     let (small, large) = (by("round 200 mL"), by("round 350 mL"));
     let (high, low) = (by("300 mL high <profile>"), by("300 mL low"));
@@ -149,10 +151,10 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
         let last = &h[h.len() - 1];
         assert_eq!((last.apex_lift, last.volume_ml), (r.apex_lift, r.volume_ml));
     }
-    // A stiffer skin lifts less under the same implant.
+    // A stiffer skin (48 vs 12 kPa) lifts less under the same implant.
     let d2 = dir("stiff");
     let one = &CANDIDATES[..CANDIDATES.find("[[candidate]]\nname = \"300 mL low\"").unwrap()];
-    let stiff = run(&d2, &scene(12.0), one).unwrap();
+    let stiff = run(&d2, &scene(48.0), one).unwrap();
     let stiff_high = stiff.candidates.iter().find(|r| r.name == high.name).unwrap();
     assert!(stiff_high.apex_lift < 0.95 * high.apex_lift, "{} vs {}", stiff_high.apex_lift, high.apex_lift);
 
@@ -205,7 +207,7 @@ fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
     let bad = format!(
         "{CANDIDATES}\n[[candidate]]\nname = \"too full\"\nshape = {{ implant = {{ volume_ml = 900, base_mm = 100, projection_mm = 30 }} }}\n"
     );
-    match run(&d, &scene(3.0), &bad).unwrap_err() {
+    match run(&d, &scene(12.0), &bad).unwrap_err() {
         Error::SceneFile { line, key, message, .. } => {
             assert_eq!(key, "candidate[4].shape.implant.volume_ml", "{message}");
             assert_eq!(line, bad.lines().position(|l| l.contains("too full")).unwrap() + 2);
@@ -216,7 +218,7 @@ fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
     // A candidate that parses but cannot be built (a mesh that is not a closed surface).
     std::fs::write(d.join("open.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
     let open = format!("{CANDIDATES}\n[[candidate]]\nname = \"open mesh\"\nmesh = \"open.obj\"\n");
-    let e = run(&d, &scene(3.0), &open).unwrap_err().to_string();
+    let e = run(&d, &scene(12.0), &open).unwrap_err().to_string();
     assert!(e.contains("candidate[4]") && e.contains("open mesh"), "{e}");
     assert!(!d.join("out").exists(), "a candidate that cannot be built wrote files");
     // A body the scene lacks, and one that is not a shell.
@@ -267,7 +269,7 @@ fn the_report_shows_its_table_and_pictures_in_a_real_browser() {
     }
     let d = dir("browser");
     let one = &CANDIDATES[..CANDIDATES.find("[[candidate]]\nname = \"300 mL high").unwrap()];
-    run(&d, &scene(3.0), one).unwrap();
+    run(&d, &scene(12.0), one).unwrap();
     let report = d.join("out/report.html");
     let shot = d.join("shot.png");
     let profile = d.join("profile");

@@ -958,7 +958,11 @@ pub fn implant_surface(shape: ImplantShape, edge: f64) -> Result<(Vec<Vec3>, Tri
     } else {
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
-            if enclosed(mid) > shape.volume { lo = mid } else { hi = mid }
+            if enclosed(mid) > shape.volume {
+                lo = mid
+            } else {
+                hi = mid
+            }
             if hi - lo < 1e-9 * hi {
                 break;
             }
@@ -969,7 +973,13 @@ pub fn implant_surface(shape: ImplantShape, edge: f64) -> Result<(Vec<Vec3>, Tri
 }
 
 /// [`implant_surface`]'s facets for the profile exponent `alpha`.
-fn implant_facets(shape: ImplantShape, alpha: f64, segments: u32, dome: u32, flat: u32) -> (Vec<Vec3>, TriangleMesh) {
+fn implant_facets(
+    shape: ImplantShape,
+    alpha: f64,
+    segments: u32,
+    dome: u32,
+    flat: u32,
+) -> (Vec<Vec3>, TriangleMesh) {
     let r = 0.5 * shape.base;
     let p = shape.projection;
     // The foot of the apex, and the distance from it to the rim along direction θ.

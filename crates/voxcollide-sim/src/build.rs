@@ -384,6 +384,26 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
             Mode::Free
         };
     }
+    // Layers: a spring with both ends in a layer's region takes its stiffness, in proportion
+    // to the one the body's material gave it.
+    let given: Vec<f32> = body.springs.iter().map(|s| s.k).collect();
+    for layer in &spec.layers {
+        let ratio = (layer.young_kpa / m.young_kpa) as f32;
+        let region = [layer.region];
+        let inside: Vec<bool> = body.rest_pos.iter().map(|p| held(&region, *p, lo, hi)).collect();
+        let mut springs = 0usize;
+        for (s, k) in
+            body.springs.iter_mut().zip(&given).filter(|(s, _)| inside[s.i as usize] && inside[s.j as usize])
+        {
+            s.k = k * ratio;
+            springs += 1;
+        }
+        note.remarks.push(format!(
+            "a layer of {} kPa: {springs} of {} springs",
+            layer.young_kpa,
+            body.springs.len()
+        ));
+    }
     note.vertices = body.len();
     if spec.kind != BodyKind::Rigid && (m.poisson - 0.25).abs() > 1e-9 {
         note.remarks.push(format!(

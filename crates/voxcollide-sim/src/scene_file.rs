@@ -354,6 +354,19 @@ pub enum Fixed {
     Rim(f64),
 }
 
+/// A region of a soft body with its own stiffness, bonded to the rest: skin over fat, a
+/// gland in fat. `layers = [{ region = { above = { z = 39 } }, young_kpa = 12 }]`: the
+/// springs with both ends in `region` (selected as `fixed` selects vertices, at rest) take
+/// that Young's modulus; later layers override earlier ones.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Layer {
+    /// Where: `below`, `above`, `inside_box` or `rim`, as for `fixed`.
+    pub region: Fixed,
+    /// Its Young's modulus in kPa.
+    pub young_kpa: f64,
+}
+
 /// How a keyframe or a ramp is approached.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -440,6 +453,8 @@ struct RawBody {
     fixed: Vec<Spanned<Fixed>>,
     #[serde(default)]
     driven: Vec<Spanned<Fixed>>,
+    #[serde(default)]
+    layers: Vec<Spanned<Layer>>,
     floor: Option<f64>,
     #[serde(default = "unspanned")]
     motion: Spanned<Vec<Keyframe>>,
@@ -570,6 +585,8 @@ pub struct BodySpec {
     /// Vertices of a soft body that follow `motion` (a rigid body's all do), by the same rules
     /// as `fixed`.
     pub driven: Vec<Fixed>,
+    /// A soft body's regions of another stiffness.
+    pub layers: Vec<Layer>,
     /// A wall: the body's free vertices are kept at `z >= floor` (file units).
     pub floor: Option<f64>,
     /// Keyframes (rigid bodies, and soft bodies' driven vertices), in ascending time.
@@ -954,6 +971,22 @@ impl SceneFile {
             };
             let fixed = rules(b.fixed)?;
             let driven = rules(b.driven)?;
+            let mut layers = Vec::with_capacity(b.layers.len());
+            for l in b.layers {
+                let span = l.span();
+                let l = l.into_inner();
+                if b.kind != BodyKind::Soft {
+                    return Err(err(span, format!("only a soft body has layers; {name:?} is {:?}", b.kind)));
+                }
+                check_fixed(&l.region).map_err(|m| err(span.clone(), m))?;
+                if !(l.young_kpa.is_finite() && l.young_kpa > 0.0) {
+                    return Err(err(
+                        span,
+                        format!("young_kpa = {} must be a positive modulus in kPa", l.young_kpa),
+                    ));
+                }
+                layers.push(l);
+            }
             if let Some(f) = b.floor
                 && !f.is_finite()
             {
@@ -1037,6 +1070,7 @@ impl SceneFile {
                 material,
                 fixed,
                 driven,
+                layers,
                 floor: b.floor,
                 motion,
                 inflate,

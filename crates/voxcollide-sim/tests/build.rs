@@ -252,7 +252,11 @@ fn an_expander_follows_its_fill_schedule() {
         let near_corner = [0.1, 0.2, 0.3].iter().any(|c| (t - c).abs() < 0.02);
         if step % 200 == 0 && t > 0.02 && !near_corner {
             let v = cpu.world.bodies[0].enclosed_volume() * 1e-3;
-            assert!((v - expected(t)).abs() < 0.03 * expected(t), "at {t:.3} s: {v:.2} mL, not {:.2}", expected(t));
+            assert!(
+                (v - expected(t)).abs() < 0.03 * expected(t),
+                "at {t:.3} s: {v:.2} mL, not {:.2}",
+                expected(t)
+            );
             checked += 1;
         }
     }
@@ -265,7 +269,10 @@ fn an_expander_follows_its_fill_schedule() {
     ] {
         let bad = text.replace("[[0.1, 45], [0.2, 45], [0.3, 60]]", schedule);
         let err = SceneFile::parse("expander.toml", &bad).unwrap_err();
-        assert!(matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate" && message.contains(says)), "{err}");
+        assert!(
+            matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate" && message.contains(says)),
+            "{err}"
+        );
     }
     let late = text.replace("[0.3, 60]", "[0.6, 60]");
     let err = build_world(&SceneFile::parse("expander.toml", &late).unwrap()).unwrap_err();
@@ -273,6 +280,53 @@ fn an_expander_follows_its_fill_schedule() {
         matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate.schedule" && message.contains("lengthen")),
         "{err}"
     );
+}
+
+#[test]
+fn a_skin_layer_stiffens_the_springs_within_it_and_no_others() {
+    // Fat (2 kPa) 20 mm thick at a 5 mm spacing, z from 0 to 20; skin (30 kPa): the springs
+    // with both ends above z = 17, the top surface's. A later layer overrides an earlier one.
+    let text = "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [40, 40, 20] }\nspacing = 5\nposition = [0, 0, 10]\nmaterial = { young_kpa = 2 }\nlayers = [{ region = { above = { z = 17 } }, young_kpa = 30 }, { region = { inside_box = { min = [-30, -30, 17], max = [0, 30, 30] } }, young_kpa = 10 }]\n";
+    let built = build_world(&SceneFile::parse("skin.toml", text).unwrap()).unwrap();
+    let b = &built.world.bodies[0];
+    let fat = b.springs.iter().map(|s| s.k).fold(f32::MAX, f32::min);
+    let (mut skin, mut half, mut rest) = (0, 0, 0);
+    for s in &b.springs {
+        let (p, q) = (b.rest_pos[s.i as usize], b.rest_pos[s.j as usize]);
+        let ratio = s.k / fat;
+        if p.z > 17.0 && q.z > 17.0 && p.x <= 0.0 && q.x <= 0.0 {
+            assert!((ratio - 5.0).abs() < 1e-4, "{p} {q}: {ratio}");
+            half += 1;
+        } else if p.z > 17.0 && q.z > 17.0 {
+            assert!((ratio - 15.0).abs() < 1e-4, "{p} {q}: {ratio}");
+            skin += 1;
+        } else {
+            assert!((ratio - 1.0).abs() < 1e-6, "{p} {q}: {ratio}");
+            rest += 1;
+        }
+    }
+    assert!(skin > 20 && half > 20 && rest > 10 * skin, "{skin} {half} {rest}");
+    assert!(
+        built.notes[0].remarks.iter().any(|r| r.contains("a layer of 30 kPa")),
+        "{:?}",
+        built.notes[0].remarks
+    );
+    // The step follows the stiffest spring: a stiffer skin makes it shorter.
+    let soft =
+        build_world(&SceneFile::parse("fat.toml", &text.replace("layers", "# layers")).unwrap()).unwrap();
+    assert!(built.dt < 0.5 * soft.dt, "{} vs {}", built.dt, soft.dt);
+    // Layers are a soft body's, with a positive modulus, named by their key.
+    for (bad, says) in [
+        (text.replace("young_kpa = 30", "young_kpa = -1"), "positive modulus"),
+        (text.replace("kind = \"soft\"", "kind = \"shell\""), "only a soft body has layers"),
+        (text.replace("{ above = { z = 17 } }", "{ above = { z = 17, x = 1 } }"), "exactly one of x, y, z"),
+    ] {
+        let err = SceneFile::parse("skin.toml", &bad).unwrap_err();
+        assert!(
+            matches!(&err, Error::SceneFile { key, message, .. } if key.starts_with("body[0].layers") && message.contains(says)),
+            "{err}"
+        );
+    }
 }
 
 #[test]

@@ -119,7 +119,8 @@ fn an_implant_profile_name_gives_its_projection() {
             "[[body]]\nname = \"i\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = 200, base_mm = 110, profile = \"{name}\" }} }}\nspacing = 5\n"
         );
         let s = SceneFile::parse("p.toml", &text).unwrap();
-        let Geometry::Shape(Shape::Implant { base_mm, projection_mm, style, .. }) = s.bodies[0].geometry else {
+        let Geometry::Shape(Shape::Implant { base_mm, projection_mm, style, .. }) = s.bodies[0].geometry
+        else {
             panic!("{:?}", s.bodies[0].geometry)
         };
         assert_eq!((base_mm, style), (110.0, ImplantStyle::Round));
