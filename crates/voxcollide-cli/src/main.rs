@@ -27,6 +27,38 @@ enum Command {
     /// shell replaced by each and filled to its volume, then settled; write report.html,
     /// compare.json, compare.csv and a folder per candidate.
     Compare(CompareArgs),
+    /// Watch a scene live in a window (DESIGN §10): orbit, pan and zoom; pause, step and reset;
+    /// cycle the colouring; drag an instrument with the mouse while the tissue responds.
+    View(ViewArgs),
+}
+
+#[derive(clap::Args, Debug)]
+struct ViewArgs {
+    /// A scene file, or a shipped scene: implant, cylinder, indentation, expander,
+    /// breast-implant, breast-compare.
+    scene: String,
+    /// Where the simulation steps (the window is drawn on an adapter either way).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+    /// The window's size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "960x640", value_parser = parse_size)]
+    size: (u32, u32),
+    /// Draw this many frames, then close (and print the frame rate).
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Write the last frame as PNG (with --frames).
+    #[arg(long, requires = "frames")]
+    screenshot: Option<PathBuf>,
+    /// A scripted drag: "x0,y0 -> x1,y1 over N frames [from frame K]" (window pixels from the
+    /// top left; it starts at frame 1 unless told).
+    #[arg(long, value_parser = voxcollide_cli::view::ScriptedDrag::parse)]
+    drag: Option<voxcollide_cli::view::ScriptedDrag>,
+    /// Take this many steps a frame instead of keeping real time (repeatable runs).
+    #[arg(long)]
+    steps_per_frame: Option<u64>,
+    /// Write what the view did as JSON here at the end.
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -185,6 +217,7 @@ fn main() -> ExitCode {
         Command::Run(args) => args,
         Command::Bench(args) => return bench(&args),
         Command::Compare(args) => return compare(&args),
+        Command::View(args) => return view(&args),
     };
     let backend = match args.backend {
         BackendArg::Auto => Backend::Auto,
@@ -337,6 +370,65 @@ fn backend_of(arg: BackendArg) -> Backend {
         BackendArg::Auto => Backend::Auto,
         BackendArg::Gpu => Backend::Gpu,
         BackendArg::Cpu => Backend::Cpu,
+    }
+}
+
+fn view(args: &ViewArgs) -> ExitCode {
+    if let Some(why) = voxcollide_cli::view::no_display() {
+        eprintln!(
+            "voxcollide view: no display here ({why}); `voxcollide run {}` runs the scene without one and writes its pictures",
+            args.scene
+        );
+        return ExitCode::FAILURE;
+    }
+    let config = voxcollide_cli::view::ViewConfig {
+        scene: args.scene.clone(),
+        backend: backend_of(args.backend),
+        size: args.size,
+        frames: args.frames,
+        screenshot: args.screenshot.clone(),
+        drag: args.drag,
+        steps_per_frame: args.steps_per_frame,
+        report: args.report.clone(),
+    };
+    match voxcollide_cli::view::view(&config, &mut |line| eprintln!("{line}")) {
+        Ok(r) => {
+            let realtime = if r.seconds > 0.0 { r.simulated_time / r.seconds } else { 0.0 };
+            println!(
+                "{} frames in {:.2} s: {:.1} frames/s at {}x{}; {} steps, {:.0} steps/s ({realtime:.2}x real time{}) on the {} backend ({})",
+                r.frames,
+                r.seconds,
+                r.frames_per_second,
+                r.size.0,
+                r.size.1,
+                r.steps,
+                r.steps_per_second,
+                if r.behind_frames > 0 {
+                    format!(", behind in {} frames", r.behind_frames)
+                } else {
+                    String::new()
+                },
+                r.backend,
+                r.adapter
+            );
+            let moved: Vec<String> =
+                r.max_displacement.iter().map(|(n, d)| format!("{n} {d:.4} {}", r.units)).collect();
+            println!(
+                "at the end: max displacement {}; {} contacts; max penetration {:.4} {}",
+                moved.join(", "),
+                r.contacts,
+                r.max_penetration,
+                r.units
+            );
+            if let Some(p) = &r.screenshot {
+                println!("wrote {}", p.display());
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
     }
 }
 

@@ -53,8 +53,10 @@ const DEPTH_FORMAT: TextureFormat = TextureFormat::Depth32Float;
 const SAMPLES: u32 = 4;
 /// Light grey (linear 0.8, sRGB byte 231): neutral behind the colour map and the grey insides.
 const BACKGROUND: wgpu::Color = wgpu::Color { r: 0.8, g: 0.8, b: 0.8, a: 1.0 };
-/// Vertical field of view: narrow enough that the perspective does not distort the shapes.
-const FOV_Y: f64 = 30.0 * std::f64::consts::PI / 180.0;
+/// Vertical field of view in degrees: narrow enough that the perspective does not distort the
+/// shapes.
+pub const FOV_Y_DEGREES: f64 = 30.0;
+const FOV_Y: f64 = FOV_Y_DEGREES * std::f64::consts::PI / 180.0;
 /// Empty space kept around the framed geometry, as a fraction of the field of view.
 const MARGIN: f64 = 0.08;
 /// A first vertex buffer large enough for small scenes (64 triangles); it grows by powers of two.
@@ -136,7 +138,9 @@ pub struct Renderer {
     pipeline: wgpu::RenderPipeline,
     params: Buffer,
     bind_group: wgpu::BindGroup,
-    msaa: TextureView,
+    /// The multisampled target, resolved into `resolved`; `None` at one sample, drawn
+    /// straight into `resolved`.
+    msaa: Option<TextureView>,
     depth: TextureView,
     resolved: Texture,
     resolved_view: TextureView,
@@ -156,6 +160,19 @@ impl Renderer {
     /// the readback buffer would exceed `max_buffer_size`; [`Error::Gpu`] when the device
     /// rejects a resource (e.g. out of memory).
     pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Renderer, Error> {
+        Renderer::with_samples(ctx, width, height, SAMPLES)
+    }
+
+    /// A renderer that draws without multisampling: edges are not smoothed, and a software
+    /// adapter draws several times faster (a live view's frames, not a paper's pictures).
+    ///
+    /// # Errors
+    /// As [`new`](Self::new).
+    pub fn fast(ctx: &GpuContext, width: u32, height: u32) -> Result<Renderer, Error> {
+        Renderer::with_samples(ctx, width, height, 1)
+    }
+
+    fn with_samples(ctx: &GpuContext, width: u32, height: u32, samples: u32) -> Result<Renderer, Error> {
         let device = ctx.device();
         let limits = device.limits();
         let max = limits.max_texture_dimension_2d;
@@ -180,7 +197,7 @@ impl Renderer {
                 ),
             });
         }
-        let built = scoped(device, || build(device, width, height, readback_size))?;
+        let built = scoped(device, || build(device, width, height, readback_size, samples))?;
         Ok(Renderer {
             ctx: ctx.clone(),
             width,
@@ -216,8 +233,23 @@ impl Renderer {
     /// or clip normal, or more triangles than one vertex buffer of the device holds;
     /// [`Error::Gpu`] or [`Error::DeviceLost`] when the device fails.
     pub fn render(&mut self, scene: &Scene) -> Result<Vec<u8>, Error> {
+        self.render_from(scene, None)
+    }
+
+    /// [`render`](Self::render) with the camera at `eye`, looking along the scene's
+    /// `view_dir`, instead of framing what is drawn (`None` frames it): a live view's orbit,
+    /// pan and zoom keep the camera where the user put it while the bodies move.
+    ///
+    /// # Errors
+    /// As [`render`](Self::render), and [`Error::Invalid`] for an `eye` that is not finite.
+    pub fn render_from(&mut self, scene: &Scene, eye: Option<Vec3>) -> Result<Vec<u8>, Error> {
+        if let Some(e) = eye
+            && !e.is_finite()
+        {
+            return Err(Error::Invalid { what: "eye", value: e.to_string(), rule: "must be finite".into() });
+        }
         let aspect = f64::from(self.width) / f64::from(self.height);
-        let params = prepare(scene, aspect, &mut self.scratch, &mut self.framed)?;
+        let params = prepare(scene, aspect, eye, &mut self.scratch, &mut self.framed)?;
         let bytes = VERTEX_BYTES * self.scratch.len() as u64;
         if bytes > self.max_buffer_size || self.scratch.len() > u32::MAX as usize {
             return Err(Error::Invalid {
@@ -292,14 +324,25 @@ impl Renderer {
         {
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("voxcollide render"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.msaa,
-                    depth_slice: None,
-                    resolve_target: Some(&self.resolved_view),
-                    // Only the resolved picture is needed afterwards.
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(BACKGROUND),
-                        store: wgpu::StoreOp::Discard,
+                color_attachments: &[Some(match &self.msaa {
+                    Some(msaa) => wgpu::RenderPassColorAttachment {
+                        view: msaa,
+                        depth_slice: None,
+                        resolve_target: Some(&self.resolved_view),
+                        // Only the resolved picture is needed afterwards.
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(BACKGROUND),
+                            store: wgpu::StoreOp::Discard,
+                        },
+                    },
+                    None => wgpu::RenderPassColorAttachment {
+                        view: &self.resolved_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(BACKGROUND),
+                            store: wgpu::StoreOp::Store,
+                        },
                     },
                 })],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
@@ -745,13 +788,15 @@ struct Built {
     pipeline: wgpu::RenderPipeline,
     params: Buffer,
     bind_group: wgpu::BindGroup,
-    msaa: TextureView,
+    /// The multisampled target, resolved into `resolved`; `None` at one sample, drawn
+    /// straight into `resolved`.
+    msaa: Option<TextureView>,
     depth: TextureView,
     resolved: Texture,
     readback: Buffer,
 }
 
-fn build(device: &Device, width: u32, height: u32, readback_size: u64) -> Built {
+fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: u32) -> Built {
     let label = Some("voxcollide render");
     let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label,
@@ -803,7 +848,7 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64) -> Built 
             stencil: wgpu::StencilState::default(),
             bias: wgpu::DepthBiasState::default(),
         }),
-        multisample: wgpu::MultisampleState { count: SAMPLES, mask: !0, alpha_to_coverage_enabled: false },
+        multisample: wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false },
         fragment: Some(wgpu::FragmentState {
             module: &module,
             entry_point: Some("fs_main"),
@@ -846,15 +891,12 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64) -> Built 
         pipeline,
         params,
         bind_group,
-        msaa: view(texture(
-            "voxcollide render msaa",
-            SAMPLES,
-            COLOR_FORMAT,
-            TextureUsages::RENDER_ATTACHMENT,
-        )),
+        msaa: (samples > 1).then(|| {
+            view(texture("voxcollide render msaa", samples, COLOR_FORMAT, TextureUsages::RENDER_ATTACHMENT))
+        }),
         depth: view(texture(
             "voxcollide render depth",
-            SAMPLES,
+            samples,
             DEPTH_FORMAT,
             TextureUsages::RENDER_ATTACHMENT,
         )),
@@ -878,6 +920,7 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64) -> Built 
 fn prepare(
     scene: &Scene,
     aspect: f64,
+    eye: Option<Vec3>,
     vertices: &mut Vec<GpuVertex>,
     framed: &mut Vec<DVec3>,
 ) -> Result<GpuRenderParams, Error> {
@@ -977,7 +1020,12 @@ fn prepare(
         }
     }
 
-    let camera = Camera::framing(framed, view_dir.normalize(), scene.up.as_dvec3(), aspect);
+    let camera = match eye {
+        None => Camera::framing(framed, view_dir.normalize(), scene.up.as_dvec3(), aspect),
+        Some(eye) => {
+            Camera::looking(eye.as_dvec3(), framed, view_dir.normalize(), scene.up.as_dvec3(), aspect)
+        }
+    };
     Ok(GpuRenderParams {
         view_proj: camera.view_proj.as_mat4().to_cols_array_2d(),
         light_dir: camera.light.as_vec3().extend(0.0).to_array(),
@@ -988,6 +1036,8 @@ fn prepare(
 /// A perspective camera that frames a set of points.
 struct Camera {
     view_proj: DMat4,
+    /// Where it is.
+    eye: DVec3,
     /// Unit vector towards the light.
     light: DVec3,
 }
@@ -998,15 +1048,10 @@ impl Camera {
     /// backed off until the nearest-to-the-edge point fits, which frames a shape more tightly
     /// than a bounding sphere would.
     fn framing(points: &[DVec3], forward: DVec3, up: DVec3, aspect: f64) -> Camera {
-        let right = forward.cross(up).normalize_or_zero();
-        let right = if right == DVec3::ZERO { forward.any_orthonormal_vector() } else { right };
-        let up = right.cross(forward);
-        // The headlight sits a little above and left of the eye, so that faces facing the
-        // viewer squarely still differ in brightness from their neighbours.
-        let light = (-forward + 0.35 * up - 0.25 * right).normalize();
+        let (right, up, light) = Camera::axes(forward, up);
         if points.is_empty() {
             // Nothing to draw: any valid matrix does.
-            return Camera { view_proj: DMat4::IDENTITY, light };
+            return Camera { view_proj: DMat4::IDENTITY, eye: DVec3::ZERO, light };
         }
 
         // The points in camera axes: across (x right, y up) and depth (z forward).
@@ -1041,6 +1086,95 @@ impl Camera {
         let y = row(up, centre.y, f);
         let w = row(forward, eye_z, 1.0);
         let z = w * a + DVec4::new(0.0, 0.0, 0.0, b);
-        Camera { view_proj: DMat4::from_cols(x, y, z, w).transpose(), light }
+        let eye = right * centre.x + up * centre.y + forward * eye_z;
+        Camera { view_proj: DMat4::from_cols(x, y, z, w).transpose(), eye, light }
     }
+
+    /// The camera's right and up (unit, perpendicular to `forward`), and the light.
+    fn axes(forward: DVec3, up: DVec3) -> (DVec3, DVec3, DVec3) {
+        let right = forward.cross(up).normalize_or_zero();
+        let right = if right == DVec3::ZERO { forward.any_orthonormal_vector() } else { right };
+        let up = right.cross(forward);
+        // The headlight sits a little above and left of the eye, so that faces facing the
+        // viewer squarely still differ in brightness from their neighbours.
+        let light = (-forward + 0.35 * up - 0.25 * right).normalize();
+        (right, up, light)
+    }
+
+    /// At `eye`, looking along `forward` (unit) with `up`; the near and far planes bound the
+    /// points in front of the eye (those behind it are clipped).
+    fn looking(eye: DVec3, points: &[DVec3], forward: DVec3, up: DVec3, aspect: f64) -> Camera {
+        let (right, up, light) = Camera::axes(forward, up);
+        let depths = points.iter().map(|p| (*p - eye).dot(forward));
+        let (lo, hi) =
+            depths.fold(
+                (f64::INFINITY, 0.0f64),
+                |(lo, hi), d| {
+                    if d > 0.0 { (lo.min(d), hi.max(d)) } else { (lo, hi) }
+                },
+            );
+        let far = if hi > 0.0 { 1.05 * hi } else { 1.0 };
+        let near = if lo.is_finite() { (0.5 * lo).max(1e-4 * far) } else { 1e-3 * far };
+        let f = 1.0 / (FOV_Y / 2.0).tan();
+        let (a, b) = (far / (far - near), -near * far / (far - near));
+        let row = |axis: DVec3, scale: f64| (axis * scale).extend(-eye.dot(axis) * scale);
+        let (x, y, w) = (row(right, f / aspect), row(up, f), row(forward, 1.0));
+        let z = w * a + DVec4::new(0.0, 0.0, 0.0, b);
+        Camera { view_proj: DMat4::from_cols(x, y, z, w).transpose(), eye, light }
+    }
+}
+
+/// Where [`Renderer::render`] puts the camera to frame `points` looking along `view_dir` with
+/// `up`, for a picture of aspect `width / height`: a live view starts there and orbits from it.
+#[must_use]
+pub fn framing_eye(points: &[Vec3], view_dir: Vec3, up: Vec3, aspect: f32) -> Option<Vec3> {
+    let forward = view_dir.as_dvec3().normalize_or_zero();
+    if points.is_empty() || forward == DVec3::ZERO {
+        return None;
+    }
+    let points: Vec<DVec3> = points.iter().map(|p| p.as_dvec3()).filter(|p| p.is_finite()).collect();
+    let camera = Camera::framing(&points, forward, up.as_dvec3(), f64::from(aspect));
+    (!points.is_empty() && camera.eye.is_finite()).then(|| camera.eye.as_vec3())
+}
+
+/// Draws `lines` of text in the top-left corner of `rgba` (RGBA8, sRGB-encoded, as
+/// [`Renderer::render`] returns it) on the legend's light panel, in its 8×8 font at its scale
+/// for the picture's size; a line too long is cut at the picture's edge. Returns the panel, or
+/// `None` when nothing fits.
+///
+/// # Errors
+/// [`Error::Invalid`] when `rgba` is not `width * height * 4` bytes.
+pub fn draw_caption(
+    rgba: &mut [u8],
+    width: u32,
+    height: u32,
+    lines: &[String],
+) -> Result<Option<PixelRect>, Error> {
+    let needed = 4 * u64::from(width) * u64::from(height);
+    if rgba.len() as u64 != needed {
+        return Err(Error::Invalid {
+            what: "rgba length",
+            value: rgba.len().to_string(),
+            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
+        });
+    }
+    let scale = (width.min(height) / SCALE_STEP).clamp(1, MAX_SCALE);
+    let [glyph, margin, pad] = [GLYPH, LEGEND_MARGIN, LEGEND_PAD].map(|u| u * scale);
+    let Some(room) = width.checked_sub(2 * (margin + pad)).map(|w| (w / glyph) as usize) else {
+        return Ok(None);
+    };
+    let lines: Vec<String> = lines.iter().map(|l| l.chars().take(room).collect()).collect();
+    let widest = lines.iter().map(|l| l.chars().count() as u32).max().unwrap_or(0);
+    let line_h = glyph + glyph / 2;
+    let panel_h = lines.len() as u32 * line_h + 2 * pad;
+    if widest == 0 || room == 0 || panel_h + 2 * margin > height {
+        return Ok(None);
+    }
+    let panel = PixelRect { x: margin, y: margin, width: widest * glyph + 2 * pad, height: panel_h };
+    let mut canvas = Canvas { rgba, width, height };
+    canvas.blend_rect(panel, PANEL_COLOR, PANEL_ALPHA);
+    for (k, line) in lines.iter().enumerate() {
+        canvas.text(panel.x + pad, panel.y + pad + k as u32 * line_h + glyph / 4, scale, line);
+    }
+    Ok(Some(panel))
 }

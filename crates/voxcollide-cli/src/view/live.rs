@@ -1,0 +1,963 @@
+//! The window: winit's event loop, a wgpu surface on an adapter that can present to it, the
+//! simulation stepped on that adapter (or the CPU), and each frame drawn offscreen, annotated
+//! and copied onto the window.
+
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+
+use glam::Vec3;
+use voxcollide::{ContactReport, Error, GpuContext};
+use voxcollide_sim::build::Built;
+use voxcollide_sim::geometry::{ClosedSurface, penetration};
+use voxcollide_sim::scene_file::{BodyKind, SceneFile};
+use voxcollide_sim::{CpuWorld, GpuWorld, Mode, World};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{Key, ModifiersState, NamedKey};
+use winit::window::{Window, WindowId};
+
+use super::controls::{Action, Colouring, HELP, Orbit, Pacing};
+use super::{ViewConfig, ViewReport};
+use crate::render::{
+    Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
+};
+use crate::scenario::Backend;
+use crate::scene_run::{meshes, shown_and_moved};
+
+/// The blit's WGSL (`vs_main`, `fs_main`).
+pub const BLIT_SHADER: &str = include_str!("../../shaders/blit.wgsl");
+
+/// Seconds of stepping a frame may spend, so that drawing still makes 30 frames a second.
+const STEP_BUDGET: f64 = 0.018;
+/// The farthest a dragged body moves in one step, as a share of the scene's size: far below
+/// the speed a blow-up is taken at (a tenth of the scene a step).
+const DRAG_PER_STEP: f32 = 0.002;
+/// The first view: the run's pictures' (from the front, a little to the side, from above).
+const FIRST_VIEW: Vec3 = Vec3::new(0.3, 1.0, -0.35);
+/// Body colours where they are not colour-mapped, as in the run's pictures.
+const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
+
+/// Why the view could not go on.
+pub(super) enum Failure {
+    /// No display to open a window on.
+    NoDisplay(String),
+    /// Anything else.
+    Error(Error),
+}
+
+/// Runs the window until it closes.
+pub(super) fn run(
+    config: &ViewConfig,
+    file: &SceneFile,
+    built: Built,
+    note: &mut dyn FnMut(&str),
+) -> Result<ViewReport, Failure> {
+    let event_loop = EventLoop::new().map_err(|e| Failure::NoDisplay(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App { config, file, built: Some(built), note, live: None, outcome: None };
+    event_loop.run_app(&mut app).map_err(|e| {
+        Failure::Error(Error::Invalid {
+            what: "window",
+            value: e.to_string(),
+            rule: "the event loop failed".into(),
+        })
+    })?;
+    match app.outcome {
+        Some(Ok(report)) => Ok(report),
+        Some(Err(e)) => Err(Failure::Error(e)),
+        None => Err(Failure::Error(Error::Invalid {
+            what: "window",
+            value: "closed".into(),
+            rule: "the event loop ended before the window opened".into(),
+        })),
+    }
+}
+
+struct App<'a> {
+    config: &'a ViewConfig,
+    file: &'a SceneFile,
+    built: Option<Built>,
+    note: &'a mut dyn FnMut(&str),
+    live: Option<Live>,
+    outcome: Option<Result<ViewReport, Error>>,
+}
+
+impl App<'_> {
+    /// Ends the view with `outcome` (the report, or an error).
+    fn finish(&mut self, event_loop: &ActiveEventLoop, outcome: Result<ViewReport, Error>) {
+        if self.outcome.is_none() {
+            self.outcome = Some(outcome);
+        }
+        // The window closes as `live` drops (its surface first).
+        self.live = None;
+        event_loop.exit();
+    }
+}
+
+impl ApplicationHandler for App<'_> {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(built) = self.built.take() else { return };
+        match Live::new(event_loop, self.config, self.file, built, self.note) {
+            Ok(live) => {
+                (self.note)(HELP);
+                live.window.request_redraw();
+                self.live = Some(live);
+            }
+            Err(e) => self.finish(event_loop, Err(e)),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        let Some(live) = self.live.as_mut() else { return };
+        match event {
+            WindowEvent::CloseRequested | WindowEvent::Destroyed => {
+                let report = live.report();
+                self.finish(event_loop, Ok(report));
+            }
+            WindowEvent::Resized(size) => live.resize(size),
+            WindowEvent::ModifiersChanged(m) => live.modifiers = m.state(),
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                let text = match &event.logical_key {
+                    Key::Character(c) => c.to_string(),
+                    Key::Named(NamedKey::Space) => " ".into(),
+                    Key::Named(NamedKey::Escape) => "escape".into(),
+                    Key::Named(NamedKey::ArrowRight) => ".".into(),
+                    _ => String::new(),
+                };
+                match Action::of_key(&text) {
+                    Some(Action::Close) => {
+                        let report = live.report();
+                        self.finish(event_loop, Ok(report));
+                    }
+                    Some(action) => live.act(action),
+                    None => {}
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                live.pointer_to(position.x as f32, position.y as f32)
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                live.button(button, state == ElementState::Pressed);
+            }
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+                };
+                live.orbit.zoom(lines);
+            }
+            WindowEvent::RedrawRequested => match live.frame() {
+                Ok(true) => {
+                    let report = live.report();
+                    let done = live.screenshot().map(|()| report);
+                    self.finish(event_loop, done);
+                }
+                Ok(false) => live.window.request_redraw(),
+                Err(e) => self.finish(event_loop, Err(e)),
+            },
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _: &ActiveEventLoop) {
+        if let Some(live) = &self.live {
+            live.window.request_redraw();
+        }
+    }
+}
+
+/// The simulation, on either backend.
+enum Sim {
+    Cpu(Box<CpuWorld>),
+    Gpu(Box<GpuWorld>),
+}
+
+impl Sim {
+    fn new(ctx: Option<&GpuContext>, world: World) -> Result<Sim, Error> {
+        Ok(match ctx {
+            Some(ctx) => Sim::Gpu(Box::new(GpuWorld::new(ctx, world)?)),
+            None => Sim::Cpu(Box::new(CpuWorld::new(world)?)),
+        })
+    }
+
+    fn step(&mut self) -> Result<(), Error> {
+        match self {
+            Sim::Cpu(w) => w.step(),
+            Sim::Gpu(w) => w.step(),
+        }
+    }
+
+    /// The world as it is now, and the last step's contact reports.
+    fn now(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
+        match self {
+            Sim::Cpu(w) => Ok((&w.world, w.reports.clone())),
+            Sim::Gpu(w) => {
+                let reports = w.sync()?;
+                Ok((&w.world, reports))
+            }
+        }
+    }
+}
+
+/// Offsets the user has dragged bodies by: where each should be (`target`) and where it is
+/// (`now`, which follows the target by at most `per_step` a step).
+#[derive(Debug)]
+struct Drags {
+    target: Vec<Vec3>,
+    now: Vec<Vec3>,
+    per_step: f32,
+}
+
+/// `world` with its schedule's drives offset by `drags`, each body's offset catching up with
+/// its target by at most `per_step` a step.
+fn draggable(mut world: World, drags: &Arc<Mutex<Drags>>) -> World {
+    let base = world.schedule.clone();
+    let drags = drags.clone();
+    world.schedule = Arc::new(move |step| {
+        let mut inputs = base(step);
+        let Ok(mut d) = drags.lock() else { return inputs };
+        let d = &mut *d;
+        for ((input, now), target) in inputs.iter_mut().zip(d.now.iter_mut()).zip(&d.target) {
+            let to_go = *target - *now;
+            let length = to_go.length();
+            *now += if length > d.per_step { to_go * (d.per_step / length) } else { to_go };
+            input.drive += *now;
+        }
+        inputs
+    });
+    world
+}
+
+/// A body held by the pointer: which, at what depth, and where the pointer was.
+#[derive(Clone, Copy, Debug)]
+struct Grab {
+    body: usize,
+    depth: f32,
+    last: (f32, f32),
+}
+
+/// Copies a finished picture onto the window.
+struct Blit {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    texture: wgpu::Texture,
+    bind_group: wgpu::BindGroup,
+    format: wgpu::TextureFormat,
+}
+
+impl Blit {
+    fn new(device: &wgpu::Device, target: wgpu::TextureFormat, (width, height): (u32, u32)) -> Blit {
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("voxcollide view blit"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            }],
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("voxcollide view blit"),
+            source: wgpu::ShaderSource::Wgsl(BLIT_SHADER.into()),
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("voxcollide view blit"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("voxcollide view blit"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: target,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        // The picture's bytes are sRGB-encoded: into an sRGB target through an sRGB texture
+        // (decoded, then encoded again), into a linear one as they are.
+        let format = if target.is_srgb() {
+            wgpu::TextureFormat::Rgba8UnormSrgb
+        } else {
+            wgpu::TextureFormat::Rgba8Unorm
+        };
+        let (texture, bind_group) = Blit::picture(device, &layout, format, width, height);
+        Blit { pipeline, layout, texture, bind_group, format }
+    }
+
+    fn picture(
+        device: &wgpu::Device,
+        layout: &wgpu::BindGroupLayout,
+        format: wgpu::TextureFormat,
+        width: u32,
+        height: u32,
+    ) -> (wgpu::Texture, wgpu::BindGroup) {
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("voxcollide view picture"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("voxcollide view picture"),
+            layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::TextureView(&view),
+            }],
+        });
+        (texture, bind_group)
+    }
+
+    fn resize(&mut self, device: &wgpu::Device, width: u32, height: u32) {
+        (self.texture, self.bind_group) = Blit::picture(device, &self.layout, self.format, width, height);
+    }
+
+    /// Uploads `rgba` (the texture's size) and draws it onto `target`.
+    fn draw(&self, ctx: &GpuContext, rgba: &[u8], target: &wgpu::TextureView) {
+        let size = self.texture.size();
+        ctx.queue().write_texture(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.texture,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            rgba,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(4 * size.width),
+                rows_per_image: Some(size.height),
+            },
+            size,
+        );
+        let mut encoder = ctx
+            .device()
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide view blit") });
+        {
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("voxcollide view blit"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: target,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                ..Default::default()
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        ctx.queue().submit([encoder.finish()]);
+    }
+}
+
+/// The open window and everything it shows.
+struct Live {
+    // The surface is declared (and dropped) before the window it draws into.
+    surface: wgpu::Surface<'static>,
+    window: Arc<Window>,
+    surface_config: wgpu::SurfaceConfiguration,
+    ctx: GpuContext,
+    adapter: String,
+    renderer: Renderer,
+    blit: Blit,
+    scene_name: String,
+    units: String,
+    /// The world at its first step (with draggable drives), for a reset.
+    first: World,
+    /// Taken out while a frame uses it, and put back.
+    sim: Option<Sim>,
+    backend: &'static str,
+    soft: Vec<bool>,
+    /// Bodies with driven vertices: what a drag can move.
+    movable: Vec<bool>,
+    drags: Arc<Mutex<Drags>>,
+    dragged: f32,
+    /// Where each movable body's centre was drawn in the first frame.
+    instruments: Vec<(String, [f32; 2])>,
+    /// The scene's extent at rest.
+    size: f32,
+    orbit: Orbit,
+    framed: Orbit,
+    paused: bool,
+    step_once: bool,
+    colouring: Colouring,
+    force_scale: f32,
+    pacing: Pacing,
+    steps_per_frame: Option<u64>,
+    pointer: (f32, f32),
+    left: bool,
+    right: bool,
+    modifiers: ModifiersState,
+    grab: Option<Grab>,
+    frames: u64,
+    frames_wanted: Option<u64>,
+    script: Option<super::ScriptedDrag>,
+    started: Option<Instant>,
+    last_frame: Option<Instant>,
+    behind_frames: u64,
+    behind: bool,
+    fps: f64,
+    sps: f64,
+    stepped_since: (Instant, u64),
+    steps: u64,
+    /// A blow-up's message, shown until a reset.
+    broken: Option<String>,
+    /// The last frame's measures: contacts, deepest penetration, largest displacement per body.
+    contacts: usize,
+    penetration: f32,
+    displacement: Vec<f32>,
+    picture: Vec<u8>,
+    screenshot: Option<std::path::PathBuf>,
+    dt: f64,
+}
+
+impl Live {
+    fn new(
+        event_loop: &ActiveEventLoop,
+        config: &ViewConfig,
+        file: &SceneFile,
+        built: Built,
+        note: &mut dyn FnMut(&str),
+    ) -> Result<Live, Error> {
+        let attributes = Window::default_attributes()
+            .with_title(format!("voxcollide view: {}", config.scene))
+            .with_inner_size(PhysicalSize::new(config.size.0, config.size.1));
+        let window = Arc::new(event_loop.create_window(attributes).map_err(|e| Error::Invalid {
+            what: "window",
+            value: e.to_string(),
+            rule: "the display refused to open one".into(),
+        })?);
+        let (surface, adapter) = surface_and_adapter(window.clone())?;
+        let info = adapter.get_info();
+        let adapter_name = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("voxcollide view"),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::NoAdapter {
+            message: format!("could not open a device on {adapter_name}: {e}"),
+        })?;
+        let ctx = GpuContext::from_device(device, queue);
+        let size = window.inner_size();
+        let (width, height) = (size.width.max(1), size.height.max(1));
+        let mut surface_config = surface.get_default_config(&adapter, width, height).ok_or_else(|| {
+            Error::NoAdapter { message: format!("{adapter_name} cannot present to this window") }
+        })?;
+        surface_config.present_mode = wgpu::PresentMode::AutoNoVsync;
+        surface.configure(ctx.device(), &surface_config);
+        let renderer = Renderer::fast(&ctx, width, height)?;
+        let blit = Blit::new(ctx.device(), surface_config.format, (width, height));
+
+        let computes =
+            adapter.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS);
+        let on_gpu = match config.backend {
+            Backend::Cpu => false,
+            Backend::Gpu if !computes => {
+                return Err(Error::NoAdapter {
+                    message: format!("{adapter_name} has no compute shaders to step on"),
+                });
+            }
+            Backend::Gpu => true,
+            Backend::Auto => {
+                if !computes {
+                    note(&format!("{adapter_name} has no compute shaders: stepping on the CPU"));
+                }
+                computes
+            }
+        };
+        let world = &built.world;
+        let extent = world
+            .bodies
+            .iter()
+            .flat_map(|b| b.pos.iter())
+            .fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        let scene_size = (extent.1 - extent.0).max_element().max(f32::MIN_POSITIVE);
+        let centre = 0.5 * (extent.0 + extent.1);
+        let drags = Arc::new(Mutex::new(Drags {
+            target: vec![Vec3::ZERO; world.bodies.len()],
+            now: vec![Vec3::ZERO; world.bodies.len()],
+            per_step: DRAG_PER_STEP * scene_size,
+        }));
+        let first = draggable(built.world.clone(), &drags);
+        let sim = Some(Sim::new(on_gpu.then_some(&ctx), first.clone())?);
+        let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
+        let eye = framing_eye(&points, FIRST_VIEW, Vec3::Z, width as f32 / height as f32)
+            .unwrap_or(centre - FIRST_VIEW.normalize() * 3.0 * scene_size);
+        let orbit = Orbit::from_eye(eye, FIRST_VIEW, centre);
+        let backend = if on_gpu { "gpu" } else { "cpu" };
+        note(&format!("{} on the {backend} backend, drawn on {adapter_name}", config.scene));
+        let now = Instant::now();
+        Ok(Live {
+            surface,
+            window,
+            surface_config,
+            adapter: adapter_name,
+            renderer,
+            blit,
+            scene_name: config.scene.clone(),
+            units: file.units.symbol().to_string(),
+            soft: file.bodies.iter().map(|b| b.kind == BodyKind::Soft).collect(),
+            movable: world.bodies.iter().map(|b| b.mode.contains(&Mode::Driven)).collect(),
+            first,
+            sim,
+            backend,
+            drags,
+            dragged: 0.0,
+            instruments: Vec::new(),
+            size: scene_size,
+            orbit,
+            framed: orbit,
+            paused: false,
+            step_once: false,
+            colouring: Colouring::Displacement,
+            force_scale: 0.0,
+            pacing: Pacing::new(f64::from(built.dt), STEP_BUDGET),
+            steps_per_frame: config.steps_per_frame,
+            pointer: (0.0, 0.0),
+            left: false,
+            right: false,
+            modifiers: ModifiersState::empty(),
+            grab: None,
+            frames: 0,
+            frames_wanted: config.frames,
+            script: config.drag,
+            started: None,
+            last_frame: None,
+            behind_frames: 0,
+            behind: false,
+            fps: 0.0,
+            sps: 0.0,
+            stepped_since: (now, 0),
+            steps: 0,
+            broken: None,
+            contacts: 0,
+            penetration: 0.0,
+            displacement: vec![0.0; world.bodies.len()],
+            picture: Vec::new(),
+            screenshot: config.screenshot.clone(),
+            dt: f64::from(built.dt),
+            ctx,
+        })
+    }
+
+    fn resize(&mut self, size: PhysicalSize<u32>) {
+        let (width, height) = (size.width.max(1), size.height.max(1));
+        if (width, height) == (self.surface_config.width, self.surface_config.height) {
+            return;
+        }
+        self.surface_config.width = width;
+        self.surface_config.height = height;
+        self.surface.configure(self.ctx.device(), &self.surface_config);
+        match Renderer::fast(&self.ctx, width, height) {
+            Ok(r) => self.renderer = r,
+            Err(e) => self.broken = Some(e.to_string()),
+        }
+        self.blit.resize(self.ctx.device(), width, height);
+    }
+
+    fn act(&mut self, action: Action) {
+        match action {
+            Action::TogglePause => self.paused = !self.paused,
+            Action::Step => {
+                self.paused = true;
+                self.step_once = true;
+            }
+            Action::Reset => {
+                if let Ok(mut d) = self.drags.lock() {
+                    let d = &mut *d;
+                    d.target.iter_mut().chain(d.now.iter_mut()).for_each(|v| *v = Vec3::ZERO);
+                }
+                let on_gpu = self.backend == "gpu";
+                match Sim::new(on_gpu.then_some(&self.ctx), self.first.clone()) {
+                    Ok(sim) => {
+                        self.sim = Some(sim);
+                        self.steps = 0;
+                        self.broken = None;
+                        self.pacing.owed = 0.0;
+                    }
+                    Err(e) => self.broken = Some(e.to_string()),
+                }
+            }
+            Action::CycleColouring => self.colouring = self.colouring.next(),
+            Action::Frame => self.orbit = self.framed,
+            Action::Close => {}
+        }
+    }
+
+    fn pointer_to(&mut self, x: f32, y: f32) {
+        let (dx, dy) = (x - self.pointer.0, y - self.pointer.1);
+        self.pointer = (x, y);
+        let height = self.surface_config.height;
+        if let Some(g) = self.grab.as_mut() {
+            let moved = self.orbit.drag_in_view_plane(x - g.last.0, y - g.last.1, g.depth, height);
+            g.last = (x, y);
+            if let Ok(mut d) = self.drags.lock() {
+                d.target[g.body] += moved;
+            }
+            self.dragged += moved.length();
+        } else if self.right || (self.left && self.modifiers.shift_key()) {
+            self.orbit.pan(dx, dy, height);
+        } else if self.left {
+            self.orbit.rotate(dx, dy);
+        }
+    }
+
+    fn button(&mut self, button: MouseButton, pressed: bool) {
+        match button {
+            MouseButton::Left => {
+                self.left = pressed;
+                self.grab = if pressed && !self.modifiers.shift_key() { self.pick() } else { None };
+            }
+            MouseButton::Right => self.right = pressed,
+            _ => {}
+        }
+    }
+
+    /// The movable body nearest the pointer on the screen (within 24 pixels of one of its
+    /// vertices), to drag.
+    fn pick(&mut self) -> Option<Grab> {
+        let (w, h) = (self.surface_config.width, self.surface_config.height);
+        let (x, y) = self.pointer;
+        let world = self.sim.as_mut()?.now().ok()?.0;
+        let mut best: Option<(f32, usize, f32)> = None;
+        for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
+            for (p, m) in b.pos.iter().zip(&b.mode) {
+                if *m != Mode::Driven {
+                    continue;
+                }
+                if let Some((px, py, depth)) = self.orbit.project(*p, w, h) {
+                    let d2 = (px - x).powi(2) + (py - y).powi(2);
+                    if d2 < 24.0 * 24.0 && best.is_none_or(|(b2, _, _)| d2 < b2) {
+                        best = Some((d2, k, depth));
+                    }
+                }
+            }
+        }
+        best.map(|(_, body, depth)| Grab { body, depth, last: (x, y) })
+    }
+
+    /// Steps, draws and presents one frame; `Ok(true)` when the frames asked for are drawn.
+    fn frame(&mut self) -> Result<bool, Error> {
+        // The scripted pointer acts as the mouse would, before the frame's steps.
+        if let Some(script) = self.script
+            && let Some((x, y, pressed)) = script.at(self.frames)
+        {
+            if pressed && !self.left {
+                self.pointer = (x, y);
+                self.button(MouseButton::Left, true);
+            } else {
+                self.pointer_to(x, y);
+                if !pressed {
+                    self.button(MouseButton::Left, false);
+                }
+            }
+        }
+        let Some(mut sim) = self.sim.take() else { return Ok(false) };
+        let done = self.frame_with(&mut sim);
+        if self.sim.is_none() {
+            self.sim = Some(sim); // (a reset during the frame put a new one)
+        }
+        done
+    }
+
+    fn frame_with(&mut self, sim: &mut Sim) -> Result<bool, Error> {
+        let now = Instant::now();
+        self.started.get_or_insert(now);
+        let elapsed = self.last_frame.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
+        self.last_frame = Some(now);
+        if elapsed > 0.0 {
+            self.fps = if self.fps > 0.0 { 0.9 * self.fps + 0.1 / elapsed } else { 1.0 / elapsed };
+        }
+
+        // Steps: real time within the budget, or the fixed count.
+        let (n, behind) = match (self.broken.is_some(), self.paused, self.steps_per_frame) {
+            (true, _, _) => (0, false),
+            (false, true, _) => (u64::from(std::mem::take(&mut self.step_once)), false),
+            (false, false, Some(n)) => (n, false),
+            (false, false, None) => self.pacing.steps(elapsed),
+        };
+        self.behind = behind;
+        self.behind_frames += u64::from(behind);
+        let t = Instant::now();
+        let mut stepped = 0;
+        for _ in 0..n {
+            if let Err(e) = sim.step() {
+                self.broken = Some(e.to_string());
+                break;
+            }
+            stepped += 1;
+        }
+        self.steps += stepped;
+        let shown = match sim.now() {
+            Ok(now) => Some(now),
+            Err(e) => {
+                self.broken = Some(e.to_string());
+                None
+            }
+        };
+        self.pacing.took(stepped, t.elapsed().as_secs_f64());
+        let since = now.duration_since(self.stepped_since.0).as_secs_f64();
+        if since >= 0.5 {
+            self.sps = (self.steps.saturating_sub(self.stepped_since.1)) as f64 / since;
+            self.stepped_since = (now, self.steps);
+        }
+        let Some((world, reports)) = shown else {
+            if self.frames_wanted.is_some() {
+                return Err(Error::Simulation {
+                    step: self.steps,
+                    message: self.broken.clone().unwrap_or_default(),
+                });
+            }
+            return Ok(false);
+        };
+        if let (Some(message), Some(_)) = (&self.broken, self.frames_wanted) {
+            return Err(Error::Simulation { step: self.steps, message: message.clone() });
+        }
+        self.measure(world, &reports);
+        if self.frames == 0 {
+            let (w, h) = (self.surface_config.width, self.surface_config.height);
+            for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
+                let driven: Vec<Vec3> =
+                    b.pos.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Driven).map(|(p, _)| *p).collect();
+                let centre = driven.iter().copied().sum::<Vec3>() / driven.len().max(1) as f32;
+                if let Some((x, y, _)) = self.orbit.project(centre, w, h) {
+                    self.instruments.push((world.names[k].clone(), [x, y]));
+                }
+            }
+        }
+        self.draw(world, &reports)?;
+        self.frames += 1;
+        Ok(self.frames_wanted.is_some_and(|n| self.frames >= n))
+    }
+
+    fn measure(&mut self, world: &World, reports: &[ContactReport]) {
+        self.contacts = reports.iter().map(|r| r.colliding_b.len()).sum();
+        self.displacement = world
+            .bodies
+            .iter()
+            .map(|b| b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max))
+            .collect();
+        // The deepest vertex of b inside a's closed surface (a's shown surface), over the pairs.
+        self.penetration = world
+            .contacts
+            .iter()
+            .filter_map(|pair| {
+                let (positions, mesh) = crate::scene_run::shown_surface(&world.bodies[pair.a]);
+                let surface = ClosedSurface::new(&positions, mesh).ok()?;
+                Some(penetration(&surface, &world.bodies[pair.b].pos).max_depth)
+            })
+            .fold(0.0, f32::max);
+    }
+
+    fn draw(&mut self, world: &World, reports: &[ContactReport]) -> Result<(), Error> {
+        let (width, height) = (self.surface_config.width, self.surface_config.height);
+        let mut shown = shown_and_moved(world);
+        let (range, title) = match self.colouring {
+            Colouring::Displacement => ((0.0, 0.1 * self.size), format!("displacement ({})", self.units)),
+            Colouring::ContactForce => {
+                for (k, (_, values)) in shown.iter_mut().enumerate() {
+                    *values = contact_force(world, reports, k);
+                }
+                let top = shown.iter().flat_map(|s| s.1.iter()).fold(0.0f32, |a, &b| a.max(b));
+                // The scale only grows, so that colours compare across frames.
+                self.force_scale = self.force_scale.max(top).max(f32::MIN_POSITIVE);
+                ((0.0, self.force_scale), "contact force (N)".to_string())
+            }
+        };
+        let soft = &self.soft;
+        let scene = RenderScene {
+            meshes: meshes(world, &shown, |k| soft[k], |k| COLOURS[k % COLOURS.len()]),
+            scalar_range: range,
+            clip: None,
+            view_dir: self.orbit.view_dir(),
+            up: Vec3::Z,
+        };
+        let mut rgba = self.renderer.render_from(&scene, Some(self.orbit.eye()))?;
+        draw_legend(&mut rgba, width, height, &Legend::new(title, range))?;
+        draw_caption(&mut rgba, width, height, &self.hud())?;
+        match self.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(frame) | wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
+                let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
+                self.blit.draw(&self.ctx, &rgba, &view);
+                self.window.pre_present_notify();
+                self.ctx.queue().present(frame);
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                self.surface.configure(self.ctx.device(), &self.surface_config);
+            }
+            _ => {}
+        }
+        if self.screenshot.is_some() {
+            self.picture = rgba;
+        }
+        Ok(())
+    }
+
+    /// The heads-up lines.
+    fn hud(&self) -> Vec<String> {
+        let u = &self.units;
+        let time = self.steps as f64 * self.dt;
+        let mut first = format!(
+            "{:.0} steps/s  {:.1} frames/s  contacts {}  max penetration {:.3} {u}  t = {:.3} s",
+            self.sps, self.fps, self.contacts, self.penetration, time
+        );
+        if self.paused {
+            first += "  [paused]";
+        }
+        let mut lines = vec![first];
+        if let Some(message) = &self.broken {
+            lines.push(format!("stopped: {message} (r resets)"));
+        } else if self.behind {
+            let realtime = self.sps * self.dt;
+            lines.push(format!("behind real time: {realtime:.2}x"));
+        }
+        if self.grab.is_some() {
+            lines.push(format!("dragging {:.3} {u}", self.dragged));
+        }
+        lines
+    }
+
+    /// Writes the last frame as PNG, if one was asked for.
+    fn screenshot(&self) -> Result<(), Error> {
+        match &self.screenshot {
+            Some(path) => {
+                write_png(path, self.surface_config.width, self.surface_config.height, &self.picture)
+            }
+            None => Ok(()),
+        }
+    }
+
+    fn report(&self) -> ViewReport {
+        let seconds =
+            self.started.zip(self.last_frame).map_or(0.0, |(a, b)| b.duration_since(a).as_secs_f64());
+        // Frame-to-frame intervals: the first frame has none.
+        let intervals = self.frames.saturating_sub(1);
+        ViewReport {
+            scene: self.scene_name.clone(),
+            backend: self.backend.into(),
+            adapter: self.adapter.clone(),
+            size: (self.surface_config.width, self.surface_config.height),
+            frames: self.frames,
+            seconds,
+            frames_per_second: if seconds > 0.0 { intervals as f64 / seconds } else { 0.0 },
+            steps: self.steps,
+            steps_per_second: if seconds > 0.0 { self.steps as f64 / seconds } else { 0.0 },
+            simulated_time: self.steps as f64 * self.dt,
+            behind_frames: self.behind_frames,
+            max_displacement: self
+                .first
+                .names
+                .iter()
+                .cloned()
+                .zip(self.displacement.iter().copied())
+                .collect(),
+            contacts: self.contacts,
+            max_penetration: self.penetration,
+            units: self.units.clone(),
+            dragged: self.dragged,
+            instruments: self.instruments.clone(),
+            screenshot: self.screenshot.clone().filter(|_| !self.picture.is_empty()),
+        }
+    }
+}
+
+/// The magnitude of the contact force on each shown vertex of body `k` (its user surface's,
+/// interpolated from the lattice, where it has one).
+fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32> {
+    let body = &world.bodies[k];
+    let mut force = vec![Vec3::ZERO; body.len()];
+    for (pair, r) in world.contacts.iter().zip(reports) {
+        if pair.a == k && r.force_a.len() == body.len() {
+            force.iter_mut().zip(&r.force_a).for_each(|(f, a)| *f += *a);
+        }
+        if pair.b == k && r.force_b.len() == body.len() {
+            force.iter_mut().zip(&r.force_b).for_each(|(f, b)| *f += *b);
+        }
+    }
+    match &body.embedded {
+        Some(e) => e.interpolate(&force).iter().map(|f| f.length()).collect(),
+        None => force.iter().map(|f| f.length()).collect(),
+    }
+}
+
+/// A surface on `window` and an adapter that can present to it and draw: the native backends
+/// first (or `WGPU_BACKEND`'s), then the others.
+fn surface_and_adapter(window: Arc<Window>) -> Result<(wgpu::Surface<'static>, wgpu::Adapter), Error> {
+    let searches = match wgpu::Backends::from_env() {
+        Some(b) => vec![b],
+        None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::all()],
+    };
+    let mut why = Vec::new();
+    for backends in searches {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
+            backends,
+            ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
+        });
+        let surface = match instance.create_surface(window.clone()) {
+            Ok(s) => s,
+            Err(e) => {
+                why.push(format!("{backends:?}: no surface: {e}"));
+                continue;
+            }
+        };
+        let wanted =
+            std::env::var("WGPU_ADAPTER_NAME").ok().filter(|s| !s.is_empty()).map(|s| s.to_lowercase());
+        let adapters = pollster::block_on(instance.enumerate_adapters(backends));
+        let fits = |a: &wgpu::Adapter| {
+            a.is_surface_supported(&surface)
+                && wanted.as_ref().is_none_or(|w| a.get_info().name.to_lowercase().contains(w))
+        };
+        // A discrete GPU before an integrated one before the rest, as the collision library picks.
+        let rank = |a: &wgpu::Adapter| match a.get_info().device_type {
+            wgpu::DeviceType::DiscreteGpu => 0,
+            wgpu::DeviceType::IntegratedGpu => 1,
+            wgpu::DeviceType::VirtualGpu => 2,
+            wgpu::DeviceType::Other => 3,
+            wgpu::DeviceType::Cpu => 4,
+        };
+        if let Some(adapter) = adapters.into_iter().filter(fits).min_by_key(rank) {
+            return Ok((surface, adapter));
+        }
+        why.push(format!("{backends:?}: no adapter presents to the window"));
+    }
+    Err(Error::NoAdapter {
+        message: format!(
+            "no adapter can draw into the window ({}); install a Vulkan driver such as Mesa's lavapipe (mesa-vulkan-drivers)",
+            why.join("; ")
+        ),
+    })
+}

@@ -1,0 +1,197 @@
+//! `voxcollide view` (DESIGN §10): a scene run live in a window (winit and a wgpu surface),
+//! drawn each frame as the run's pictures are, with a camera to orbit, pan and zoom, pause,
+//! step and reset, a colouring to cycle with its legend, a heads-up line, and instruments to
+//! drag with the mouse while the tissue responds (the paper's virtual operation).
+//!
+//! The simulation steps as many times a frame as real time allows within a budget, and the
+//! heads-up line says when it falls behind. `--frames N --screenshot PATH` draws N frames,
+//! writes the last as PNG and exits; `--drag` scripts a drag; `--steps-per-frame` makes a run
+//! repeatable (a fixed number of steps a frame instead of real time). Each frame is drawn by
+//! [`Renderer`](crate::render::Renderer) offscreen, its legend and heads-up line added on the
+//! CPU, and copied onto the window: the screenshot is exactly the frame shown.
+
+mod controls;
+mod live;
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use voxcollide::Error;
+use voxcollide_sim::scene_file::SceneFile;
+
+pub use controls::{Action, Colouring, HELP, Orbit, Pacing, ScriptedDrag};
+
+use crate::scenario::Backend;
+
+/// The scenes `view` knows by name (the files under `scenes/` that need no mesh file), built in.
+pub const SHIPPED: [(&str, &str); 6] = [
+    ("implant", include_str!("../../../../scenes/implant.toml")),
+    ("cylinder", include_str!("../../../../scenes/cylinder.toml")),
+    ("indentation", include_str!("../../../../scenes/indentation.toml")),
+    ("expander", include_str!("../../../../scenes/expander.toml")),
+    ("breast-implant", include_str!("../../../../scenes/breast-implant.toml")),
+    ("breast-compare", include_str!("../../../../scenes/breast-compare.toml")),
+];
+
+/// What to view, and how.
+#[derive(Clone, Debug)]
+pub struct ViewConfig {
+    /// A scene file, or the name of a shipped scene ([`SHIPPED`]).
+    pub scene: String,
+    /// Where the simulation steps (drawing needs an adapter either way).
+    pub backend: Backend,
+    /// The window's inner size in pixels.
+    pub size: (u32, u32),
+    /// Draw this many frames, then close.
+    pub frames: Option<u64>,
+    /// Write the last frame here as PNG.
+    pub screenshot: Option<PathBuf>,
+    /// A scripted drag.
+    pub drag: Option<ScriptedDrag>,
+    /// Steps per frame instead of real time (repeatable runs).
+    pub steps_per_frame: Option<u64>,
+    /// Write the [`ViewReport`] here as JSON at the end.
+    pub report: Option<PathBuf>,
+}
+
+/// What a view did, printed at the end (and written as JSON with `--report`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ViewReport {
+    /// The scene.
+    pub scene: String,
+    /// Where it stepped: `"gpu"` or `"cpu"`.
+    pub backend: String,
+    /// The adapter that drew it (and stepped it, on the GPU backend).
+    pub adapter: String,
+    /// The window's size at the end.
+    pub size: (u32, u32),
+    /// Frames drawn.
+    pub frames: u64,
+    /// Wall seconds from the first frame to the last.
+    pub seconds: f64,
+    /// Frames per second over the view.
+    pub frames_per_second: f64,
+    /// Steps run.
+    pub steps: u64,
+    /// Steps per wall second.
+    pub steps_per_second: f64,
+    /// Simulated seconds at the end.
+    pub simulated_time: f64,
+    /// Frames that could not keep real time within their stepping budget.
+    pub behind_frames: u64,
+    /// Per body at the end: its name and its largest vertex displacement (scene units).
+    pub max_displacement: Vec<(String, f32)>,
+    /// Contacts (colliding vertices) at the end.
+    pub contacts: usize,
+    /// The deepest a vertex is inside another body at the end (scene units).
+    pub max_penetration: f32,
+    /// The scene's length unit.
+    pub units: String,
+    /// How far instruments were dragged, in all (scene units).
+    pub dragged: f32,
+    /// The bodies a drag can move (those with driven vertices: rigid instruments, driven
+    /// parts), each with the window pixel its centre was drawn at in the first frame: where a
+    /// scripted drag can take hold of it.
+    pub instruments: Vec<(String, [f32; 2])>,
+    /// The screenshot written, if any.
+    pub screenshot: Option<PathBuf>,
+}
+
+/// The scene `name` names: a file if one is there, else a shipped scene.
+///
+/// # Errors
+/// The file's errors; [`Error::Invalid`] naming the shipped scenes when it is neither.
+pub fn scene_named(name: &str) -> Result<SceneFile, Error> {
+    let path = Path::new(name);
+    if path.exists() {
+        return SceneFile::read(path);
+    }
+    match SHIPPED.iter().find(|(n, _)| *n == name) {
+        Some((n, text)) => SceneFile::parse(format!("scenes/{n}.toml"), text),
+        None => Err(Error::Invalid {
+            what: "scene",
+            value: name.to_string(),
+            rule: format!(
+                "is neither a file nor a shipped scene ({})",
+                SHIPPED.iter().map(|(n, _)| *n).collect::<Vec<_>>().join(", ")
+            ),
+        }),
+    }
+}
+
+/// Why there is no display to open a window on, if there is none: on Linux and the BSDs
+/// neither `DISPLAY` (X11) nor `WAYLAND_DISPLAY` is set.
+#[must_use]
+pub fn no_display() -> Option<String> {
+    if cfg!(all(unix, not(target_os = "macos"), not(target_os = "android"), not(target_os = "ios"))) {
+        let set = |v: &str| std::env::var_os(v).is_some_and(|s| !s.is_empty());
+        if !set("DISPLAY") && !set("WAYLAND_DISPLAY") {
+            return Some("neither DISPLAY nor WAYLAND_DISPLAY is set".into());
+        }
+    }
+    None
+}
+
+/// The error of a machine with no display: one line that points to `run`.
+fn headless(why: &str, scene: &str) -> Error {
+    Error::Invalid {
+        what: "display",
+        value: why.to_string(),
+        rule: format!(
+            "`view` needs a window; on a machine without a display, `voxcollide run {scene}` runs it and writes pictures"
+        ),
+    }
+}
+
+/// Opens the window and runs `config`'s scene live until it is closed (or its `frames` are
+/// drawn), calling `note` with what is worth saying; returns what it did.
+///
+/// # Errors
+/// The scene's errors, before any window opens; [`Error::Invalid`] with `what: "display"` on
+/// a machine without a display (one line, pointing to `run`); [`Error::NoAdapter`] when no
+/// adapter can draw into the window (or, for `Backend::Gpu`, step the scene);
+/// [`Error::Simulation`] when the scene blows up in a run with `frames` (an interactive view
+/// shows it and waits for a reset); [`Error::Io`] for the screenshot and report.
+pub fn view(config: &ViewConfig, note: &mut dyn FnMut(&str)) -> Result<ViewReport, Error> {
+    let file = scene_named(&config.scene)?;
+    let built = voxcollide_sim::build::build_world(&file)?;
+    for n in &built.notes {
+        for r in &n.remarks {
+            note(&format!("{}: {r}", n.name));
+        }
+    }
+    if let Some(why) = no_display() {
+        return Err(headless(&why, &config.scene));
+    }
+    for (what, side) in [("width", config.size.0), ("height", config.size.1)] {
+        if side == 0 {
+            return Err(Error::Invalid { what, value: "0".into(), rule: "the window needs a size".into() });
+        }
+    }
+    let report = live::run(config, &file, built, note).map_err(|e| match e {
+        live::Failure::NoDisplay(why) => headless(&why, &config.scene),
+        live::Failure::Error(e) => e,
+    })?;
+    if let Some(path) = &config.report {
+        let json = serde_json::to_string_pretty(&report)
+            .map_err(|e| Error::Io { path: path.display().to_string(), message: e.to_string() })?;
+        std::fs::write(path, json + "\n")
+            .map_err(|e| Error::Io { path: path.display().to_string(), message: e.to_string() })?;
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_shipped_scene_reads_and_builds() {
+        for (name, _) in SHIPPED {
+            let file = scene_named(name).unwrap_or_else(|e| panic!("{name}: {e}"));
+            voxcollide_sim::build::build_world(&file).unwrap_or_else(|e| panic!("{name}: {e}"));
+        }
+        let e = scene_named("no-such-scene").unwrap_err().to_string();
+        assert!(e.contains("implant, cylinder, indentation"), "{e}");
+    }
+}
