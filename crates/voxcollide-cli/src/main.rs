@@ -33,6 +33,7 @@ enum Command {
 }
 
 #[derive(clap::Args, Debug)]
+#[command(after_help = format!("Controls: {}", voxcollide_cli::view::HELP))]
 struct ViewArgs {
     /// A scene file, or a shipped scene: implant, cylinder, indentation, expander,
     /// breast-implant, breast-compare.
@@ -59,6 +60,9 @@ struct ViewArgs {
     /// Write what the view did as JSON here at the end.
     #[arg(long)]
     report: Option<PathBuf>,
+    /// What the bodies are coloured by at first (the c key cycles it).
+    #[arg(long, value_enum, default_value = "displacement")]
+    colouring: voxcollide_cli::view::Colouring,
 }
 
 #[derive(clap::Args, Debug)]
@@ -390,6 +394,7 @@ fn view(args: &ViewArgs) -> ExitCode {
         drag: args.drag,
         steps_per_frame: args.steps_per_frame,
         report: args.report.clone(),
+        colouring: args.colouring,
     };
     match voxcollide_cli::view::view(&config, &mut |line| eprintln!("{line}")) {
         Ok(r) => {

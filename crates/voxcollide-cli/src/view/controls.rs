@@ -156,12 +156,13 @@ impl Action {
 pub const HELP: &str = "drag: orbit (or move an instrument under the cursor) · right-drag or shift-drag: pan · wheel: zoom · space: pause · s: step · r: reset · c: colouring · f: frame · q: close";
 
 /// What the bodies are coloured by.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum Colouring {
     /// How far each vertex is from where it started.
     #[default]
     Displacement,
     /// The magnitude of the contact force on each vertex.
+    #[value(name = "force")]
     ContactForce,
 }
 

@@ -439,6 +439,7 @@ struct Live {
     contacts: usize,
     penetration: f32,
     displacement: Vec<f32>,
+    displacement_centre: Vec<[f32; 3]>,
     picture: Vec<u8>,
     screenshot: Option<std::path::PathBuf>,
     dt: f64,
@@ -543,7 +544,7 @@ impl Live {
             framed: orbit,
             paused: false,
             step_once: false,
-            colouring: Colouring::Displacement,
+            colouring: config.colouring,
             force_scale: 0.0,
             pacing: Pacing::new(f64::from(built.dt), STEP_BUDGET),
             steps_per_frame: config.steps_per_frame,
@@ -567,6 +568,7 @@ impl Live {
             contacts: 0,
             penetration: 0.0,
             displacement: vec![0.0; world.bodies.len()],
+            displacement_centre: vec![[0.0; 3]; world.bodies.len()],
             picture: Vec::new(),
             screenshot: config.screenshot.clone(),
             dt: f64::from(built.dt),
@@ -771,6 +773,24 @@ impl Live {
             .iter()
             .map(|b| b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max))
             .collect();
+        self.displacement_centre = world
+            .bodies
+            .iter()
+            .map(|b| {
+                let (mut sum, mut weight) = (glam::DVec3::ZERO, 0.0f64);
+                for (p, r) in b.pos.iter().zip(&b.rest_pos) {
+                    let w = f64::from(p.distance(*r));
+                    sum += w * r.as_dvec3();
+                    weight += w;
+                }
+                let centre = if weight > 0.0 {
+                    sum / weight
+                } else {
+                    b.rest_pos.iter().map(|r| r.as_dvec3()).sum::<glam::DVec3>() / b.len().max(1) as f64
+                };
+                centre.as_vec3().to_array()
+            })
+            .collect();
         // The deepest vertex of b inside a's closed surface (a's shown surface), over the pairs.
         self.penetration = world
             .contacts
@@ -884,6 +904,13 @@ impl Live {
                 .iter()
                 .cloned()
                 .zip(self.displacement.iter().copied())
+                .collect(),
+            displacement_centre: self
+                .first
+                .names
+                .iter()
+                .cloned()
+                .zip(self.displacement_centre.iter().copied())
                 .collect(),
             contacts: self.contacts,
             max_penetration: self.penetration,

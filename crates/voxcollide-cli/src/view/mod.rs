@@ -52,6 +52,8 @@ pub struct ViewConfig {
     pub steps_per_frame: Option<u64>,
     /// Write the [`ViewReport`] here as JSON at the end.
     pub report: Option<PathBuf>,
+    /// The colouring to start with (`c` cycles it).
+    pub colouring: Colouring,
 }
 
 /// What a view did, printed at the end (and written as JSON with `--report`).
@@ -81,6 +83,10 @@ pub struct ViewReport {
     pub behind_frames: u64,
     /// Per body at the end: its name and its largest vertex displacement (scene units).
     pub max_displacement: Vec<(String, f32)>,
+    /// Per body at the end: its name and where it is displaced, the mean of its vertices'
+    /// rest positions weighted by how far each moved (its rest centre when none moved):
+    /// where a dent is, to follow it as an instrument is dragged (scene units).
+    pub displacement_centre: Vec<(String, [f32; 3])>,
     /// Contacts (colliding vertices) at the end.
     pub contacts: usize,
     /// The deepest a vertex is inside another body at the end (scene units).

@@ -1,0 +1,316 @@
+//! `voxcollide view` (DESIGN §10) in a real window: an X server in memory (Xvfb, Debian's
+//! `xvfb`, which `.ci/run` installs) and the adapter there is (lavapipe in CI). The screenshot
+//! shows the bodies with their legend and heads-up line; a scripted drag of an instrument moves
+//! the dent it makes, in the picture and in the reported displacement; closing the window as a
+//! window manager does ends the view cleanly; and with no display it says so in one line.
+//!
+//! Without Xvfb the window tests skip, unless `VOXCOLLIDE_REQUIRE_DISPLAY=1` (CI).
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use serde_json::Value;
+
+/// An X server of its own for a test, stopped when dropped.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    /// A fresh Xvfb on a free display; `None` (a skip) without Xvfb or an adapter, unless
+    /// `VOXCOLLIDE_REQUIRE_DISPLAY=1`.
+    fn start() -> Option<Xvfb> {
+        let required = std::env::var("VOXCOLLIDE_REQUIRE_DISPLAY").as_deref() == Ok("1");
+        let Some(binary) =
+            ["/usr/bin/Xvfb", "/usr/local/bin/Xvfb"].into_iter().find(|p| Path::new(p).is_file())
+        else {
+            assert!(!required, "VOXCOLLIDE_REQUIRE_DISPLAY=1 but there is no Xvfb (Debian's xvfb)");
+            eprintln!("skipped: no Xvfb");
+            return None;
+        };
+        common::gpu()?;
+        // Xvfb picks a free display itself and writes its number to our pipe (-displayfd 1).
+        let mut child = Command::new(binary)
+            .args(["-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("Xvfb starts");
+        let mut line = String::new();
+        let stdout = child.stdout.take().expect("piped");
+        std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).expect("Xvfb's display");
+        let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb wrote {line:?} for its display"));
+        Some(Xvfb { child, display: format!(":{n}") })
+    }
+
+    /// `voxcollide view` on this display, with a runtime folder of its own.
+    fn view(&self, args: &[&str]) -> Command {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_voxcollide"));
+        c.arg("view").args(args).env("DISPLAY", &self.display).env_remove("WAYLAND_DISPLAY");
+        c.env("XDG_RUNTIME_DIR", std::env::temp_dir());
+        c
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxcollide-view-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ok(output: Output) -> String {
+    let (out, err) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    assert!(output.status.success(), "{}\n{out}\n{err}", output.status);
+    out.into_owned()
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+/// RGBA rows of a PNG, and its size.
+fn png(path: &Path) -> (Vec<[u8; 4]>, u32, u32) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgba);
+    let pixels = buf[..info.buffer_size()].chunks(4).map(|p| [p[0], p[1], p[2], p[3]]).collect();
+    (pixels, info.width, info.height)
+}
+
+/// A pixel of the colour map's middle and upper half (greens and yellows): a dent's colours.
+fn dent(p: [u8; 4]) -> bool {
+    p[1] > 120 && p[1] > p[0] + 30 && p[1] > p[2]
+}
+
+#[test]
+fn the_screenshot_shows_the_bodies_their_legend_and_the_heads_up_line() {
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("shot");
+    let (shot, report) = (d.join("implant.png"), d.join("report.json"));
+    // The paper's implant scene, its implant filled over 4 s: 20 frames of 40 steps (3.9 s).
+    let out = ok(x
+        .view(&["implant", "--size", "640x420", "--frames", "20", "--steps-per-frame", "40"])
+        .args(["--screenshot".as_ref(), shot.as_os_str(), "--report".as_ref(), report.as_os_str()])
+        .output()
+        .unwrap());
+    assert!(out.contains("20 frames in") && out.contains("frames/s"), "{out}");
+    let r = json(&report);
+    assert_eq!((r["frames"].as_u64(), r["steps"].as_u64()), (Some(20), Some(800)), "{r}");
+    assert!(r["frames_per_second"].as_f64().unwrap() > 0.0);
+    let tissue = r["max_displacement"][0][1].as_f64().unwrap();
+    assert!(tissue > 0.05, "the implant lifted the tissue {tissue} m");
+
+    let (pixels, w, h) = png(&shot);
+    assert_eq!((w, h), (640, 420));
+    let colours: std::collections::HashSet<[u8; 4]> = pixels.iter().copied().collect();
+    assert!(colours.len() > 200, "{} colours: a blank or flat picture", colours.len());
+    let at = |x: u32, y: u32| pixels[(y * w + x) as usize];
+    // The background is the renderer's light grey; the bodies cover a good part of the middle.
+    let background = at(w / 2, 2);
+    let middle: Vec<[u8; 4]> = (h / 4..3 * h / 4)
+        .flat_map(|y| (w / 4..3 * w / 4).map(move |x| (x, y)))
+        .map(|(x, y)| at(x, y))
+        .collect();
+    let covered = middle.iter().filter(|p| **p != background).count() as f64 / middle.len() as f64;
+    assert!(covered > 0.3, "{covered}: the bodies cover little of the middle");
+    // The lifted tissue shows the colour map's greens; the heads-up line's dark text sits on
+    // its light panel at the top left, the legend's bar (its yellow top) at the top right.
+    assert!(pixels.iter().filter(|p| dent(**p)).count() > 200, "no lifted tissue in the colour map's greens");
+    let text = (8..30).flat_map(|y| (8..200).map(move |x| (x, y))).filter(|&(x, y)| at(x, y)[0] < 60).count();
+    assert!(text > 100, "{text}: no heads-up text at the top left");
+    let yellow = (0..h / 2)
+        .flat_map(|y| (w / 2..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| at(x, y)[0] > 200 && at(x, y)[1] > 200 && at(x, y)[2] < 80)
+        .count();
+    assert!(yellow > 5, "no legend bar at the top right");
+
+    // Coloured by contact force instead: the legend says so, the picture changes.
+    let force = d.join("force.png");
+    ok(x.view(&[
+        "implant",
+        "--size",
+        "640x420",
+        "--frames",
+        "20",
+        "--steps-per-frame",
+        "40",
+        "--colouring",
+        "force",
+    ])
+    .args(["--screenshot".as_ref(), force.as_os_str()])
+    .output()
+    .unwrap());
+    let (other, _, _) = png(&force);
+    let differ = other.iter().zip(&pixels).filter(|(a, b)| a != b).count();
+    assert!(differ > 1000, "{differ} pixels differ between the colourings");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn a_dragged_instrument_moves_the_dent_in_the_picture_and_the_numbers() {
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("drag");
+    // Where the ball (scenes/indentation.toml's rigid instrument) is drawn at first.
+    let first = d.join("first.json");
+    ok(x.view(&["indentation", "--frames", "1", "--report"]).arg(&first).output().unwrap());
+    let r = json(&first);
+    assert_eq!(r["instruments"][0][0], "ball", "{r}");
+    let (bx, by) = (r["instruments"][0][1][0].as_f64().unwrap(), r["instruments"][0][1][1].as_f64().unwrap());
+    // The same 80 frames of 20 steps, the ball pressed into the block; once left alone, once
+    // dragged 120 pixels to the right over 40 frames.
+    let run = |name: &str, drag: Option<String>| {
+        let (shot, report) = (d.join(format!("{name}.png")), d.join(format!("{name}.json")));
+        let mut c = x.view(&["indentation", "--frames", "80", "--steps-per-frame", "20"]);
+        c.args(["--screenshot".as_ref(), shot.as_os_str(), "--report".as_ref(), report.as_os_str()]);
+        if let Some(drag) = drag {
+            c.args(["--drag", &drag]);
+        }
+        ok(c.output().unwrap());
+        (png(&shot), json(&report))
+    };
+    let ((still, w, _), r_still) = run("still", None);
+    let ((dragged, _, _), r_drag) =
+        run("dragged", Some(format!("{bx},{by} -> {},{by} over 40 frames", bx + 120.0)));
+    assert_eq!(r_still["dragged"].as_f64(), Some(0.0));
+    let moved = r_drag["dragged"].as_f64().unwrap();
+    assert!(moved > 5.0, "dragged {moved} mm");
+    // The numbers: the ball moved with the pointer, and the block's dent followed it to the
+    // right of the screen (the first view's right is +x, a little −y).
+    let ball = |r: &Value| r["max_displacement"][1][1].as_f64().unwrap();
+    assert!(ball(&r_drag) > ball(&r_still) + 0.5 * moved, "{} vs {}", ball(&r_drag), ball(&r_still));
+    let centre = |r: &Value| -> [f64; 3] {
+        let c = &r["displacement_centre"][0];
+        assert_eq!(c[0], "block");
+        [0, 1, 2].map(|k| c[1][k].as_f64().unwrap())
+    };
+    let (a, b) = (centre(&r_still), centre(&r_drag));
+    assert!(b[0] - a[0] > 3.0, "the dent moved {:.2} mm in x", b[0] - a[0]);
+    assert!(r_drag["contacts"].as_u64().unwrap() > 0, "the ball still presses the block");
+    // The picture: the dent's colours moved right on the screen.
+    let dent_x = |pixels: &[[u8; 4]]| {
+        let xs: Vec<f64> = pixels
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| dent(**p))
+            .map(|(i, _)| (i as u32 % w) as f64)
+            .collect();
+        assert!(xs.len() > 50, "no dent in the picture");
+        xs.iter().sum::<f64>() / xs.len() as f64
+    };
+    let (sx, dx) = (dent_x(&still), dent_x(&dragged));
+    assert!(dx - sx > 40.0, "the dent moved {:.0} pixels on the screen ({sx:.0} → {dx:.0})", dx - sx);
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn closing_the_window_ends_the_view_cleanly() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{AtomEnum, ClientMessageEvent, ConnectionExt, EventMask};
+
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("close");
+    let report = d.join("report.json");
+    // Interactive: no --frames, so only a close ends it.
+    let mut child = x
+        .view(&["implant", "--report"])
+        .arg(&report)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
+    let root = conn.setup().roots[screen].root;
+    let atom = |name: &[u8]| conn.intern_atom(false, name).unwrap().reply().unwrap().atom;
+    let (protocols, delete) = (atom(b"WM_PROTOCOLS"), atom(b"WM_DELETE_WINDOW"));
+    let since = Instant::now();
+    let window = loop {
+        assert!(since.elapsed() < Duration::from_secs(90), "no window appeared");
+        assert!(child.try_wait().unwrap().is_none(), "the view ended before its window was closed");
+        let found = conn.query_tree(root).unwrap().reply().unwrap().children.into_iter().find(|&w| {
+            conn.get_property(false, w, AtomEnum::WM_NAME, AtomEnum::ANY, 0, 256)
+                .ok()
+                .and_then(|c| c.reply().ok())
+                .is_some_and(|p| String::from_utf8_lossy(&p.value).contains("voxcollide view"))
+        });
+        // Let it draw a few frames first.
+        if let Some(w) = found
+            && since.elapsed() > Duration::from_secs(3)
+        {
+            break w;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    // What a window manager sends when its close button is pressed.
+    let event = ClientMessageEvent::new(32, window, protocols, [delete, 0, 0, 0, 0]);
+    conn.send_event(false, window, EventMask::NO_EVENT, event).unwrap();
+    conn.flush().unwrap();
+    let since = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            since.elapsed() < Duration::from_secs(60),
+            "the view did not end after its window was closed"
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    };
+    let output = child.wait_with_output().unwrap();
+    let out = String::from_utf8_lossy(&output.stdout);
+    assert!(status.success(), "{status}\n{out}\n{}", String::from_utf8_lossy(&output.stderr));
+    assert!(out.contains("frames/s"), "{out}");
+    let r = json(&report);
+    assert!(r["frames"].as_u64().unwrap() > 0 && r["steps"].as_u64().unwrap() > 0, "{r}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn without_a_display_it_says_so_in_one_line_and_points_to_run() {
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .args(["view", "implant", "--frames", "1"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .unwrap();
+    assert!(!output.status.success());
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("no display") && err.contains("voxcollide run implant"), "{err}");
+    assert!(output.stdout.is_empty());
+}
+
+#[test]
+fn a_bad_scene_or_drag_is_named_before_any_window() {
+    // Neither a file nor a shipped name; a drag that does not parse: errors, no window needed.
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .args(["view", "no-such-scene", "--frames", "1"])
+        .env("DISPLAY", ":12345")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        !output.status.success() && err.contains("shipped scene") && err.contains("indentation"),
+        "{err}"
+    );
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .args(["view", "implant", "--drag", "1,2 -> 3 over 2 frames"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && err.contains("x0,y0 -> x1,y1 over N frames"), "{err}");
+}
