@@ -630,14 +630,14 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // An expander's schedule runs within the run: a settling run would stop at a pause.
     let end = steps as f64 * f64::from(dt);
     for (k, b) in file.bodies.iter().enumerate() {
-        if let Some(&[t, _]) = b.inflate.as_ref().and_then(|i| i.schedule.last()) {
-            if t > end * (1.0 + 1e-9) {
-                return Err(file.body_error(
-                    k,
-                    "inflate.schedule",
-                    format!("its last fill is at {t} s, after the run's {end} s: lengthen [time] duration"),
-                ));
-            }
+        if let Some(&[t, _]) = b.inflate.as_ref().and_then(|i| i.schedule.last())
+            && t > end * (1.0 + 1e-9)
+        {
+            return Err(file.body_error(
+                k,
+                "inflate.schedule",
+                format!("its last fill is at {t} s, after the run's {end} s: lengthen [time] duration"),
+            ));
         }
     }
     let extent = bodies
