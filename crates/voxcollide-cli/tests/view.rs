@@ -217,28 +217,11 @@ fn a_dragged_instrument_moves_the_dent_in_the_picture_and_the_numbers() {
     std::fs::remove_dir_all(&d).unwrap();
 }
 
-#[test]
-fn closing_the_window_ends_the_view_cleanly() {
-    use x11rb::connection::Connection;
-    use x11rb::protocol::xproto::{AtomEnum, ClientMessageEvent, ConnectionExt, EventMask};
-
-    let Some(x) = Xvfb::start() else { return };
-    let d = dir("close");
-    let report = d.join("report.json");
-    // Interactive: no --frames, so only a close ends it.
-    let mut child = x
-        .view(&["implant", "--report"])
-        .arg(&report)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
-    let root = conn.setup().roots[screen].root;
-    let atom = |name: &[u8]| conn.intern_atom(false, name).unwrap().reply().unwrap().atom;
-    let (protocols, delete) = (atom(b"WM_PROTOCOLS"), atom(b"WM_DELETE_WINDOW"));
+/// The first top-level window whose name says `voxcollide view`, once it has drawn for a while.
+fn find_window(conn: &impl x11rb::connection::Connection, root: u32, child: &mut Child) -> u32 {
+    use x11rb::protocol::xproto::{AtomEnum, ConnectionExt};
     let since = Instant::now();
-    let window = loop {
+    loop {
         assert!(since.elapsed() < Duration::from_secs(90), "no window appeared");
         assert!(child.try_wait().unwrap().is_none(), "the view ended before its window was closed");
         let found = conn.query_tree(root).unwrap().reply().unwrap().children.into_iter().find(|&w| {
@@ -251,11 +234,18 @@ fn closing_the_window_ends_the_view_cleanly() {
         if let Some(w) = found
             && since.elapsed() > Duration::from_secs(3)
         {
-            break w;
+            return w;
         }
         std::thread::sleep(Duration::from_millis(200));
-    };
-    // What a window manager sends when its close button is pressed.
+    }
+}
+
+/// Asks `window` to close as a window manager does when its close button is pressed, and waits
+/// for the view to end cleanly: its stdout.
+fn close(conn: &impl x11rb::connection::Connection, window: u32, mut child: Child) -> String {
+    use x11rb::protocol::xproto::{ClientMessageEvent, ConnectionExt, EventMask};
+    let atom = |name: &[u8]| conn.intern_atom(false, name).unwrap().reply().unwrap().atom;
+    let (protocols, delete) = (atom(b"WM_PROTOCOLS"), atom(b"WM_DELETE_WINDOW"));
     let event = ClientMessageEvent::new(32, window, protocols, [delete, 0, 0, 0, 0]);
     conn.send_event(false, window, EventMask::NO_EVENT, event).unwrap();
     conn.flush().unwrap();
@@ -271,8 +261,97 @@ fn closing_the_window_ends_the_view_cleanly() {
         std::thread::sleep(Duration::from_millis(100));
     };
     let output = child.wait_with_output().unwrap();
-    let out = String::from_utf8_lossy(&output.stdout);
+    let out = String::from_utf8_lossy(&output.stdout).into_owned();
     assert!(status.success(), "{status}\n{out}\n{}", String::from_utf8_lossy(&output.stderr));
+    out
+}
+
+#[test]
+fn keys_and_the_mouse_steer_the_view() {
+    use x11rb::connection::Connection;
+    use x11rb::protocol::xproto::{BUTTON_PRESS_EVENT, BUTTON_RELEASE_EVENT, ConnectionExt, KEY_PRESS_EVENT};
+    use x11rb::protocol::xproto::{InputFocus, KEY_RELEASE_EVENT, MOTION_NOTIFY_EVENT};
+    use x11rb::protocol::xtest::ConnectionExt as _;
+
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("keys");
+    let (report, first) = (d.join("report.json"), d.join("first.json"));
+    // The camera it starts with.
+    ok(x.view(&["implant", "--frames", "1", "--report"]).arg(&first).output().unwrap());
+    let start = json(&first)["camera"].clone();
+    let mut child = x
+        .view(&["implant", "--report"])
+        .arg(&report)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
+    let root = conn.setup().roots[screen].root;
+    let window = find_window(&conn, root, &mut child);
+    let corner = conn.translate_coordinates(window, root, 0, 0).unwrap().reply().unwrap();
+    let (cx, cy) = (corner.dst_x + 480, corner.dst_y + 320);
+    let (min, max) = (conn.setup().min_keycode, conn.setup().max_keycode);
+    let map = conn.get_keyboard_mapping(min, max - min + 1).unwrap().reply().unwrap();
+    let per = usize::from(map.keysyms_per_keycode);
+    let keycode = |keysym: u32| {
+        let i = map.keysyms.iter().position(|&k| k == keysym).expect("the key is mapped");
+        min + (i / per) as u8
+    };
+    let fake = |kind: u8, detail: u8, x: i16, y: i16| {
+        conn.xtest_fake_input(kind, detail, 0, root, x, y, 0).unwrap();
+        conn.flush().unwrap();
+        std::thread::sleep(Duration::from_millis(150));
+    };
+    // The pointer into the window, and the keyboard's focus on it (a window manager's job).
+    fake(MOTION_NOTIFY_EVENT, 0, cx, cy);
+    conn.set_input_focus(InputFocus::PARENT, window, x11rb::CURRENT_TIME).unwrap();
+    conn.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    // c: colouring by contact force; space: pause.
+    for key in [0x63, 0x20] {
+        fake(KEY_PRESS_EVENT, keycode(key), 0, 0);
+        fake(KEY_RELEASE_EVENT, keycode(key), 0, 0);
+    }
+    // A drag (the implant scene has no instrument, so it orbits), then the wheel (zoom in).
+    fake(BUTTON_PRESS_EVENT, 1, 0, 0);
+    for step in 1..=5 {
+        fake(MOTION_NOTIFY_EVENT, 0, cx + 30 * step, cy + 6 * step);
+    }
+    fake(BUTTON_RELEASE_EVENT, 1, 0, 0);
+    for _ in 0..3 {
+        fake(BUTTON_PRESS_EVENT, 4, 0, 0);
+        fake(BUTTON_RELEASE_EVENT, 4, 0, 0);
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    close(&conn, window, child);
+    let r = json(&report);
+    assert_eq!((r["colouring"].as_str(), r["paused"].as_bool()), (Some("force"), Some(true)), "{r}");
+    let camera = &r["camera"];
+    let at = |c: &Value, k: usize| c[k].as_f64().unwrap();
+    assert!((at(camera, 0) - at(&start, 0)).abs() > 0.3, "the drag did not orbit: {camera} from {start}");
+    assert!((at(camera, 1) - at(&start, 1)).abs() > 0.05, "{camera} from {start}");
+    assert!(at(camera, 2) < 0.8 * at(&start, 2), "the wheel did not zoom in: {camera} from {start}");
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn closing_the_window_ends_the_view_cleanly() {
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("close");
+    let report = d.join("report.json");
+    // Interactive: no --frames, so only a close ends it.
+    let mut child = x
+        .view(&["implant", "--report"])
+        .arg(&report)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
+    let root = x11rb::connection::Connection::setup(&conn).roots[screen].root;
+    let window = find_window(&conn, root, &mut child);
+    let out = close(&conn, window, child);
     assert!(out.contains("frames/s"), "{out}");
     let r = json(&report);
     assert!(r["frames"].as_u64().unwrap() > 0 && r["steps"].as_u64().unwrap() > 0, "{r}");

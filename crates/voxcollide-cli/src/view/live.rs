@@ -917,6 +917,12 @@ impl Live {
             units: self.units.clone(),
             dragged: self.dragged,
             instruments: self.instruments.clone(),
+            paused: self.paused,
+            colouring: match self.colouring {
+                Colouring::Displacement => "displacement".into(),
+                Colouring::ContactForce => "force".into(),
+            },
+            camera: [self.orbit.yaw, self.orbit.pitch, self.orbit.distance],
             screenshot: self.screenshot.clone().filter(|_| !self.picture.is_empty()),
         }
     }

@@ -101,6 +101,12 @@ pub struct ViewReport {
     pub instruments: Vec<(String, [f32; 2])>,
     /// The screenshot written, if any.
     pub screenshot: Option<PathBuf>,
+    /// Whether it was paused at the end.
+    pub paused: bool,
+    /// The colouring at the end: `"displacement"` or `"force"`.
+    pub colouring: String,
+    /// The camera at the end: its yaw and pitch (radians) and its distance from what it orbits.
+    pub camera: [f32; 3],
 }
 
 /// The scene `name` names: a file if one is there, else a shipped scene.
