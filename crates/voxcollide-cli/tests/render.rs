@@ -767,3 +767,59 @@ fn render_png_with_legend_writes_the_picture_with_its_legend() {
     let bad = renderer.render_png_with_legend(&s, Some(&Legend::new("x", (0.0, f32::NAN))), &path);
     assert!(matches!(bad, Err(Error::Invalid { what: "legend range", .. })), "{bad:?}");
 }
+
+#[test]
+fn a_fixed_eye_at_the_framing_eye_draws_the_framed_picture_and_moves_with_it() {
+    // A live view starts its camera where `render` frames the scene: the same picture (within
+    // the depth range's rounding at a few edge pixels). Moving the eye back shrinks the sphere;
+    // one sample draws the same shapes without smoothed edges.
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (240, 200);
+    let ball = sphere(Vec3::new(3.0, -1.0, 2.0), 1.0, 32, 64);
+    let view_dir = Vec3::new(0.3, 1.0, -0.4);
+    let s = scene(vec![ball.mesh(true, [1.0; 3])], (-1.0, 1.0), view_dir);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    let framed = renderer.render(&s).unwrap();
+    let eye =
+        voxcollide_cli::render::framing_eye(&ball.positions, view_dir, Vec3::Y, w as f32 / h as f32).unwrap();
+    let fixed = renderer.render_from(&s, Some(eye)).unwrap();
+    let differ = framed
+        .chunks(4)
+        .zip(fixed.chunks(4))
+        .filter(|(a, b)| a.iter().zip(*b).any(|(x, y)| x.abs_diff(*y) > 2))
+        .count();
+    assert!(differ < 100, "{differ} pixels differ between the framed camera and its eye");
+    let covered = |rgba: &[u8]| rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count();
+    let back = renderer.render_from(&s, Some(eye - 2.0 * (Vec3::new(3.0, -1.0, 2.0) - eye))).unwrap();
+    assert!(covered(&back) * 4 < covered(&fixed), "{} vs {}", covered(&back), covered(&fixed));
+    let mut fast = Renderer::fast(&ctx, w, h).unwrap();
+    let one = fast.render_from(&s, Some(eye)).unwrap();
+    let (a, b) = (covered(&one) as f64, covered(&fixed) as f64);
+    assert!((a / b - 1.0).abs() < 0.03, "{a} vs {b} pixels covered");
+    assert!(matches!(renderer.render_from(&s, Some(Vec3::NAN)), Err(Error::Invalid { what: "eye", .. })));
+}
+
+#[test]
+fn a_caption_draws_its_lines_on_a_panel_at_the_top_left() {
+    let (w, h) = (320u32, 200u32);
+    let mut rgba = vec![BACKGROUND; (4 * w * h) as usize];
+    let lines = ["120 steps/s  30.0 frames/s".to_string(), "behind real time: 0.50x".to_string()];
+    let panel = voxcollide_cli::render::draw_caption(&mut rgba, w, h, &lines).unwrap().expect("it fits");
+    assert_eq!((panel.x, panel.y), (6, 6));
+    assert_eq!(panel.width, 8 * lines[0].len() as u32 + 8, "the longer line's glyphs and the padding");
+    let dark =
+        (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).filter(|&(x, y)| pixel(&rgba, w, x, y)[0] < 60);
+    let dark: Vec<(u32, u32)> = dark.collect();
+    assert!(dark.len() > 200, "{} text pixels", dark.len());
+    assert!(dark.iter().all(|&(x, y)| panel.contains(x, y)), "text outside its panel");
+    // A long line is cut at the picture's edge; a picture too small for one glyph gets nothing.
+    let long = vec!["x".repeat(500)];
+    let cut = voxcollide_cli::render::draw_caption(&mut rgba, w, h, &long).unwrap().unwrap();
+    assert!(cut.x + cut.width <= w);
+    let mut tiny = vec![0u8; 4 * 10 * 10];
+    assert_eq!(voxcollide_cli::render::draw_caption(&mut tiny, 10, 10, &long).unwrap(), None);
+    assert!(
+        voxcollide_cli::render::draw_caption(&mut tiny, 11, 10, &long).is_err(),
+        "a wrong length is an error"
+    );
+}
