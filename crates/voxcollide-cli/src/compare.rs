@@ -42,6 +42,9 @@ pub struct CompareConfig {
     pub backend: Backend,
     /// Picture size.
     pub image: (u32, u32),
+    /// Candidates run at a time; 0 picks: on the CPU backend one per core (each stepping on
+    /// one thread), else one (candidates share the adapter).
+    pub jobs: usize,
 }
 
 /// One candidate's result, as in `compare.json` (DESIGN §9's keys first).
@@ -195,6 +198,8 @@ pub struct Progress<'a> {
     pub done: u64,
     /// Steps planned.
     pub planned: u64,
+    /// Whether the candidate's run is over (its last call).
+    pub finished: bool,
 }
 
 /// Runs every candidate of `config`'s catalogue through its scene and writes the report,
@@ -271,69 +276,212 @@ pub fn compare(
 
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let (ctx, _) = crate::scenario::context(config.backend, true, note)?;
-    let mut renderer = match &ctx {
-        Some(ctx) => Some(Renderer::new(ctx, config.image.0, config.image.1)?),
-        None => None,
-    };
     let units = scene.units.symbol().to_string();
+    let count = runs.len();
+    // A software adapter steps on the same cores the CPU backend does, slower (about 7 times
+    // for the shipped comparison on lavapipe): there the candidates step on the CPU, one per
+    // core, and the adapter only draws.
+    let backend = match (config.backend, ctx.as_ref().and_then(|c| c.adapter_info())) {
+        (Backend::Auto, Some(info)) if info.device_type == wgpu::DeviceType::Cpu => {
+            note(&format!(
+                "{} is a software adapter: the candidates step on the CPU, which is faster there, and it draws their pictures (--backend gpu steps on it)",
+                info.name
+            ));
+            Backend::Cpu
+        }
+        (b, _) => b,
+    };
+    let jobs = match config.jobs {
+        0 if backend == Backend::Cpu => {
+            std::thread::available_parallelism().map_or(1, std::num::NonZero::get).min(count)
+        }
+        0 => 1,
+        n => n.min(count),
+    };
+    let shared = Shared {
+        config,
+        backend,
+        body,
+        tissue: &tissue,
+        metres: scene.metres(),
+        units: &units,
+        ctx: ctx.as_ref(),
+        count,
+    };
+    let mut results: Vec<Option<Result<CandidateResult, Error>>> = (0..count).map(|_| None).collect();
+    if jobs <= 1 {
+        let mut renderer = None;
+        for (k, run) in runs.into_iter().enumerate() {
+            let name = run.0.name.clone();
+            let mut step = |done, planned| {
+                progress(Progress { index: k, count, name: &name, done, planned, finished: false });
+            };
+            let result = run_candidate(&shared, k, run, &mut renderer, &mut step, note)?;
+            let steps = result.steps;
+            progress(Progress { index: k, count, name: &name, done: steps, planned: steps, finished: true });
+            results[k] = Some(Ok(result));
+        }
+    } else {
+        note(&format!("{jobs} candidates at a time"));
+        let names: Vec<String> = runs.iter().map(|r| r.0.name.clone()).collect();
+        run_concurrently(&shared, runs, jobs, &mut |message| match message {
+            Message::Progress(k, done, planned, finished) => {
+                progress(Progress { index: k, count, name: &names[k], done, planned, finished });
+            }
+            Message::Note(line) => note(&line),
+            Message::Done(k, result) => results[k] = Some(result),
+        });
+    }
     let mut comparison = Comparison {
         scene: config.scene.display().to_string(),
         body: config.body.clone(),
         units: units.clone(),
-        candidates: Vec::new(),
+        candidates: Vec::with_capacity(count),
     };
-    let count = runs.len();
-    for (k, (c, volume, mut s, built)) in runs.into_iter().enumerate() {
-        // Frames for the metrics over time; compare draws its own pictures.
-        s.output.frames = s.output.frames.max(HISTORY_FRAMES);
-        s.output.images = false;
-        note(&format!("candidate {}/{count}: {} ({volume:.0} mL)", k + 1, c.name));
-        let folder = c.folder();
-        let run_config = FileRunConfig {
-            path: config.scene.clone(),
-            backend: config.backend,
-            out: config.out.join(&folder),
-            image: config.image,
-        };
-        let mut result = CandidateResult {
-            name: c.name.clone(),
-            target_volume_ml: volume,
-            folder: folder.clone(),
-            ..CandidateResult::default()
-        };
-        let metres = scene.metres();
-        let summary = run_scene(
-            &s,
-            built,
-            &run_config,
-            &mut |done, planned| progress(Progress { index: k, count, name: &c.name, done, planned }),
-            &mut |_| {},
-            &mut |world, reports, at| {
-                result.history.push(sample(world, reports, body, &tissue, metres, at.time));
-                if at.last {
-                    measure_end(world, reports, body, &tissue, metres, &mut result);
-                    if let Some(r) = renderer.as_mut() {
-                        result.pictures = pictures(r, world, body, &tissue, &config.out, &folder, &units)?;
-                    }
-                }
-                Ok(())
-            },
-        )?;
-        result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
-        result.max_tissue_displacement =
-            tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);
-        result.max_penetration = summary
-            .contacts
-            .iter()
-            .filter(|c| c.a == config.body || c.b == config.body)
-            .map(|c| c.max_penetration)
-            .fold(0.0, f32::max);
-        result.settled = summary.settled;
-        result.steps = summary.steps;
-        comparison.candidates.push(result);
+    for result in results {
+        match result {
+            Some(r) => comparison.candidates.push(r?),
+            // A candidate not run because another failed first: that error was returned above.
+            None => {
+                return Err(Error::Invalid {
+                    what: "compare",
+                    value: "candidates".into(),
+                    rule: "a candidate was not run".into(),
+                });
+            }
+        }
     }
     write_outputs(&comparison, &config.out)?;
     Ok(comparison)
+}
+
+/// One candidate's run as it was built: the candidate, its own volume, its scene and world.
+type Run<'a> = (&'a Candidate, f64, SceneFile, voxcollide_sim::build::Built);
+
+/// What every candidate's run shares.
+struct Shared<'a> {
+    config: &'a CompareConfig,
+    /// Where the candidates step.
+    backend: Backend,
+    body: usize,
+    tissue: &'a [usize],
+    metres: f64,
+    units: &'a str,
+    ctx: Option<&'a voxcollide::GpuContext>,
+    count: usize,
+}
+
+/// What a worker of [`run_concurrently`] tells the thread that called `compare`.
+enum Message {
+    Progress(usize, u64, u64, bool),
+    Note(String),
+    Done(usize, Result<CandidateResult, Error>),
+}
+
+/// Runs `runs` on `jobs` threads, each taking the next candidate when it is free, and passes
+/// their messages to `on` on this thread as they come. On the CPU backend each worker steps on
+/// one thread of its own: the candidates are the parallelism, not each small world's step. A
+/// failed candidate stops the others from starting new ones.
+fn run_concurrently(shared: &Shared<'_>, runs: Vec<Run<'_>>, jobs: usize, on: &mut dyn FnMut(Message)) {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let queue = std::sync::Mutex::new(runs.into_iter().enumerate());
+    let failed = AtomicBool::new(false);
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::scope(|scope| {
+        for _ in 0..jobs {
+            let tx = tx.clone();
+            let (queue, failed) = (&queue, &failed);
+            scope.spawn(move || {
+                let pool = (shared.backend == Backend::Cpu)
+                    .then(|| rayon::ThreadPoolBuilder::new().num_threads(1).build().ok())
+                    .flatten();
+                let mut renderer = None;
+                while !failed.load(Ordering::SeqCst) {
+                    let Some((k, run)) = queue.lock().ok().and_then(|mut q| q.next()) else { break };
+                    let work = || {
+                        let mut step = |done, planned| {
+                            let _ = tx.send(Message::Progress(k, done, planned, false));
+                        };
+                        let mut note = |line: &str| {
+                            let _ = tx.send(Message::Note(line.to_string()));
+                        };
+                        run_candidate(shared, k, run, &mut renderer, &mut step, &mut note)
+                    };
+                    let result = match &pool {
+                        Some(pool) => pool.install(work),
+                        None => work(),
+                    };
+                    if let Ok(r) = &result {
+                        let _ = tx.send(Message::Progress(k, r.steps, r.steps, true));
+                    } else {
+                        failed.store(true, Ordering::SeqCst);
+                    }
+                    let _ = tx.send(Message::Done(k, result));
+                }
+            });
+        }
+        drop(tx);
+        for message in rx {
+            on(message);
+        }
+    });
+}
+
+/// Runs candidate `k` through its scene and measures it, drawing its pictures with `renderer`
+/// (made on the shared adapter the first time it is needed).
+fn run_candidate(
+    shared: &Shared<'_>,
+    k: usize,
+    (c, volume, mut s, built): Run<'_>,
+    renderer: &mut Option<Renderer>,
+    progress: &mut dyn FnMut(u64, u64),
+    note: &mut dyn FnMut(&str),
+) -> Result<CandidateResult, Error> {
+    let Shared { config, backend, body, tissue, metres, units, ctx, count } = *shared;
+    // Frames for the metrics over time; compare draws its own pictures.
+    s.output.frames = s.output.frames.max(HISTORY_FRAMES);
+    s.output.images = false;
+    note(&format!("candidate {}/{count}: {} ({volume:.0} mL)", k + 1, c.name));
+    if renderer.is_none()
+        && let Some(ctx) = ctx
+    {
+        *renderer = Some(Renderer::new(ctx, config.image.0, config.image.1)?);
+    }
+    let folder = c.folder();
+    let run_config = FileRunConfig {
+        path: config.scene.clone(),
+        backend,
+        out: config.out.join(&folder),
+        image: config.image,
+    };
+    let mut result = CandidateResult {
+        name: c.name.clone(),
+        target_volume_ml: volume,
+        folder: folder.clone(),
+        ..CandidateResult::default()
+    };
+    let summary = run_scene(&s, built, &run_config, progress, &mut |_| {}, &mut |world, reports, at| {
+        result.history.push(sample(world, reports, body, tissue, metres, at.time));
+        if at.last {
+            measure_end(world, reports, body, tissue, metres, &mut result);
+            if let Some(r) = renderer.as_mut() {
+                result.pictures = pictures(r, world, body, tissue, &config.out, &folder, units)?;
+            }
+        }
+        Ok(())
+    })?;
+    result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
+    result.max_tissue_displacement =
+        tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);
+    result.max_penetration = summary
+        .contacts
+        .iter()
+        .filter(|c| c.a == config.body || c.b == config.body)
+        .map(|c| c.max_penetration)
+        .fold(0.0, f32::max);
+    result.settled = summary.settled;
+    result.steps = summary.steps;
+    Ok(result)
 }
 
 /// Frames at least, over the schedule, for the metrics over time.
@@ -700,8 +848,8 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
 <html lang="en"><head><meta charset="utf-8"><title>Implant comparison: {scene}</title>
 <style>
 body {{ font-family: sans-serif; margin: 2em; color: #222; }}
-table {{ border-collapse: collapse; }} th, td {{ border: 1px solid #bbb; padding: 0.3em 0.6em; text-align: right; }}
-th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; }} img {{ max-width: 480px; }}
+table {{ border-collapse: collapse; font-size: 0.85em; }} th, td {{ border: 1px solid #bbb; padding: 0.25em 0.45em; text-align: right; }}
+th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
 </style></head>
 <body>
 <h1>Implant comparison</h1>

@@ -84,6 +84,10 @@ struct CompareArgs {
     /// Picture size, WIDTHxHEIGHT.
     #[arg(long, default_value = "640x420", value_parser = parse_size)]
     image: (u32, u32),
+    /// Candidates run at a time; 0: one per core on the CPU backend (each on one thread), else
+    /// one.
+    #[arg(long, default_value_t = 0)]
+    jobs: usize,
 }
 
 #[derive(clap::Args, Debug)]
@@ -445,6 +449,7 @@ fn compare(args: &CompareArgs) -> ExitCode {
         out: args.out.clone(),
         backend: backend_of(args.backend),
         image: args.image,
+        jobs: args.jobs,
     };
     let bars = indicatif::MultiProgress::new();
     let style = |template: &str| {
@@ -455,22 +460,30 @@ fn compare(args: &CompareArgs) -> ExitCode {
     let whole = bars.add(ProgressBar::new(0));
     whole.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} candidates  {elapsed}"));
     whole.set_prefix("all");
-    let current = bars.add(ProgressBar::new(1));
-    current.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} steps  {per_sec}  {msg}"));
-    let mut at = usize::MAX;
+    // A bar per candidate while it runs (several at once with --jobs).
+    let mut running: std::collections::HashMap<usize, ProgressBar> = std::collections::HashMap::new();
+    let mut finished = 0u64;
     let result = voxcollide_cli::compare::compare(
         &config,
         &mut |p| {
-            if p.index != at {
-                at = p.index;
-                whole.set_length(p.count as u64);
-                whole.set_position(p.index as u64);
-                current.reset();
-                current.set_prefix(format!("{}/{}", p.index + 1, p.count));
-                current.set_message(p.name.to_string());
+            whole.set_length(p.count as u64);
+            let bar = running.entry(p.index).or_insert_with(|| {
+                let bar = bars.add(ProgressBar::new(1));
+                bar.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} steps  {per_sec}  {msg}"));
+                bar.set_prefix(format!("{}/{}", p.index + 1, p.count));
+                bar.set_message(p.name.to_string());
+                bar
+            });
+            bar.set_length(p.planned.max(p.done));
+            bar.set_position(p.done);
+            if p.finished {
+                if let Some(bar) = running.remove(&p.index) {
+                    bar.finish_and_clear();
+                    bars.remove(&bar);
+                }
+                finished += 1;
+                whole.set_position(finished);
             }
-            current.set_length(p.planned.max(p.done));
-            current.set_position(p.done);
         },
         &mut |line| {
             if whole.is_hidden() {
@@ -481,7 +494,9 @@ fn compare(args: &CompareArgs) -> ExitCode {
         },
     );
     whole.finish_and_clear();
-    current.finish_and_clear();
+    for bar in running.values() {
+        bar.finish_and_clear();
+    }
     match result {
         Ok(c) => {
             let w = c.candidates.iter().map(|r| r.name.chars().count()).max().unwrap_or(0).max(9);
