@@ -102,15 +102,27 @@ fn the_screenshot_shows_the_bodies_their_legend_and_the_heads_up_line() {
     let Some(x) = Xvfb::start() else { return };
     let d = dir("shot");
     let (shot, report) = (d.join("implant.png"), d.join("report.json"));
-    // The paper's implant scene, its implant filled over 4 s: 20 frames of 40 steps (3.9 s).
+    // The paper's implant scene, its implant filled over 4 s: 20 frames of 40 steps (3.9 s),
+    // stepped on the GPU (`auto` steps on the CPU when the adapter is a software one).
     let out = ok(x
-        .view(&["implant", "--size", "640x420", "--frames", "20", "--steps-per-frame", "40"])
+        .view(&[
+            "implant",
+            "--backend",
+            "gpu",
+            "--size",
+            "640x420",
+            "--frames",
+            "20",
+            "--steps-per-frame",
+            "40",
+        ])
         .args(["--screenshot".as_ref(), shot.as_os_str(), "--report".as_ref(), report.as_os_str()])
         .output()
         .unwrap());
     assert!(out.contains("20 frames in") && out.contains("frames/s"), "{out}");
     let r = json(&report);
     assert_eq!((r["frames"].as_u64(), r["steps"].as_u64()), (Some(20), Some(800)), "{r}");
+    assert_eq!(r["backend"], "gpu");
     assert!(r["frames_per_second"].as_f64().unwrap() > 0.0);
     let tissue = r["max_displacement"][0][1].as_f64().unwrap();
     assert!(tissue > 0.05, "the implant lifted the tissue {tissue} m");

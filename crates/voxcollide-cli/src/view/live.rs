@@ -29,8 +29,11 @@ use crate::scene_run::{meshes, shown_and_moved};
 /// The blit's WGSL (`vs_main`, `fs_main`).
 pub const BLIT_SHADER: &str = include_str!("../../shaders/blit.wgsl");
 
-/// Seconds of stepping a frame may spend, so that drawing still makes 30 frames a second.
-const STEP_BUDGET: f64 = 0.018;
+/// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. A
+/// frame's stepping gets what drawing leaves of it, within the bounds below.
+const FRAME_TARGET: f64 = 1.0 / 40.0;
+/// The least and the most a frame may spend stepping, seconds.
+const STEP_BUDGET: (f64, f64) = (0.002, 0.030);
 /// The farthest a dragged body moves in one step, as a share of the scene's size: far below
 /// the speed a blow-up is taken at (a tenth of the scene a step).
 const DRAG_PER_STEP: f32 = 0.002;
@@ -441,6 +444,8 @@ struct Live {
     displacement: Vec<f32>,
     displacement_centre: Vec<[f32; 3]>,
     picture: Vec<u8>,
+    /// Seconds a frame's measuring and drawing took lately (a running mean).
+    draw_time: f64,
     screenshot: Option<std::path::PathBuf>,
     dt: f64,
 }
@@ -461,7 +466,7 @@ impl Live {
             value: e.to_string(),
             rule: "the display refused to open one".into(),
         })?);
-        let (surface, adapter) = surface_and_adapter(window.clone())?;
+        let (surface, adapter) = surface_and_adapter(event_loop, window.clone())?;
         let info = adapter.get_info();
         let adapter_name = format!("{} ({:?}, {:?})", info.name, info.backend, info.device_type);
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
@@ -493,12 +498,19 @@ impl Live {
                 });
             }
             Backend::Gpu => true,
-            Backend::Auto => {
-                if !computes {
-                    note(&format!("{adapter_name} has no compute shaders: stepping on the CPU"));
-                }
-                computes
+            Backend::Auto if !computes => {
+                note(&format!("{adapter_name} has no compute shaders: stepping on the CPU"));
+                false
             }
+            // A software adapter draws on the same cores the CPU backend steps on, and steps
+            // slower than it: there the CPU steps and the adapter only draws.
+            Backend::Auto if info.device_type == wgpu::DeviceType::Cpu => {
+                note(&format!(
+                    "{adapter_name} is a software adapter: stepping on the CPU, which is faster there (--backend gpu steps on it)"
+                ));
+                false
+            }
+            Backend::Auto => true,
         };
         let world = &built.world;
         let extent = world
@@ -546,7 +558,8 @@ impl Live {
             step_once: false,
             colouring: config.colouring,
             force_scale: 0.0,
-            pacing: Pacing::new(f64::from(built.dt), STEP_BUDGET),
+            pacing: Pacing::new(f64::from(built.dt), STEP_BUDGET.0),
+            draw_time: 0.0,
             steps_per_frame: config.steps_per_frame,
             pointer: (0.0, 0.0),
             left: false,
@@ -749,6 +762,7 @@ impl Live {
         if let (Some(message), Some(_)) = (&self.broken, self.frames_wanted) {
             return Err(Error::Simulation { step: self.steps, message: message.clone() });
         }
+        let drawing = Instant::now();
         self.measure(world, &reports);
         if self.frames == 0 {
             let (w, h) = (self.surface_config.width, self.surface_config.height);
@@ -762,6 +776,9 @@ impl Live {
             }
         }
         self.draw(world, &reports)?;
+        let took = drawing.elapsed().as_secs_f64();
+        self.draw_time = if self.draw_time > 0.0 { 0.8 * self.draw_time + 0.2 * took } else { took };
+        self.pacing.budget = (FRAME_TARGET - self.draw_time).clamp(STEP_BUDGET.0, STEP_BUDGET.1);
         self.frames += 1;
         Ok(self.frames_wanted.is_some_and(|n| self.frames >= n))
     }
@@ -949,16 +966,21 @@ fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32>
 
 /// A surface on `window` and an adapter that can present to it and draw: the native backends
 /// first (or `WGPU_BACKEND`'s), then the others.
-fn surface_and_adapter(window: Arc<Window>) -> Result<(wgpu::Surface<'static>, wgpu::Adapter), Error> {
+fn surface_and_adapter(
+    event_loop: &ActiveEventLoop,
+    window: Arc<Window>,
+) -> Result<(wgpu::Surface<'static>, wgpu::Adapter), Error> {
     let searches = match wgpu::Backends::from_env() {
         Some(b) => vec![b],
         None => vec![wgpu::Backends::PRIMARY, wgpu::Backends::all()],
     };
     let mut why = Vec::new();
     for backends in searches {
+        // The display connection, which GL (EGL) needs to present on X11 and Wayland.
+        let display = Box::new(event_loop.owned_display_handle());
         let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
             backends,
-            ..wgpu::InstanceDescriptor::new_without_display_handle_from_env()
+            ..wgpu::InstanceDescriptor::new_with_display_handle_from_env(display)
         });
         let surface = match instance.create_surface(window.clone()) {
             Ok(s) => s,
