@@ -409,14 +409,7 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
             });
         }
     }
-    let needed = 4 * u64::from(width) * u64::from(height);
-    if rgba.len() as u64 != needed {
-        return Err(Error::Invalid {
-            what: "rgba length",
-            value: rgba.len().to_string(),
-            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
-        });
-    }
+    check_rgba(rgba, width, height)?;
     let io = |message: String| Error::Io { path: path.display().to_string(), message };
     let file = std::fs::File::create(path).map_err(|e| io(e.to_string()))?;
     let mut encoder = png::Encoder::new(std::io::BufWriter::new(file), width, height);
@@ -528,14 +521,7 @@ pub fn draw_legend(
     height: u32,
     legend: &Legend,
 ) -> Result<Option<PixelRect>, Error> {
-    let needed = 4 * u64::from(width) * u64::from(height);
-    if rgba.len() as u64 != needed {
-        return Err(Error::Invalid {
-            what: "rgba length",
-            value: rgba.len().to_string(),
-            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
-        });
-    }
+    check_rgba(rgba, width, height)?;
     if !legend.lo.is_finite() || !legend.hi.is_finite() {
         return Err(Error::Invalid {
             what: "legend range",
@@ -1137,6 +1123,19 @@ pub fn framing_eye(points: &[Vec3], view_dir: Vec3, up: Vec3, aspect: f32) -> Op
     (!points.is_empty() && camera.eye.is_finite()).then(|| camera.eye.as_vec3())
 }
 
+/// [`Error::Invalid`] unless `rgba` is `width * height * 4` bytes.
+fn check_rgba(rgba: &[u8], width: u32, height: u32) -> Result<(), Error> {
+    let needed = 4 * u64::from(width) * u64::from(height);
+    if rgba.len() as u64 != needed {
+        return Err(Error::Invalid {
+            what: "rgba length",
+            value: rgba.len().to_string(),
+            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
+        });
+    }
+    Ok(())
+}
+
 /// Draws `lines` of text in the top-left corner of `rgba` (RGBA8, sRGB-encoded, as
 /// [`Renderer::render`] returns it) on the legend's light panel, in its 8×8 font at its scale
 /// for the picture's size; a line too long is cut at the picture's edge. Returns the panel, or
@@ -1150,14 +1149,7 @@ pub fn draw_caption(
     height: u32,
     lines: &[String],
 ) -> Result<Option<PixelRect>, Error> {
-    let needed = 4 * u64::from(width) * u64::from(height);
-    if rgba.len() as u64 != needed {
-        return Err(Error::Invalid {
-            what: "rgba length",
-            value: rgba.len().to_string(),
-            rule: format!("must be width × height × 4 = {needed} for {width} × {height}"),
-        });
-    }
+    check_rgba(rgba, width, height)?;
     let scale = (width.min(height) / SCALE_STEP).clamp(1, MAX_SCALE);
     let [glyph, margin, pad] = [GLYPH, LEGEND_MARGIN, LEGEND_PAD].map(|u| u * scale);
     let Some(room) = width.checked_sub(2 * (margin + pad)).map(|w| (w / glyph) as usize) else {

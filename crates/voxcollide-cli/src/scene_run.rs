@@ -112,20 +112,30 @@ pub struct FileRunConfig {
     pub image: (u32, u32),
 }
 
-enum Run {
+/// A world stepping on either backend (a scene file's run, a live view).
+pub(crate) enum Run {
     Cpu(Box<CpuWorld>),
     Gpu(Box<GpuWorld>),
 }
 
 impl Run {
-    fn step(&mut self) -> Result<(), Error> {
+    /// `world` on `ctx`'s device, or on the CPU without one.
+    pub(crate) fn new(ctx: Option<&voxcollide::GpuContext>, world: World) -> Result<Run, Error> {
+        Ok(match ctx {
+            Some(ctx) => Run::Gpu(Box::new(GpuWorld::new(ctx, world)?)),
+            None => Run::Cpu(Box::new(CpuWorld::new(world)?)),
+        })
+    }
+
+    pub(crate) fn step(&mut self) -> Result<(), Error> {
         match self {
             Run::Cpu(w) => w.step(),
             Run::Gpu(w) => w.step(),
         }
     }
 
-    fn frame(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
+    /// The world as it is now (read back from the device), and the last step's contact reports.
+    pub(crate) fn frame(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
         match self {
             Run::Cpu(w) => Ok((&w.world, w.reports.clone())),
             Run::Gpu(w) => {
@@ -202,13 +212,11 @@ pub fn run_scene(
     let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
     let (mut run, backend, adapter) = match (config.backend, &ctx) {
         (Backend::Cpu, _) | (Backend::Auto, None) => (
-            Run::Cpu(Box::new(CpuWorld::new(built.world.clone())?)),
+            Run::new(None, built.world.clone())?,
             "cpu",
             ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
         ),
-        (_, Some(ctx)) => {
-            (Run::Gpu(Box::new(GpuWorld::new(ctx, built.world.clone())?)), "gpu", ctx.adapter_name())
-        }
+        (_, Some(ctx)) => (Run::new(Some(ctx), built.world.clone())?, "gpu", ctx.adapter_name()),
         (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
     };
     let scenario =

@@ -34,9 +34,10 @@ impl Xvfb {
             return None;
         };
         common::gpu()?;
-        // Xvfb picks a free display itself and writes its number to our pipe (-displayfd 1).
+        // Xvfb picks a free display itself and writes its number to our pipe (-displayfd 1); it
+        // keeps running as one view ends and the next connects (-noreset: no reset in between).
         let mut child = Command::new(binary)
-            .args(["-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp"])
+            .args(["-displayfd", "1", "-screen", "0", "1280x1024x24", "-nolisten", "tcp", "-noreset"])
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
@@ -46,6 +47,24 @@ impl Xvfb {
         std::io::BufRead::read_line(&mut std::io::BufReader::new(stdout), &mut line).expect("Xvfb's display");
         let n: u32 = line.trim().parse().unwrap_or_else(|_| panic!("Xvfb wrote {line:?} for its display"));
         Some(Xvfb { child, display: format!(":{n}") })
+    }
+
+    /// `voxcollide view SCENE --report REPORT` running interactively (only a close ends it),
+    /// and a connection to the display to steer it.
+    fn interactive(
+        &self,
+        scene: &str,
+        report: &Path,
+    ) -> (Child, x11rb::rust_connection::RustConnection, usize) {
+        let child = self
+            .view(&[scene, "--report"])
+            .arg(report)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let (conn, screen) = x11rb::connect(Some(&self.display)).unwrap();
+        (child, conn, screen)
     }
 
     /// `voxcollide view` on this display, with a runtime folder of its own.
@@ -291,14 +310,7 @@ fn keys_and_the_mouse_steer_the_view() {
     // The camera it starts with.
     ok(x.view(&["implant", "--frames", "1", "--report"]).arg(&first).output().unwrap());
     let start = json(&first)["camera"].clone();
-    let mut child = x
-        .view(&["implant", "--report"])
-        .arg(&report)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
+    let (mut child, conn, screen) = x.interactive("implant", &report);
     let root = conn.setup().roots[screen].root;
     let window = find_window(&conn, root, &mut child);
     let corner = conn.translate_coordinates(window, root, 0, 0).unwrap().reply().unwrap();
@@ -353,14 +365,7 @@ fn closing_the_window_ends_the_view_cleanly() {
     let d = dir("close");
     let report = d.join("report.json");
     // Interactive: no --frames, so only a close ends it.
-    let mut child = x
-        .view(&["implant", "--report"])
-        .arg(&report)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let (conn, screen) = x11rb::connect(Some(&x.display)).unwrap();
+    let (mut child, conn, screen) = x.interactive("implant", &report);
     let root = x11rb::connection::Connection::setup(&conn).roots[screen].root;
     let window = find_window(&conn, root, &mut child);
     let out = close(&conn, window, child);

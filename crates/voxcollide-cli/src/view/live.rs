@@ -10,7 +10,7 @@ use voxcollide::{ContactReport, Error, GpuContext};
 use voxcollide_sim::build::Built;
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
-use voxcollide_sim::{CpuWorld, GpuWorld, Mode, World};
+use voxcollide_sim::{Mode, World};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -24,7 +24,7 @@ use crate::render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
 };
 use crate::scenario::Backend;
-use crate::scene_run::{meshes, shown_and_moved};
+use crate::scene_run::{Run, meshes, shown_and_moved};
 
 /// The blit's WGSL (`vs_main`, `fs_main`).
 pub const BLIT_SHADER: &str = include_str!("../../shaders/blit.wgsl");
@@ -167,39 +167,6 @@ impl ApplicationHandler for App<'_> {
     fn about_to_wait(&mut self, _: &ActiveEventLoop) {
         if let Some(live) = &self.live {
             live.window.request_redraw();
-        }
-    }
-}
-
-/// The simulation, on either backend.
-enum Sim {
-    Cpu(Box<CpuWorld>),
-    Gpu(Box<GpuWorld>),
-}
-
-impl Sim {
-    fn new(ctx: Option<&GpuContext>, world: World) -> Result<Sim, Error> {
-        Ok(match ctx {
-            Some(ctx) => Sim::Gpu(Box::new(GpuWorld::new(ctx, world)?)),
-            None => Sim::Cpu(Box::new(CpuWorld::new(world)?)),
-        })
-    }
-
-    fn step(&mut self) -> Result<(), Error> {
-        match self {
-            Sim::Cpu(w) => w.step(),
-            Sim::Gpu(w) => w.step(),
-        }
-    }
-
-    /// The world as it is now, and the last step's contact reports.
-    fn now(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
-        match self {
-            Sim::Cpu(w) => Ok((&w.world, w.reports.clone())),
-            Sim::Gpu(w) => {
-                let reports = w.sync()?;
-                Ok((&w.world, reports))
-            }
         }
     }
 }
@@ -401,7 +368,7 @@ struct Live {
     /// The world at its first step (with draggable drives), for a reset.
     first: World,
     /// Taken out while a frame uses it, and put back.
-    sim: Option<Sim>,
+    sim: Option<Run>,
     backend: &'static str,
     soft: Vec<bool>,
     /// Bodies with driven vertices: what a drag can move.
@@ -526,7 +493,7 @@ impl Live {
             per_step: DRAG_PER_STEP * scene_size,
         }));
         let first = draggable(built.world.clone(), &drags);
-        let sim = Some(Sim::new(on_gpu.then_some(&ctx), first.clone())?);
+        let sim = Some(Run::new(on_gpu.then_some(&ctx), first.clone())?);
         let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
         let eye = framing_eye(&points, FIRST_VIEW, Vec3::Z, width as f32 / height as f32)
             .unwrap_or(centre - FIRST_VIEW.normalize() * 3.0 * scene_size);
@@ -617,7 +584,7 @@ impl Live {
                     d.target.iter_mut().chain(d.now.iter_mut()).for_each(|v| *v = Vec3::ZERO);
                 }
                 let on_gpu = self.backend == "gpu";
-                match Sim::new(on_gpu.then_some(&self.ctx), self.first.clone()) {
+                match Run::new(on_gpu.then_some(&self.ctx), self.first.clone()) {
                     Ok(sim) => {
                         self.sim = Some(sim);
                         self.steps = 0;
@@ -667,7 +634,7 @@ impl Live {
     fn pick(&mut self) -> Option<Grab> {
         let (w, h) = (self.surface_config.width, self.surface_config.height);
         let (x, y) = self.pointer;
-        let world = self.sim.as_mut()?.now().ok()?.0;
+        let world = self.sim.as_mut()?.frame().ok()?.0;
         let mut best: Option<(f32, usize, f32)> = None;
         for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
             for (p, m) in b.pos.iter().zip(&b.mode) {
@@ -709,7 +676,7 @@ impl Live {
         done
     }
 
-    fn frame_with(&mut self, sim: &mut Sim) -> Result<bool, Error> {
+    fn frame_with(&mut self, sim: &mut Run) -> Result<bool, Error> {
         let now = Instant::now();
         self.started.get_or_insert(now);
         let elapsed = self.last_frame.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
@@ -737,7 +704,7 @@ impl Live {
             stepped += 1;
         }
         self.steps += stepped;
-        let shown = match sim.now() {
+        let shown = match sim.frame() {
             Ok(now) => Some(now),
             Err(e) => {
                 self.broken = Some(e.to_string());
