@@ -114,7 +114,8 @@ pub struct Sample {
     pub volume_ml: f64,
     /// The largest distance of a tissue vertex from its rest position (scene units).
     pub max_tissue_displacement: f32,
-    /// Tissue vertices in contact with the compared body (the detector's colliding count).
+    /// Vertices in contact between the tissue and the compared body: the probing body's (the
+    /// contact's `b`), as the detector counts them.
     pub contacts: usize,
 }
 
@@ -289,6 +290,8 @@ pub fn compare(
             ));
             Backend::Cpu
         }
+        // No adapter: the CPU steps (and there are no pictures).
+        (Backend::Auto, None) => Backend::Cpu,
         (b, _) => b,
     };
     let jobs = match config.jobs {
@@ -438,9 +441,11 @@ fn run_candidate(
     note: &mut dyn FnMut(&str),
 ) -> Result<CandidateResult, Error> {
     let Shared { config, backend, body, tissue, metres, units, ctx, count } = *shared;
-    // Frames for the metrics over time; compare draws its own pictures.
+    // Frames for the metrics over time; compare draws its own pictures, and writes no
+    // ParaView frames (as many as the history's).
     s.output.frames = s.output.frames.max(HISTORY_FRAMES);
     s.output.images = false;
+    s.output.vtk = false;
     note(&format!("candidate {}/{count}: {} ({volume:.0} mL)", k + 1, c.name));
     if renderer.is_none()
         && let Some(ctx) = ctx
@@ -553,6 +558,26 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
     points
 }
 
+/// The area of the tissue's top surface (its vertices that rest within a quarter spacing of
+/// the top) that rose more than half of `lift`: its vertices that did, times the spacing squared.
+fn footprint(world: &World, tissue: &[usize], lift: f32) -> f64 {
+    tissue
+        .iter()
+        .map(|&t| {
+            let b = &world.bodies[t];
+            let h = mean_spring(b);
+            let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+            let rose = b
+                .pos
+                .iter()
+                .zip(&b.rest_pos)
+                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.5 * lift)
+                .count();
+            rose as f64 * f64::from(h) * f64::from(h)
+        })
+        .sum()
+}
+
 /// The end-of-run measurements that need the world: the apex lift, the tissue's mean
 /// displacement, strain and profile, the contact area and pressures, and the footprint.
 fn measure_end(
@@ -608,23 +633,8 @@ fn measure_end(
         }
     }
     out.contact_area = area;
-    // The footprint: the top surface's vertices (at rest within a quarter spacing of the top)
-    // that rose more than half the apex lift.
-    out.footprint_area = tissue
-        .iter()
-        .map(|&t| {
-            let b = &world.bodies[t];
-            let h = mean_spring(b);
-            let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
-            let rose = b
-                .pos
-                .iter()
-                .zip(&b.rest_pos)
-                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.5 * out.apex_lift)
-                .count();
-            rose as f64 * f64::from(h) * f64::from(h)
-        })
-        .sum();
+    // The footprint; no lift, no footprint (what rose would be noise).
+    out.footprint_area = if out.apex_lift <= 0.0 { 0.0 } else { footprint(world, tissue, out.apex_lift) };
     for (pair, r) in world.contacts.iter().zip(reports) {
         // The tissue's side of a contact with the compared body.
         let (t, forces) = if pair.a == body && tissue.contains(&pair.b) {

@@ -410,3 +410,40 @@ fn a_bad_scene_or_drag_is_named_before_any_window() {
     let err = String::from_utf8_lossy(&output.stderr);
     assert!(!output.status.success() && err.contains("x0,y0 -> x1,y1 over N frames"), "{err}");
 }
+
+#[test]
+fn a_blow_up_ends_a_run_of_frames_with_its_error_on_either_backend() {
+    // A step far above the stability bound, and a ball pressed in: the block blows up within
+    // its first steps. A run of
+    // --frames ends with the simulation's error (not a hang, not a panic, no screenshot).
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("blow-up");
+    let scene = d.join("unstable.toml");
+    std::fs::write(
+        &scene,
+        "units = \"mm\"\n[time]\nduration = 10\ndt = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [40, 40, 10] }\nspacing = 5\nmaterial = { young_kpa = 50 }\nfixed = [{ below = { z = -4 } }]\n[[body]]\nname = \"ball\"\nkind = \"rigid\"\nshape = { sphere = 8 }\nspacing = 2\nmotion = [{ t = 0.0, position = [0, 0, 14] }, { t = 1, position = [0, 0, 0] }]\n[[contact]]\na = \"ball\"\nb = \"block\"\n",
+    )
+    .unwrap();
+    for backend in ["gpu", "cpu"] {
+        let shot = d.join(format!("{backend}.png"));
+        let output = x
+            .view(&[
+                scene.to_str().unwrap(),
+                "--backend",
+                backend,
+                "--frames",
+                "30",
+                "--steps-per-frame",
+                "20",
+            ])
+            .args(["--screenshot".as_ref(), shot.as_os_str()])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&output.stderr);
+        assert!(!output.status.success(), "{backend}: {err}");
+        assert!(err.contains("simulation failed") && err.contains("block"), "{backend}: {err}");
+        assert_eq!(err.matches("simulation failed").count(), 1, "{backend}: {err}");
+        assert!(!shot.exists(), "{backend}: a screenshot of a failed run");
+    }
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -557,6 +557,19 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
                 ),
             ));
         }
+        // An expander's schedule only fills: from what the shell holds at first, upwards.
+        if let Some(&[t, first]) = b.inflate.as_ref().and_then(|i| i.schedule.first())
+            && first * 1e-6 / s.powi(3) < start * (1.0 - 1e-6)
+        {
+            return Err(file.body_error(
+                k,
+                "inflate.schedule",
+                format!(
+                    "its first fill, {first} mL at {t} s, is below the {:.4} mL the shell holds at the start: an expander's schedule only fills",
+                    start * s.powi(3) * 1e6
+                ),
+            ));
+        }
         fills.push(Some((start, target)));
     }
     let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
@@ -636,7 +649,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             return Err(file.body_error(
                 k,
                 "inflate.schedule",
-                format!("its last fill is at {t} s, after the run's {end} s: lengthen [time] duration"),
+                format!("its last fill is at {t} s, after the run's {end} s: lengthen the run ([time] duration or steps)"),
             ));
         }
     }

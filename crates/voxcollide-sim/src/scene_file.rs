@@ -1031,10 +1031,11 @@ impl SceneFile {
                         }
                         let finite = i.schedule.iter().flatten().all(|v| v.is_finite());
                         let rising = i.schedule.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
-                        if !(finite && i.schedule[0][0] > 0.0 && rising) {
+                        let positive = i.schedule.iter().all(|[_, ml]| *ml > 0.0);
+                        if !(finite && i.schedule[0][0] > 0.0 && rising && positive) {
                             return Err(err(
                                 span,
-                                "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and volumes that do not decrease".into(),
+                                "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and positive volumes that do not decrease".into(),
                             ));
                         }
                         i.volume_ml = Some(last);

@@ -266,6 +266,7 @@ fn an_expander_follows_its_fill_schedule() {
         ("[[0.1, 45], [0.2, 40]]", "do not decrease"),
         ("[[0.0, 45]]", "from above 0"),
         ("[[0.2, 45], [0.1, 50]]", "increase"),
+        ("[[0.1, 0], [0.2, 45]]", "positive volumes"),
     ] {
         let bad = text.replace("[[0.1, 45], [0.2, 45], [0.3, 60]]", schedule);
         let err = SceneFile::parse("expander.toml", &bad).unwrap_err();
@@ -274,6 +275,13 @@ fn an_expander_follows_its_fill_schedule() {
             "{err}"
         );
     }
+    // The first fill below what the shell holds at the start (32.9 mL) would deflate it.
+    let shrinking = text.replace("[[0.1, 45], [0.2, 45], [0.3, 60]]", "[[0.1, 20], [0.2, 45]]");
+    let err = build_world(&SceneFile::parse("expander.toml", &shrinking).unwrap()).unwrap_err();
+    assert!(
+        matches!(&err, Error::SceneFile { key, message, .. } if key == "body[0].inflate.schedule" && message.contains("only fills")),
+        "{err}"
+    );
     let late = text.replace("[0.3, 60]", "[0.6, 60]");
     let err = build_world(&SceneFile::parse("expander.toml", &late).unwrap()).unwrap_err();
     assert!(

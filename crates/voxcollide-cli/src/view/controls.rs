@@ -221,6 +221,9 @@ impl ScriptedDrag {
         if frames == 0 {
             return Err(format!("{s:?}: the drag needs at least 1 frame"));
         }
+        if start.checked_add(frames).is_none() {
+            return Err(format!("{s:?}: the drag would end after the last frame there can be"));
+        }
         Ok(ScriptedDrag { from: point(from)?, to: point(to)?, frames, start })
     }
 
@@ -269,9 +272,10 @@ impl Pacing {
         let wanted = (self.owed / self.dt).floor().max(0.0) as u64;
         let affordable = if self.per_step > 0.0 { (self.budget / self.per_step).floor() as u64 } else { 1 };
         let n = wanted.min(affordable.max(1));
-        let behind = wanted > n;
-        self.owed = if behind { 0.0 } else { self.owed - n as f64 * self.dt };
-        (n, behind)
+        let short = wanted > n;
+        self.owed = if short { 0.0 } else { self.owed - n as f64 * self.dt };
+        // Before a step is timed, one step is a measurement, not a verdict.
+        (n, short && self.per_step > 0.0)
     }
 
     /// Records that `n` steps took `seconds`.
@@ -360,6 +364,7 @@ mod tests {
         assert_eq!(d.at(5), Some((300.0, 150.0, false)), "released at the end");
         assert_eq!(d.at(6), None);
         let late = ScriptedDrag::parse("1,2 -> 3,4 over 2 frames from frame 10").unwrap();
+        assert!(ScriptedDrag::parse("1,2 -> 3,4 over 2 frames from frame 18446744073709551615").is_err());
         assert_eq!(late.start, 10);
         for bad in [
             "",
@@ -377,8 +382,8 @@ mod tests {
     #[test]
     fn pacing_keeps_real_time_within_its_budget_and_says_when_it_cannot() {
         let mut p = Pacing::new(0.001, 0.020);
-        // Unmeasured: one step, to learn its cost.
-        assert_eq!(p.steps(1.0 / 60.0), (1, true));
+        // Unmeasured: one step, to learn its cost (not yet "behind").
+        assert_eq!(p.steps(1.0 / 60.0), (1, false));
         // Cheap steps: real time, 16 or 17 steps a 60 Hz frame, none owed beyond a step.
         p.took(1, 0.0001);
         let mut total = 0;

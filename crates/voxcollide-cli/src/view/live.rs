@@ -153,8 +153,7 @@ impl ApplicationHandler for App<'_> {
             }
             WindowEvent::RedrawRequested => match live.frame() {
                 Ok(true) => {
-                    let report = live.report();
-                    let done = live.screenshot().map(|()| report);
+                    let done = live.screenshot().map(|()| live.report());
                     self.finish(event_loop, done);
                 }
                 Ok(false) => live.window.request_redraw(),
@@ -404,7 +403,17 @@ struct Live {
     stepped_since: (Instant, u64),
     steps: u64,
     /// A blow-up's message, shown until a reset.
-    broken: Option<String>,
+    broken: Option<Error>,
+    /// Something else the heads-up line should say (a size it cannot draw).
+    notice: Option<String>,
+    /// The last frame drawn, legend included, caption not: shown again while stopped.
+    last_picture: Vec<u8>,
+    /// Whether the screenshot was written.
+    shot: bool,
+    /// Steps over the whole view, resets included.
+    steps_total: u64,
+    /// When the last frame was done.
+    ended: Option<Instant>,
     /// The last frame's measures: contacts, deepest penetration, largest displacement per body.
     contacts: usize,
     penetration: f32,
@@ -545,6 +554,11 @@ impl Live {
             stepped_since: (now, 0),
             steps: 0,
             broken: None,
+            notice: None,
+            last_picture: Vec::new(),
+            shot: false,
+            steps_total: 0,
+            ended: None,
             contacts: 0,
             penetration: 0.0,
             displacement: vec![0.0; world.bodies.len()],
@@ -556,19 +570,33 @@ impl Live {
         })
     }
 
+    /// Follows the window to `size`. A size the device cannot draw (beyond its largest
+    /// texture) keeps the last one, and the heads-up line says why.
     fn resize(&mut self, size: PhysicalSize<u32>) {
         let (width, height) = (size.width.max(1), size.height.max(1));
         if (width, height) == (self.surface_config.width, self.surface_config.height) {
             return;
         }
+        let largest = self.ctx.device().limits().max_texture_dimension_2d;
+        if width > largest || height > largest {
+            self.notice = Some(format!(
+                "{width}x{height} is beyond the device's {largest} pixels: drawn at the last size"
+            ));
+            return;
+        }
+        match Renderer::fast(&self.ctx, width, height) {
+            Ok(r) => self.renderer = r,
+            Err(e) => {
+                self.notice = Some(format!("drawn at the last size: {e}"));
+                return;
+            }
+        }
+        self.notice = None;
         self.surface_config.width = width;
         self.surface_config.height = height;
         self.surface.configure(self.ctx.device(), &self.surface_config);
-        match Renderer::fast(&self.ctx, width, height) {
-            Ok(r) => self.renderer = r,
-            Err(e) => self.broken = Some(e.to_string()),
-        }
         self.blit.resize(self.ctx.device(), width, height);
+        self.last_picture.clear();
     }
 
     fn act(&mut self, action: Action) {
@@ -590,8 +618,9 @@ impl Live {
                         self.steps = 0;
                         self.broken = None;
                         self.pacing.owed = 0.0;
+                        self.force_scale = 0.0;
                     }
-                    Err(e) => self.broken = Some(e.to_string()),
+                    Err(e) => self.broken = Some(e),
                 }
             }
             Action::CycleColouring => self.colouring = self.colouring.next(),
@@ -698,56 +727,85 @@ impl Live {
         let mut stepped = 0;
         for _ in 0..n {
             if let Err(e) = sim.step() {
-                self.broken = Some(e.to_string());
+                self.broken = Some(e);
                 break;
             }
             stepped += 1;
         }
         self.steps += stepped;
-        let shown = match sim.frame() {
-            Ok(now) => Some(now),
-            Err(e) => {
-                self.broken = Some(e.to_string());
-                None
-            }
+        self.steps_total += stepped;
+        // A stopped run is not read again: on the GPU the read-back is where a blow-up shows.
+        let shown = match self.broken.is_some() {
+            true => None,
+            false => match sim.frame() {
+                Ok(now) => Some(now),
+                Err(e) => {
+                    self.broken = Some(e);
+                    None
+                }
+            },
         };
         self.pacing.took(stepped, t.elapsed().as_secs_f64());
         let since = now.duration_since(self.stepped_since.0).as_secs_f64();
         if since >= 0.5 {
-            self.sps = (self.steps.saturating_sub(self.stepped_since.1)) as f64 / since;
-            self.stepped_since = (now, self.steps);
+            self.sps = (self.steps_total.saturating_sub(self.stepped_since.1)) as f64 / since;
+            self.stepped_since = (now, self.steps_total);
         }
-        let Some((world, reports)) = shown else {
-            if self.frames_wanted.is_some() {
-                return Err(Error::Simulation {
-                    step: self.steps,
-                    message: self.broken.clone().unwrap_or_default(),
-                });
-            }
-            return Ok(false);
-        };
-        if let (Some(message), Some(_)) = (&self.broken, self.frames_wanted) {
-            return Err(Error::Simulation { step: self.steps, message: message.clone() });
+        // A run of --frames ends with the error; an interactive one shows it until a reset.
+        if let (Some(e), Some(_)) = (&self.broken, self.frames_wanted) {
+            return Err(e.clone());
         }
         let drawing = Instant::now();
-        self.measure(world, &reports);
-        if self.frames == 0 {
-            let (w, h) = (self.surface_config.width, self.surface_config.height);
-            for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
-                let driven: Vec<Vec3> =
-                    b.pos.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Driven).map(|(p, _)| *p).collect();
-                let centre = driven.iter().copied().sum::<Vec3>() / driven.len().max(1) as f32;
-                if let Some((x, y, _)) = self.orbit.project(centre, w, h) {
-                    self.instruments.push((world.names[k].clone(), [x, y]));
+        match shown {
+            Some((world, reports)) => {
+                self.measure(world, &reports);
+                if self.frames == 0 {
+                    self.locate_instruments(world);
                 }
+                let picture = self.picture_of(world, &reports)?;
+                self.show(picture)?;
+            }
+            // Stopped: the last frame again, with the message.
+            None => {
+                let (w, h) = (self.surface_config.width, self.surface_config.height);
+                let picture = match self.last_picture.len() == (4 * w * h) as usize {
+                    true => self.last_picture.clone(),
+                    false => vec![200; (4 * w * h) as usize],
+                };
+                self.show(picture)?;
             }
         }
-        self.draw(world, &reports)?;
         let took = drawing.elapsed().as_secs_f64();
         self.draw_time = if self.draw_time > 0.0 { 0.8 * self.draw_time + 0.2 * took } else { took };
         self.pacing.budget = (FRAME_TARGET - self.draw_time).clamp(STEP_BUDGET.0, STEP_BUDGET.1);
         self.frames += 1;
-        Ok(self.frames_wanted.is_some_and(|n| self.frames >= n))
+        self.ended = Some(Instant::now());
+        let done = self.frames_wanted.is_some_and(|n| self.frames >= n);
+        // Interactive, at most the frame rate aimed at: a fast GPU need not spin a core. A run
+        // of --frames goes as fast as it can, to measure it.
+        if self.frames_wanted.is_none() {
+            let spent = now.elapsed().as_secs_f64();
+            if spent < FRAME_TARGET {
+                std::thread::sleep(std::time::Duration::from_secs_f64(FRAME_TARGET - spent));
+            }
+        }
+        Ok(done)
+    }
+
+    /// Where each instrument is drawn: the window pixel of its driven vertex nearest its
+    /// centre, where a press takes hold of it.
+    fn locate_instruments(&mut self, world: &World) {
+        let (w, h) = (self.surface_config.width, self.surface_config.height);
+        for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
+            let driven: Vec<Vec3> =
+                b.pos.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Driven).map(|(p, _)| *p).collect();
+            let centre = driven.iter().copied().sum::<Vec3>() / driven.len().max(1) as f32;
+            let nearest =
+                driven.iter().copied().min_by(|p, q| p.distance(centre).total_cmp(&q.distance(centre)));
+            if let Some((x, y, _)) = nearest.and_then(|p| self.orbit.project(p, w, h)) {
+                self.instruments.push((world.names[k].clone(), [x, y]));
+            }
+        }
     }
 
     fn measure(&mut self, world: &World, reports: &[ContactReport]) {
@@ -787,7 +845,8 @@ impl Live {
             .fold(0.0, f32::max);
     }
 
-    fn draw(&mut self, world: &World, reports: &[ContactReport]) -> Result<(), Error> {
+    /// The frame's picture: the bodies in their colouring, and its legend.
+    fn picture_of(&mut self, world: &World, reports: &[ContactReport]) -> Result<Vec<u8>, Error> {
         let (width, height) = (self.surface_config.width, self.surface_config.height);
         let mut shown = shown_and_moved(world);
         let (range, title) = match self.colouring {
@@ -812,6 +871,14 @@ impl Live {
         };
         let mut rgba = self.renderer.render_from(&scene, Some(self.orbit.eye()))?;
         draw_legend(&mut rgba, width, height, &Legend::new(title, range))?;
+        self.last_picture.clone_from(&rgba);
+        Ok(rgba)
+    }
+
+    /// Adds the heads-up lines to `rgba` and puts it on the window (and keeps it for the
+    /// screenshot).
+    fn show(&mut self, mut rgba: Vec<u8>) -> Result<(), Error> {
+        let (width, height) = (self.surface_config.width, self.surface_config.height);
         draw_caption(&mut rgba, width, height, &self.hud())?;
         match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(frame) | wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
@@ -852,24 +919,24 @@ impl Live {
         if self.grab.is_some() {
             lines.push(format!("dragging {:.3} {u}", self.dragged));
         }
+        if let Some(notice) = &self.notice {
+            lines.push(notice.clone());
+        }
         lines
     }
 
     /// Writes the last frame as PNG, if one was asked for.
-    fn screenshot(&self) -> Result<(), Error> {
-        match &self.screenshot {
-            Some(path) => {
-                write_png(path, self.surface_config.width, self.surface_config.height, &self.picture)
-            }
-            None => Ok(()),
+    fn screenshot(&mut self) -> Result<(), Error> {
+        if let Some(path) = &self.screenshot {
+            write_png(path, self.surface_config.width, self.surface_config.height, &self.picture)?;
+            self.shot = true;
         }
+        Ok(())
     }
 
     fn report(&self) -> ViewReport {
-        let seconds =
-            self.started.zip(self.last_frame).map_or(0.0, |(a, b)| b.duration_since(a).as_secs_f64());
-        // Frame-to-frame intervals: the first frame has none.
-        let intervals = self.frames.saturating_sub(1);
+        // From the first frame's start to the last one's end.
+        let seconds = self.started.zip(self.ended).map_or(0.0, |(a, b)| b.duration_since(a).as_secs_f64());
         ViewReport {
             scene: self.scene_name.clone(),
             backend: self.backend.into(),
@@ -877,9 +944,9 @@ impl Live {
             size: (self.surface_config.width, self.surface_config.height),
             frames: self.frames,
             seconds,
-            frames_per_second: if seconds > 0.0 { intervals as f64 / seconds } else { 0.0 },
-            steps: self.steps,
-            steps_per_second: if seconds > 0.0 { self.steps as f64 / seconds } else { 0.0 },
+            frames_per_second: if seconds > 0.0 { self.frames as f64 / seconds } else { 0.0 },
+            steps: self.steps_total,
+            steps_per_second: if seconds > 0.0 { self.steps_total as f64 / seconds } else { 0.0 },
             simulated_time: self.steps as f64 * self.dt,
             behind_frames: self.behind_frames,
             max_displacement: self
@@ -907,7 +974,7 @@ impl Live {
                 Colouring::ContactForce => "force".into(),
             },
             camera: [self.orbit.yaw, self.orbit.pitch, self.orbit.distance],
-            screenshot: self.screenshot.clone().filter(|_| !self.picture.is_empty()),
+            screenshot: self.screenshot.clone().filter(|_| self.shot),
         }
     }
 }

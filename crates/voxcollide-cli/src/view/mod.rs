@@ -115,7 +115,7 @@ pub struct ViewReport {
 /// The file's errors; [`Error::Invalid`] naming the shipped scenes when it is neither.
 pub fn scene_named(name: &str) -> Result<SceneFile, Error> {
     let path = Path::new(name);
-    if path.exists() {
+    if path.is_file() {
         return SceneFile::read(path);
     }
     match SHIPPED.iter().find(|(n, _)| *n == name) {
