@@ -414,8 +414,8 @@ fn a_bad_scene_or_drag_is_named_before_any_window() {
 #[test]
 fn a_blow_up_ends_a_run_of_frames_with_its_error_on_either_backend() {
     // A step far above the stability bound, and a ball pressed in: the block blows up within
-    // its first steps. A run of
-    // --frames ends with the simulation's error (not a hang, not a panic, no screenshot).
+    // its first steps. A run of --frames ends with the simulation's error (not a hang, not a
+    // panic, no screenshot).
     let Some(x) = Xvfb::start() else { return };
     let d = dir("blow-up");
     let scene = d.join("unstable.toml");
