@@ -14,11 +14,11 @@ use base64::Engine;
 use glam::Vec3;
 use serde::Serialize;
 use voxcollide::{ContactReport, Error};
-use voxcollide_sim::World;
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
+use voxcollide_sim::{MassSpring, World};
 
 use crate::plots::{Chart, Series, line_chart_svg};
 use crate::render::{Legend, Renderer, Scene as RenderScene};
@@ -71,9 +71,9 @@ pub struct CandidateResult {
     pub contact_area: f64,
     /// The deepest a tissue vertex got inside the shell over the run (scene units).
     pub max_penetration: f32,
-    /// The implant's footprint on the outer surface, in scene units squared: the area of the
-    /// tissue's top surface that rose more than half the apex lift (its top vertices
-    /// that did, times the spacing squared).
+    /// The implant's footprint on the outer surface, in scene units squared: the area (at
+    /// rest) of the tissue's up-facing surface whose triangles rose, at all three corners, more
+    /// than half the apex lift.
     pub footprint_area: f64,
     /// Whether the scene came to rest before `max_steps`.
     pub settled: bool,
@@ -534,15 +534,16 @@ fn sample(
     }
 }
 
-/// The tissue's top surface (vertices that rest within a quarter spacing of its top) along the
-/// line through its highest point parallel to x: `[x − centre.x, rise]` in x order.
+/// The tissue's outer surface ([`outer`]) along the line through its highest point parallel
+/// to x: `[x − centre.x, rise]` in x order.
 fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
     let mut points = Vec::new();
     for &t in tissue {
         let b = &world.bodies[t];
         let h = mean_spring(b);
-        let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
-        let on_top: Vec<usize> = (0..b.len()).filter(|&i| b.rest_pos[i].z >= top - 0.25 * h).collect();
+        let mut on_top: Vec<usize> = outer(b).iter().flatten().map(|&i| i as usize).collect();
+        on_top.sort_unstable();
+        on_top.dedup();
         let Some(&apex) = on_top.iter().max_by(|&&i, &&j| b.pos[i].z.total_cmp(&b.pos[j].z)) else {
             continue;
         };
@@ -558,24 +559,34 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
     points
 }
 
-/// The area of the tissue's top surface (its vertices that rest within a quarter spacing of
-/// the top) that rose more than half of `lift`: its vertices that did, times the spacing squared.
-fn footprint(world: &World, tissue: &[usize], lift: f32) -> f64 {
-    tissue
+/// A tissue body's outer surface: its surface triangles that face up at rest (their normal
+/// within 60° of +z), the skin over a chest-wall pocket whatever the tissue's shape.
+fn outer(b: &MassSpring) -> Vec<[u32; 3]> {
+    b.surface
+        .triangles
         .iter()
-        .map(|&t| {
-            let b = &world.bodies[t];
-            let h = mean_spring(b);
-            let top = b.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
-            let rose = b
-                .pos
-                .iter()
-                .zip(&b.rest_pos)
-                .filter(|(p, r)| r.z >= top - 0.25 * h && p.z - r.z > 0.5 * lift)
-                .count();
-            rose as f64 * f64::from(h) * f64::from(h)
+        .copied()
+        .filter(|t| {
+            let [p, q, r] = t.map(|i| b.rest_pos[i as usize]);
+            let n = (q - p).cross(r - p);
+            n.z > 0.5 * n.length()
         })
-        .sum()
+        .collect()
+}
+
+/// The area (at rest) of the tissue's outer surface that rose more than half of `lift`: its
+/// outer triangles whose three corners did.
+fn footprint(world: &World, tissue: &[usize], lift: f32) -> f64 {
+    let mut area = 0.0;
+    for &t in tissue {
+        let b = &world.bodies[t];
+        let rose = |i: u32| b.pos[i as usize].z - b.rest_pos[i as usize].z > 0.5 * lift;
+        for tri in outer(b).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
+            let [p, q, r] = tri.map(|i| b.rest_pos[i as usize].as_dvec3());
+            area += 0.5 * (q - p).cross(r - p).length();
+        }
+    }
+    area
 }
 
 /// The end-of-run measurements that need the world: the apex lift, the tissue's mean
