@@ -95,6 +95,11 @@ pub struct CandidateResult {
     pub mean_tissue_displacement: f32,
     /// The largest strain of a tissue spring at the end: `|length / rest length − 1|`.
     pub max_tissue_strain: f32,
+    /// The pressure inside the compared shell at the end, in kPa: its fill's response to the
+    /// volume it holds (and any pressure the scene sets). At rest it is what the implant
+    /// presses on the tissue with, averaged over its surface — unlike the penalty forces, whose
+    /// one magnitude makes the peak contact pressure the same for every candidate.
+    pub implant_pressure_kpa: f64,
     /// The tissue's outer surface along the line through its apex parallel to x, at the end:
     /// `[x, rise]` pairs in x order (scene units), x from the implant's centre, the rise above
     /// where that point of the surface rests.
@@ -469,6 +474,11 @@ fn run_candidate(
         result.history.push(sample(world, reports, body, tissue, metres, at.time));
         if at.last {
             measure_end(world, reports, body, tissue, metres, &mut result);
+            // The pressure of the last step's inputs; internal stress units are pascals times
+            // the file's metres per unit.
+            let inputs = world.inputs(at.step.saturating_sub(1))?;
+            result.implant_pressure_kpa =
+                f64::from(world.bodies[body].pressure(&inputs[body])) / (1e3 * metres);
             if let Some(r) = renderer.as_mut() {
                 result.pictures = pictures(r, world, body, tissue, &config.out, &folder, units)?;
             }
@@ -731,6 +741,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         format!("max_tissue_displacement_{u}"),
         format!("mean_tissue_displacement_{u}"),
         "max_tissue_strain".into(),
+        "implant_pressure_kpa".into(),
         "peak_contact_pressure_kpa".into(),
         "mean_contact_pressure_kpa".into(),
         format!("contact_area_{u}2"),
@@ -748,6 +759,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             format!("{:.3}", c.max_tissue_displacement),
             format!("{:.3}", c.mean_tissue_displacement),
             format!("{:.4}", c.max_tissue_strain),
+            format!("{:.3}", c.implant_pressure_kpa),
             format!("{:.3}", c.peak_contact_pressure_kpa),
             format!("{:.3}", c.mean_contact_pressure_kpa),
             format!("{:.1}", c.contact_area),
@@ -832,13 +844,14 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     let mut rows = String::new();
     for c in &comparison.candidates {
         rows += &format!(
-            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1} %</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
+            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1} %</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
             escape(&c.name),
             c.volume_ml,
             c.apex_lift,
             c.max_tissue_displacement,
             c.mean_tissue_displacement,
             100.0 * c.max_tissue_strain,
+            c.implant_pressure_kpa,
             c.peak_contact_pressure_kpa,
             c.mean_contact_pressure_kpa,
             c.contact_area,
@@ -877,7 +890,7 @@ th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0
 <p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
 <h2>Measurements</h2>
 <table id="measurements">
-<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
+<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>implant pressure (kPa)</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
 <tbody>
 {rows}</tbody></table>
 <h2>Plots</h2>

@@ -168,6 +168,27 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     let stiff = run(&d2, &scene(48.0), one).unwrap();
     let stiff_high = stiff.candidates.iter().find(|r| r.name == high.name).unwrap();
     assert!(stiff_high.apex_lift < 0.95 * high.apex_lift, "{} vs {}", stiff_high.apex_lift, high.apex_lift);
+    // The implant presses on the tissue: harder under the stiffer skin, and for the larger volume.
+    for r in c.candidates.iter().chain(&stiff.candidates) {
+        assert!(
+            r.implant_pressure_kpa > 0.0 && r.implant_pressure_kpa < 10.0,
+            "{}: {} kPa",
+            r.name,
+            r.implant_pressure_kpa
+        );
+    }
+    assert!(
+        stiff_high.implant_pressure_kpa > high.implant_pressure_kpa,
+        "{} vs {}",
+        stiff_high.implant_pressure_kpa,
+        high.implant_pressure_kpa
+    );
+    assert!(
+        large.implant_pressure_kpa > small.implant_pressure_kpa,
+        "{} vs {}",
+        large.implant_pressure_kpa,
+        small.implant_pressure_kpa
+    );
 
     // The files: compare.json with DESIGN §9's keys, a CSV row per candidate, and a
     // self-contained report with the table and (with an adapter) two pictures a candidate.
