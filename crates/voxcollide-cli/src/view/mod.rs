@@ -10,6 +10,7 @@
 //! [`Renderer`](crate::render::Renderer) offscreen, its legend and heads-up line added on the
 //! CPU, and copied onto the window: the screenshot is exactly the frame shown.
 
+mod blit;
 mod controls;
 mod live;
 
@@ -19,6 +20,7 @@ use serde::Serialize;
 use voxcollide::Error;
 use voxcollide_sim::scene_file::SceneFile;
 
+pub use blit::BLIT_SHADER;
 pub use controls::{Action, Colouring, HELP, Orbit, Pacing, ScriptedDrag};
 
 use crate::scenario::Backend;
@@ -196,6 +198,20 @@ pub fn view(config: &ViewConfig, note: &mut dyn FnMut(&str)) -> Result<ViewRepor
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_blit_shader_parses_and_validates_with_default_capabilities() {
+        let module = naga::front::wgsl::parse_str(BLIT_SHADER).expect("blit.wgsl parses");
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::default(),
+        )
+        .validate(&module)
+        .expect("blit.wgsl validates");
+        for entry in ["vs_main", "fs_main"] {
+            assert!(module.entry_points.iter().any(|e| e.name == entry), "{entry}");
+        }
+    }
 
     #[test]
     fn every_shipped_scene_reads_and_builds() {
