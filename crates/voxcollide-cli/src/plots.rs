@@ -70,7 +70,17 @@ pub fn line_chart_svg(chart: &Chart<'_>, width: u32, height: u32) -> Result<Stri
         y0 = 0.0;
     }
     let pad = |lo: f64, hi: f64| if hi > lo { (lo, hi + 0.05 * (hi - lo)) } else { (lo - 0.5, hi + 0.5) };
-    let ((x0, x1), (y0, y1)) = (if x1 > x0 { (x0, x1) } else { pad(x0, x1) }, pad(y0, y1));
+    let ((x0, x1), (y0, mut y1)) = (if x1 > x0 { (x0, x1) } else { pad(x0, x1) }, pad(y0, y1));
+    // A legend along the top gets room of its own above the curves, so that it covers none.
+    let on_top = matches!(
+        chart.legend,
+        SeriesLabelPosition::UpperLeft | SeriesLabelPosition::UpperMiddle | SeriesLabelPosition::UpperRight
+    );
+    if on_top && !chart.series.is_empty() {
+        let legend_px = LEGEND_LINE_PX * chart.series.len() as f64 + 16.0;
+        let plot_px = (f64::from(height) - 100.0).max(2.0 * legend_px);
+        y1 += (y1 - y0) * legend_px / (plot_px - legend_px);
+    }
     let mut text = String::new();
     draw(&mut text, chart, (width, height), (x0..x1, y0..y1)).map_err(|e| Error::Invalid {
         what: "chart",
@@ -81,6 +91,9 @@ pub fn line_chart_svg(chart: &Chart<'_>, width: u32, height: u32) -> Result<Stri
 }
 
 type Ranges = (std::ops::Range<f64>, std::ops::Range<f64>);
+
+/// A legend line's height in pixels, at its 13-pixel font.
+const LEGEND_LINE_PX: f64 = 20.0;
 
 fn draw(
     text: &mut String,
