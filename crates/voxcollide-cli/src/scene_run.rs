@@ -305,15 +305,10 @@ pub fn run_scene(
         }
         for (k, pvd) in series.iter_mut().enumerate() {
             let body = &world.bodies[k];
-            let mut force = vec![Vec3::ZERO; body.len()];
+            let force = contact_forces(world, &reports, k);
             let mut colliding = vec![false; body.len()];
-            for (c, pair) in world.contacts.iter().enumerate() {
-                let r = &reports[c];
-                if pair.a == k && r.force_a.len() == body.len() {
-                    force.iter_mut().zip(&r.force_a).for_each(|(f, a)| *f += *a);
-                }
+            for (pair, r) in world.contacts.iter().zip(&reports) {
                 if pair.b == k && r.force_b.len() == body.len() {
-                    force.iter_mut().zip(&r.force_b).for_each(|(f, b)| *f += *b);
                     r.colliding_b.iter().for_each(|&j| colliding[j as usize] = true);
                 }
             }
@@ -398,6 +393,22 @@ pub fn run_scene(
     std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
     summary.files.push("summary.json".into());
     Ok(summary)
+}
+
+/// The contact force on each vertex of body `k`: its side's forces of every contact it is in,
+/// summed in contact order.
+pub(crate) fn contact_forces(world: &World, reports: &[ContactReport], k: usize) -> Vec<Vec3> {
+    let n = world.bodies[k].len();
+    let mut force = vec![Vec3::ZERO; n];
+    for (pair, r) in world.contacts.iter().zip(reports) {
+        if pair.a == k && r.force_a.len() == n {
+            force.iter_mut().zip(&r.force_a).for_each(|(f, a)| *f += *a);
+        }
+        if pair.b == k && r.force_b.len() == n {
+            force.iter_mut().zip(&r.force_b).for_each(|(f, b)| *f += *b);
+        }
+    }
+    force
 }
 
 /// Every body's shown surface ([`shown_surface`]) and how far each of its vertices is from

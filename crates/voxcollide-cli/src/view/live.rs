@@ -25,7 +25,7 @@ use crate::render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
 };
 use crate::scenario::Backend;
-use crate::scene_run::{Run, meshes, shown_and_moved};
+use crate::scene_run::{Run, contact_forces, meshes, shown_and_moved};
 
 /// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. A
 /// frame's stepping gets what drawing leaves of it, within the bounds below.
@@ -835,17 +835,8 @@ impl Live {
 /// The magnitude of the contact force on each shown vertex of body `k` (its user surface's,
 /// interpolated from the lattice, where it has one).
 fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32> {
-    let body = &world.bodies[k];
-    let mut force = vec![Vec3::ZERO; body.len()];
-    for (pair, r) in world.contacts.iter().zip(reports) {
-        if pair.a == k && r.force_a.len() == body.len() {
-            force.iter_mut().zip(&r.force_a).for_each(|(f, a)| *f += *a);
-        }
-        if pair.b == k && r.force_b.len() == body.len() {
-            force.iter_mut().zip(&r.force_b).for_each(|(f, b)| *f += *b);
-        }
-    }
-    match &body.embedded {
+    let force = contact_forces(world, reports, k);
+    match &world.bodies[k].embedded {
         Some(e) => e.interpolate(&force).iter().map(|f| f.length()).collect(),
         None => force.iter().map(|f| f.length()).collect(),
     }

@@ -142,22 +142,44 @@ struct Buffers {
     cap_slots: u32,
     params: Buffer,
     state: Buffer,
-    count: Buffer,
-    start: Buffer,
-    partial: Buffer,
-    cursor: Buffer,
-    sorted: Buffer,
-    /// The same for B, sorted by A's slots.
-    count_b: Buffer,
-    start_b: Buffer,
-    partial_b: Buffer,
-    cursor_b: Buffer,
-    sorted_b: Buffer,
+    /// A's vertices sorted by their slots.
+    sort_a: SortBuffers,
+    /// B's, sorted by A's slots.
+    sort_b: SortBuffers,
     /// Per sorted A vertex 8 words: the low words of the x, y, z fixed-point totals, one
     /// unused, the high words, one unused (biased by 2^31: see `add_fixed` in `shaders/probe.wgsl`).
     fixed: Buffer,
     force_a: Buffer,
     force_b: Buffer,
+}
+
+/// One body's counting sort by voxel slot: per-slot counts, their scan (starts, with the
+/// scan's block partials), the scatter cursors, and the body's positions in slot order.
+#[derive(Debug)]
+struct SortBuffers {
+    count: Buffer,
+    start: Buffer,
+    partial: Buffer,
+    cursor: Buffer,
+    sorted: Buffer,
+}
+
+impl SortBuffers {
+    /// For `slots` slots and `vertices` vertices, each buffer made by `make(label, size)`;
+    /// labels end in `tag` (`""` for A, `"_b"` for B).
+    fn new(make: impl Fn(&str, u64) -> Buffer, slots: u32, vertices: u64, tag: &str) -> SortBuffers {
+        let per_slot = 4 * u64::from(scan_slots(slots));
+        SortBuffers {
+            count: make(&format!("voxcollide count{tag}"), per_slot),
+            start: make(&format!("voxcollide start{tag}"), per_slot),
+            partial: make(
+                &format!("voxcollide partial{tag}"),
+                4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
+            ),
+            cursor: make(&format!("voxcollide cursor{tag}"), per_slot),
+            sorted: make(&format!("voxcollide sorted{tag}"), VEC4 * vertices),
+        }
+    }
 }
 
 impl Buffers {
@@ -179,24 +201,8 @@ impl Buffers {
             cap_slots,
             params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
             state: make("voxcollide state", GpuState::SIZE, storage),
-            count: make("voxcollide count", 4 * u64::from(scan_slots(slots)), storage),
-            start: make("voxcollide start", 4 * u64::from(scan_slots(slots)), storage),
-            partial: make(
-                "voxcollide partial",
-                4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
-                storage,
-            ),
-            cursor: make("voxcollide cursor", 4 * u64::from(scan_slots(slots)), storage),
-            sorted: make("voxcollide sorted", VEC4 * a, storage),
-            count_b: make("voxcollide count_b", 4 * u64::from(scan_slots(slots)), storage),
-            start_b: make("voxcollide start_b", 4 * u64::from(scan_slots(slots)), storage),
-            partial_b: make(
-                "voxcollide partial_b",
-                4 * u64::from(scan_blocks(slots).next_multiple_of(4)),
-                storage,
-            ),
-            cursor_b: make("voxcollide cursor_b", 4 * u64::from(scan_slots(slots)), storage),
-            sorted_b: make("voxcollide sorted_b", VEC4 * b, storage),
+            sort_a: SortBuffers::new(|label, size| make(label, size, storage), slots, a, ""),
+            sort_b: SortBuffers::new(|label, size| make(label, size, storage), slots, b, "_b"),
             fixed: make("voxcollide fixed", 32 * a, storage),
             force_a: make("voxcollide force_a", VEC4 * a, storage),
             force_b: make("voxcollide force_b", VEC4 * b, storage),
@@ -459,34 +465,31 @@ impl GpuCollision {
         let stale = self.bound.as_ref().is_none_or(|bound| bound.a != *a || bound.b != *b);
         if stale {
             let k = &self.kernels;
+            let (sa, sb) = (&bufs.sort_a, &bufs.sort_b);
             let bound = scoped(&device, || Bound {
                 a: a.clone(),
                 b: b.clone(),
                 bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
                 frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
-                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.count]),
-                scan: k.scan.bind(&device, &[&bufs.params, &bufs.count, &bufs.start, &bufs.partial]),
-                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial]),
-                scan_add: k.scan_add.bind(&device, &[&bufs.params, &bufs.start, &bufs.partial, &bufs.cursor]),
-                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &bufs.cursor, &bufs.sorted]),
-                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &bufs.count_b]),
-                scan_b: k.scan.bind(&device, &[&bufs.params, &bufs.count_b, &bufs.start_b, &bufs.partial_b]),
-                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &bufs.partial_b]),
-                scan_add_b: k
-                    .scan_add
-                    .bind(&device, &[&bufs.params, &bufs.start_b, &bufs.partial_b, &bufs.cursor_b]),
-                sort_b: k
-                    .sort_b
-                    .bind(&device, &[&bufs.params, &bufs.state, b, &bufs.cursor_b, &bufs.sorted_b]),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &sa.count]),
+                scan: k.scan.bind(&device, &[&bufs.params, &sa.count, &sa.start, &sa.partial]),
+                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &sa.partial]),
+                scan_add: k.scan_add.bind(&device, &[&bufs.params, &sa.start, &sa.partial, &sa.cursor]),
+                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &sa.cursor, &sa.sorted]),
+                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.count]),
+                scan_b: k.scan.bind(&device, &[&bufs.params, &sb.count, &sb.start, &sb.partial]),
+                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &sb.partial]),
+                scan_add_b: k.scan_add.bind(&device, &[&bufs.params, &sb.start, &sb.partial, &sb.cursor]),
+                sort_b: k.sort_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.cursor, &sb.sorted]),
                 probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
                     probe.bind(
                         &device,
                         &[
                             &bufs.params,
                             &bufs.state,
-                            &bufs.sorted_b,
-                            &bufs.start,
-                            &bufs.sorted,
+                            &sb.sorted,
+                            &sa.start,
+                            &sa.sorted,
                             &bufs.fixed,
                             &bufs.force_b,
                         ],
@@ -494,7 +497,7 @@ impl GpuCollision {
                 }),
                 resolve: k
                     .resolve
-                    .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &bufs.sorted, &bufs.force_a]),
+                    .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &sa.sorted, &bufs.force_a]),
             })?;
             self.bound = Some(bound);
             self.bind_group_builds += 1;
@@ -503,8 +506,9 @@ impl GpuCollision {
 
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
-        encoder.clear_buffer(&bufs.count, 0, Some(4 * u64::from(scan_slots(slots))));
-        encoder.clear_buffer(&bufs.count_b, 0, Some(4 * u64::from(scan_slots(slots))));
+        for sort in [&bufs.sort_a, &bufs.sort_b] {
+            encoder.clear_buffer(&sort.count, 0, Some(4 * u64::from(scan_slots(slots))));
+        }
         // The probe writes the forces of B's vertices in the grid and the resolve those of A's;
         // the others stay zero.
         encoder.clear_buffer(&bufs.force_b, 0, Some(VEC4 * u64::from(n_b)));
