@@ -11,6 +11,8 @@ const SEARCH_VOXEL: u32 = 0u;
 const SEARCH_NEIGHBOURS: u32 = 1u;
 const DIRECTION_PAIRWISE: u32 = 0u;
 const DIRECTION_PLANE_NORMAL: u32 = 1u;
+const RESPONSE_CONSTANT: u32 = 0u;
+const RESPONSE_PENALTY: u32 = 1u;
 const ANCHOR_FIXED: u32 = 0u;
 const ANCHOR_FOLLOW_A: u32 = 1u;
 
@@ -33,6 +35,14 @@ struct Params {
     direction: u32,
     anchor: u32,
     dense: u32,             // 1: a slot per voxel of the grid, at its linear index; 0: hashed
+    response: u32,          // RESPONSE_CONSTANT or RESPONSE_PENALTY (the four below: src/eliminate.rs ForceLaw)
+    stiffness: f32,
+    gap: f32,
+    gap_reach: f32,         // gap + reach (the search radius, or the voxel size)
+    max_depth: f32,         // magnitude / stiffness
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 struct State {

@@ -89,6 +89,31 @@ fn add_force_a(at: u32, f: vec3<f32>) {
     add_fixed(at, 2u, i32(round(f.z * params.scale)));
 }
 
+// stiffness * depth, the depth clamped to [0, max_depth] (NaN counts as 0). CPU twin:
+// Penalty::of_depth in src/eliminate.rs, with the same comparisons.
+fn penalty_of_depth(depth: f32) -> f32 {
+    let d0 = select(0.0, depth, depth > 0.0);
+    let d = select(params.max_depth, d0, d0 < params.max_depth);
+    return params.stiffness * d;
+}
+
+// The magnitude of the force on b along the plane normal n of a0, a1, a2 (ForceLaw::plane).
+fn plane_magnitude(b: vec3<f32>, a0: vec3<f32>, a1: vec3<f32>, a2: vec3<f32>, n: vec3<f32>) -> f32 {
+    if params.response == RESPONSE_CONSTANT {
+        return params.magnitude;
+    }
+    let centroid = (a0 + a1 + a2) / 3.0;
+    return penalty_of_depth(params.gap - dot3(b - centroid, n));
+}
+
+// The magnitude of the force on b at squared distance d2 from its partner (ForceLaw::pairwise).
+fn pairwise_magnitude(d2: f32) -> f32 {
+    if params.response == RESPONSE_CONSTANT {
+        return params.magnitude;
+    }
+    return penalty_of_depth(params.gap_reach - sqrt(d2));
+}
+
 // (b - a) / sqrt(d2), or for coincident vertices the unit vector from the center, or +z.
 fn pairwise_direction(center: vec3<f32>, a: vec3<f32>, b: vec3<f32>) -> vec3<f32> {
     let d2 = dist2(b, a);
@@ -325,7 +350,6 @@ fn probe(j: u32, p: vec3<f32>) -> bool {
         force_b[j] = vec4<f32>(0.0);
         return false;
     }
-    let m = params.magnitude;
     if plane && block.n == 3u {
         let a0 = bitcast<vec3<f32>>(sorted[block.at[0]].xyz);
         let a1 = bitcast<vec3<f32>>(sorted[block.at[1]].xyz);
@@ -338,7 +362,7 @@ fn probe(j: u32, p: vec3<f32>) -> bool {
             if dot3(n, centroid - center) < 0.0 {
                 n = -n;
             }
-            let f_b = m * n;
+            let f_b = plane_magnitude(p, a0, a1, a2, n) * n;
             force_b[j] = vec4<f32>(f_b, 1.0);
             let share = -f_b / 3.0;
             add_force_a(block.at[0], share);
@@ -348,7 +372,8 @@ fn probe(j: u32, p: vec3<f32>) -> bool {
         }
     }
     let at = partner.at[0];
-    let f_b = m * pairwise_direction(center, bitcast<vec3<f32>>(sorted[at].xyz), p);
+    let pa = bitcast<vec3<f32>>(sorted[at].xyz);
+    let f_b = pairwise_magnitude(dist2(p, pa)) * pairwise_direction(center, pa, p);
     force_b[j] = vec4<f32>(f_b, 1.0);
     add_force_a(at, -f_b);
     return true;

@@ -5,12 +5,12 @@ use glam::Vec3;
 
 use crate::collision::Collision;
 use crate::detect::{CollisionDetector, VoxelDetector};
-use crate::eliminate::{CollisionEliminator, eliminator};
+use crate::eliminate::{CollisionEliminator, ForceLaw, eliminator};
 use crate::error::{Body, Error};
 use crate::fixed_point::ForceAccumulator;
 use crate::grid::VoxelGrid;
 use crate::initializer::finite_bounds;
-use crate::params::{Anchor, ContactParams, Direction};
+use crate::params::{Anchor, ContactParams, Direction, Response};
 use crate::report::ContactReport;
 
 /// The most vertices a body may have: indices are `u32`, with `u32::MAX` kept as the end of a
@@ -39,6 +39,7 @@ pub const MAX_VERTICES: usize = u32::MAX as usize - 1;
 pub struct CpuCollision {
     grid: VoxelGrid,
     params: ContactParams,
+    response: Response,
     detector: VoxelDetector,
     eliminator: Box<dyn CollisionEliminator + Send + Sync>,
 }
@@ -53,9 +54,45 @@ impl CpuCollision {
         Ok(CpuCollision {
             grid,
             params,
+            response: Response::Constant,
             detector: VoxelDetector::new(params.search, params.direction == Direction::PlaneNormal),
-            eliminator: eliminator(params.direction, params.magnitude),
+            eliminator: eliminator(params.direction, ForceLaw::new(&params, Response::Constant, grid.voxel_size())),
         })
+    }
+
+    /// The same backend with its contacts' force magnitudes given by `response` (made by
+    /// [`new`](Self::new), it is [`Response::Constant`], the paper's rule).
+    ///
+    /// ```
+    /// use voxcollide::{glam::Vec3, *};
+    /// let a = [Vec3::ZERO, Vec3::new(2.0, 0.0, 0.0)];
+    /// let grid = Initializer::new(1.0).margin(1).build(&a)?;
+    /// let params = ContactParams {
+    ///     magnitude: 10.0,
+    ///     search: Search::Neighbours { radius: 0.5 },
+    ///     direction: Direction::Pairwise,
+    ///     anchor: Anchor::Fixed,
+    /// };
+    /// let penalty = Response::Penalty { stiffness: 4.0, gap: 0.0 };
+    /// let mut cpu = CpuCollision::new(grid, params)?.with_response(penalty)?;
+    /// // 0.25 from its partner, 0.25 inside the radius: a force of 4 * 0.25 = 1.
+    /// let report = cpu.step(&a, &[Vec3::new(2.0, 0.25, 0.0)])?;
+    /// assert_eq!(report.force_b[0], Vec3::Y);
+    /// # Ok::<(), voxcollide::Error>(())
+    /// ```
+    ///
+    /// # Errors
+    /// [`Error::Response`] when `response` is invalid for the grid ([`Response::validate`]).
+    pub fn with_response(self, response: Response) -> Result<CpuCollision, Error> {
+        response.validate(&self.params, &self.grid)?;
+        let law = ForceLaw::new(&self.params, response, self.grid.voxel_size());
+        Ok(CpuCollision { response, eliminator: eliminator(self.params.direction, law), ..self })
+    }
+
+    /// How its contacts' force magnitudes are chosen.
+    #[must_use]
+    pub fn response(&self) -> Response {
+        self.response
     }
 
     /// The grid as built (under [`Anchor::FollowA`] each step recentres a copy of it).

@@ -69,6 +69,17 @@ pub enum Error {
         center: Vec3,
     },
 
+    /// A contact response's parameter is out of its range (see [`Response`](crate::params::Response)).
+    #[error("contact response {what} {value:?} is invalid: it {rule}")]
+    Response {
+        /// Which parameter: "stiffness" or "gap".
+        what: &'static str,
+        /// The rejected value.
+        value: f32,
+        /// The rule it breaks.
+        rule: String,
+    },
+
     /// A body has no vertex at all.
     #[error("body {body} is empty: a body needs at least one vertex")]
     EmptyBody {

@@ -31,7 +31,7 @@ pub use grid::VoxelGrid;
 pub use initializer::Initializer;
 #[cfg(feature = "parallel")]
 pub use parallel::ParallelCpuCollision;
-pub use params::{Anchor, ContactParams, Direction, Search};
+pub use params::{Anchor, ContactParams, Direction, Response, Search};
 pub use report::ContactReport;
 
 pub use glam;

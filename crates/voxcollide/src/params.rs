@@ -84,3 +84,66 @@ impl ContactParams {
         Ok(())
     }
 }
+
+/// How strongly a contact pushes: the magnitude of its force (DESIGN §2 gives the paper's,
+/// [`Response::Constant`]; docs/semantics.md gives both).
+///
+/// Set on a backend with `with_response` ([`CpuCollision::with_response`](crate::CpuCollision::with_response),
+/// and the same on the parallel and GPU backends); a backend made with `new` responds with
+/// [`Response::Constant`], the paper's rule, bit for bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Response {
+    /// The paper's rule: every contact pushes with [`ContactParams::magnitude`], however deep.
+    #[default]
+    Constant,
+    /// A penalty that grows with depth, `min(magnitude, stiffness * depth)`, so that a load
+    /// that grows is met by a force that grows. `magnitude` is then the most one contact may
+    /// push with (and the fixed-point scale of the sums, as before). The depth is, in `f32`:
+    /// - along a plane normal `n` through `a0, a1, a2` (centroid `c = (a0 + a1 + a2) / 3`):
+    ///   `gap - dot(b - c, n)`, how far `b` is behind the plane moved out by `gap`;
+    /// - along the line of centres (pairwise, and the plane's fallback):
+    ///   `gap + reach - sqrt(d2)`, with `reach` the search radius (`Search::Neighbours`) or
+    ///   the voxel size (`Search::Voxel`): how far `b` is inside the sphere of `gap + reach`
+    ///   around its partner;
+    ///
+    /// clamped to `[0, magnitude / stiffness]` (the quotient computed once, in `f32`, so that
+    /// `stiffness * depth` never leaves `f32`). A contact of depth 0 still collides (it is in
+    /// `colliding_b`); its force is zero.
+    Penalty {
+        /// Force per unit of depth, finite and positive.
+        stiffness: f32,
+        /// How far outside A the response begins, finite, in `[0, voxel_size]`.
+        gap: f32,
+    },
+}
+
+impl Response {
+    /// Checks the response against `params` and `grid`.
+    ///
+    /// # Errors
+    /// [`Error::Response`] for a stiffness that is not a positive normal `f32` (no zero,
+    /// subnormal, infinity or NaN), or whose `magnitude / stiffness` is not a finite normal
+    /// `f32` either; or a gap outside `[0, grid.voxel_size()]`.
+    pub fn validate(&self, params: &ContactParams, grid: &VoxelGrid) -> Result<(), Error> {
+        if let Response::Penalty { stiffness, gap } = *self {
+            if !(stiffness.is_normal() && stiffness > 0.0 && (params.magnitude / stiffness).is_normal()) {
+                return Err(Error::Response {
+                    what: "stiffness",
+                    value: stiffness,
+                    rule: format!(
+                        "must be a positive normal f32, and so must magnitude / stiffness (magnitude {})",
+                        params.magnitude
+                    ),
+                });
+            }
+            if !(gap >= 0.0 && gap <= grid.voxel_size()) {
+                return Err(Error::Response {
+                    what: "gap",
+                    value: gap,
+                    rule: format!("must be in [0, {}] (the voxel size)", grid.voxel_size()),
+                });
+            }
+        }
+        Ok(())
+    }
+}

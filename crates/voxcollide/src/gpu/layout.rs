@@ -4,6 +4,7 @@
 use bytemuck::{Pod, Zeroable};
 
 use crate::grid::VoxelGrid;
+use crate::eliminate::ForceLaw;
 use crate::params::{Anchor, ContactParams, Direction, Search};
 
 /// The step's parameters, a uniform. Keep in sync with `Params` in `shaders/common.wgsl`.
@@ -25,12 +26,20 @@ pub(crate) struct GpuParams {
     pub direction: u32,
     pub anchor: u32,
     pub dense: u32,
+    /// 0: the paper's constant magnitude; 1: a penalty (the four below, as in `ForceLaw`).
+    pub response: u32,
+    pub stiffness: f32,
+    pub gap: f32,
+    pub gap_reach: f32,
+    pub max_depth: f32,
+    pub _pad: [u32; 3],
 }
-const _: () = assert!(std::mem::size_of::<GpuParams>() == 96);
+const _: () = assert!(std::mem::size_of::<GpuParams>() == 128);
 
 impl GpuParams {
     /// Everything but the sizes, computed in f32 exactly as the CPU reference does.
-    pub fn new(grid: &VoxelGrid, params: &ContactParams) -> GpuParams {
+    pub fn new(grid: &VoxelGrid, params: &ContactParams, law: &ForceLaw) -> GpuParams {
+        let p = law.penalty;
         let half = grid.voxel_size() * 0.5;
         let dims = grid.dims();
         let c = grid.center();
@@ -61,6 +70,12 @@ impl GpuParams {
                 Anchor::FollowA => 1,
             },
             dense: 0,
+            response: u32::from(p.is_some()),
+            stiffness: p.map_or(0.0, |p| p.stiffness),
+            gap: p.map_or(0.0, |p| p.gap),
+            gap_reach: p.map_or(0.0, |p| p.gap_reach),
+            max_depth: p.map_or(0.0, |p| p.max_depth),
+            _pad: [0; 3],
         }
     }
 }

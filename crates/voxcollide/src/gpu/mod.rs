@@ -28,7 +28,8 @@ use crate::collision::Collision;
 use crate::cpu::check_body;
 use crate::error::{Body, Error};
 use crate::grid::VoxelGrid;
-use crate::params::{Anchor, ContactParams};
+use crate::eliminate::ForceLaw;
+use crate::params::{Anchor, ContactParams, Response};
 use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots};
 
@@ -199,7 +200,7 @@ impl Buffers {
             cap_a,
             cap_b,
             cap_slots,
-            params: make("voxcollide params", 96, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
+            params: make("voxcollide params", std::mem::size_of::<GpuParams>() as u64, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
             state: make("voxcollide state", GpuState::SIZE, storage),
             sort_a: SortBuffers::new(|label, size| make(label, size, storage), slots, a, ""),
             sort_b: SortBuffers::new(|label, size| make(label, size, storage), slots, b, "_b"),
@@ -333,7 +334,7 @@ impl GpuCollision {
         params.validate(&grid)?;
         let device = ctx.device();
         let limits = device.limits();
-        let base = GpuParams::new(&grid, &params);
+        let base = GpuParams::new(&grid, &params, &ForceLaw::new(&params, Response::Constant, grid.voxel_size()));
         let kernels = ctx.kernels((base.search, base.direction), || {
             scoped(device, || Kernels::new(device, &base)).map(std::sync::Arc::new)
         })?;
@@ -404,6 +405,28 @@ impl GpuCollision {
     #[must_use]
     pub fn params(&self) -> &ContactParams {
         &self.params
+    }
+
+    /// The same backend with its contacts' force magnitudes given by `response`, as
+    /// [`CpuCollision::with_response`](crate::CpuCollision::with_response) (the probe pass reads
+    /// them from its uniform: the pipelines are the same).
+    ///
+    /// # Errors
+    /// [`Error::Response`] when `response` is invalid for the grid.
+    pub fn with_response(self, response: Response) -> Result<GpuCollision, Error> {
+        response.validate(&self.params, &self.grid)?;
+        let base = GpuParams::new(&self.grid, &self.params, &ForceLaw::new(&self.params, response, self.grid.voxel_size()));
+        Ok(GpuCollision { base, uploaded: GpuParams::default(), recorded: None, ..self })
+    }
+
+    /// How its contacts' force magnitudes are chosen.
+    #[must_use]
+    pub fn response(&self) -> Response {
+        if self.base.response == 0 {
+            Response::Constant
+        } else {
+            Response::Penalty { stiffness: self.base.stiffness, gap: self.base.gap }
+        }
     }
 
     /// The context this backend runs on.

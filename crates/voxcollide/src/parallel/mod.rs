@@ -25,11 +25,11 @@ use rayon::prelude::*;
 
 use crate::collision::Collision;
 use crate::cpu::{check_body, step_grid};
-use crate::eliminate::{pairwise_direction, plane_normal};
+use crate::eliminate::{ForceLaw, pairwise_direction, plane_normal};
 use crate::error::{Body, Error};
 use crate::grid::VoxelGrid;
 use crate::math::dist2;
-use crate::params::{ContactParams, Direction, Search};
+use crate::params::{ContactParams, Direction, Response, Search};
 use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots, voxel_hash};
 use sort::{SortedBody, chunk};
@@ -154,6 +154,9 @@ pub struct ParallelCpuCollision {
     fixed32: Vec<AtomicI32>,
     /// With profiling on, the last step's phases in milliseconds (see [`PHASES`]).
     phases: Option<[f64; PHASES.len()]>,
+    /// The contacts' response, and its force law.
+    response: Response,
+    law: ForceLaw,
 }
 
 /// The phases of a parallel step, as [`ParallelCpuCollision::phase_times`] names them: A
@@ -181,7 +184,26 @@ impl ParallelCpuCollision {
             fixed: Vec::new(),
             fixed32: Vec::new(),
             phases: None,
+            response: Response::Constant,
+            law: ForceLaw::new(&params, Response::Constant, grid.voxel_size()),
         })
+    }
+
+    /// The same backend with its contacts' force magnitudes given by `response`, as
+    /// [`CpuCollision::with_response`](crate::CpuCollision::with_response).
+    ///
+    /// # Errors
+    /// [`Error::Response`] when `response` is invalid for the grid.
+    pub fn with_response(self, response: Response) -> Result<ParallelCpuCollision, Error> {
+        response.validate(&self.params, &self.grid)?;
+        let law = ForceLaw::new(&self.params, response, self.grid.voxel_size());
+        Ok(ParallelCpuCollision { response, law, ..self })
+    }
+
+    /// How its contacts' force magnitudes are chosen.
+    #[must_use]
+    pub fn response(&self) -> Response {
+        self.response
     }
 
     /// The grid as built.
@@ -249,7 +271,7 @@ impl ParallelCpuCollision {
         // vertices in the 27 voxels around that A vertex's reach it, each at most the fullest
         // slot of B: 27 · 1213 · 65540 < 2^31.
         let narrow = 27 * u64::from(self.b.max_per_slot) * 65_540 < 1 << 31;
-        let run = Run { grid: &grid, params: &self.params, bins: &self.bins, b: &self.b };
+        let run = Run { grid: &grid, params: &self.params, law: &self.law, bins: &self.bins, b: &self.b };
         let overflow = if narrow {
             run.probe(&mut self.fixed32, &mut self.res_b, &mut self.res_a)
         } else {
@@ -366,6 +388,7 @@ impl Accumulator for AtomicI32 {
 struct Run<'a> {
     grid: &'a VoxelGrid,
     params: &'a ContactParams,
+    law: &'a ForceLaw,
     bins: &'a Bins,
     b: &'a SortedBody,
 }
@@ -386,7 +409,7 @@ impl Run<'_> {
         fixed.resize_with(3 * binned, T::zero);
         let m = self.params.magnitude;
         let probe =
-            Probe { grid: self.grid, params: self.params, bins: self.bins, fixed, scale: 65536.0 / m };
+            Probe { grid: self.grid, params: self.params, law: self.law, bins: self.bins, fixed, scale: 65536.0 / m };
         // Probe in A's slot order, in long runs, so that most of A's accumulators are one run's
         // alone (`own_bins`): a quarter of a thread's share each.
         let sorted = self.b.rec.len();
@@ -440,6 +463,7 @@ impl Run<'_> {
 struct Probe<'a, T> {
     grid: &'a VoxelGrid,
     params: &'a ContactParams,
+    law: &'a ForceLaw,
     bins: &'a Bins,
     fixed: &'a [T],
     scale: f32,
@@ -500,7 +524,7 @@ impl<T: Accumulator> Probe<'_, T> {
     #[inline(always)]
     fn pair_force(&self, p: Vec3, k: u32, own: (u32, u32)) -> Vec3 {
         let partner = self.bins.a.rec[k as usize].p;
-        let f_b = self.params.magnitude * pairwise_direction(self.grid.center(), partner, p);
+        let f_b = self.law.pairwise(dist2(p, partner)) * pairwise_direction(self.grid.center(), partner, p);
         self.add(k, -f_b, own);
         f_b
     }
@@ -592,7 +616,7 @@ impl<T: Accumulator> Probe<'_, T> {
     #[inline(always)]
     fn probe<const VOXEL: bool, const PLANE: bool>(&self, p: Vec3, own_bins: (u32, u32)) -> Option<Vec3> {
         let q = voxel_of(self.grid, p)?;
-        let m = self.params.magnitude;
+        let law = self.law;
         let center = self.grid.center();
         let pos = |k: u32| self.bins.a.rec[k as usize].p;
         let radius = match self.params.search {
@@ -620,7 +644,7 @@ impl<T: Accumulator> Probe<'_, T> {
             if best_i == u32::MAX {
                 return None;
             }
-            let f_b = m * pairwise_direction(center, pos(best_k), p);
+            let f_b = law.pairwise(best_d) * pairwise_direction(center, pos(best_k), p);
             self.add(best_k, -f_b, own_bins);
             return Some(f_b);
         }
@@ -652,7 +676,7 @@ impl<T: Accumulator> Probe<'_, T> {
         if block.n == 3 {
             let [k0, k1, k2] = block.k;
             if let Some(n) = plane_normal(center, pos(k0), pos(k1), pos(k2)) {
-                let f_b = m * n;
+                let f_b = law.plane(p, pos(k0), pos(k1), pos(k2), n) * n;
                 let share = -f_b / 3.0;
                 for k in block.k {
                     self.add(k, share, own_bins);
@@ -661,7 +685,7 @@ impl<T: Accumulator> Probe<'_, T> {
             }
         }
         let partner = own.k[0];
-        let f_b = m * pairwise_direction(center, pos(partner), p);
+        let f_b = law.pairwise(own.d[0]) * pairwise_direction(center, pos(partner), p);
         self.add(partner, -f_b, own_bins);
         Some(f_b)
     }

@@ -103,6 +103,8 @@ pub struct Case {
     pub b: Vec<Vec3>,
     pub grid: GridSpec,
     pub params: ContactParams,
+    /// The contact response every backend is given (`with_response`).
+    pub response: Response,
 }
 
 impl Case {
@@ -296,7 +298,24 @@ pub fn generate(seed: u64) -> Case {
     };
     let direction = if r.chance(0.5) { Direction::Pairwise } else { Direction::PlaneNormal };
     let anchor = if r.chance(0.5) { Anchor::Fixed } else { Anchor::FollowA };
-    Case { seed, a, b, grid, params: ContactParams { magnitude, search, direction, anchor } }
+    // Half the cases respond with a penalty, some of whose constants are refused.
+    let response = if r.chance(0.5) {
+        Response::Constant
+    } else {
+        let stiffness = match r.below(20) {
+            0 => r.pick(&[0.0f32, -1.0, f32::NAN, f32::INFINITY]),
+            1 => r.pick(&[1e-30f32, 1e30, f32::MAX, f32::MIN_POSITIVE, 1e-40]),
+            _ => 2f32.powi(r.range(-6, 12) as i32) * (0.5 + r.unit()) / unit.max(f32::MIN_POSITIVE),
+        };
+        let gap = match r.below(20) {
+            0 => r.pick(&[-1.0f32, f32::NAN, f32::INFINITY, 2.0 * vs]),
+            1..=6 => 0.0,
+            7 => vs,
+            _ => vs * r.unit(),
+        };
+        Response::Penalty { stiffness, gap }
+    };
+    Case { seed, a, b, grid, params: ContactParams { magnitude, search, direction, anchor }, response }
 }
 
 /// The backends a case runs on.
@@ -371,13 +390,14 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
         Ok(g) => g,
         Err(e) => return Ok(Outcome { result: variant(&e), grid_error: true, ..Outcome::default() }),
     };
-    let (a, b, params) = (&case.a, &case.b, case.params);
-    let reference =
-        guarded("CpuCollision", || CpuCollision::new(grid, params).and_then(|mut c| c.step(a, b)))?;
+    let (a, b, params, response) = (&case.a, &case.b, case.params, case.response);
+    let reference = guarded("CpuCollision", || {
+        CpuCollision::new(grid, params).and_then(|c| c.with_response(response)).and_then(|mut c| c.step(a, b))
+    })?;
     // Each fast backend steps twice: a warm step reuses its buffers (the parallel one its
     // report's vectors too) and must give the same report again.
     let parallel = guarded("ParallelCpuCollision", || {
-        ParallelCpuCollision::new(grid, params).map(|mut c| {
+        ParallelCpuCollision::new(grid, params).and_then(|c| c.with_response(response)).map(|mut c| {
             let first = c.step(a, b);
             let mut again = first.clone().unwrap_or_default();
             let second = c.step_into(a, b, &mut again).map(|()| again);
@@ -389,7 +409,7 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
     let mut outcome = Outcome::default();
     if let Some(ctx) = &backends.gpu {
         let gpu = guarded("GpuCollision", || {
-            GpuCollision::new(ctx, grid, params).map(|mut g| {
+            GpuCollision::new(ctx, grid, params).and_then(|g| g.with_response(response)).map(|mut g| {
                 let first = g.step(a, b);
                 (first, g.step(a, b))
             })
@@ -400,7 +420,8 @@ pub fn check(case: &Case, backends: &Backends) -> Result<Outcome, String> {
     }
     match &reference {
         Ok(report) => {
-            invariants(report, a, b, params.magnitude).map_err(|e| format!("CpuCollision: {e}"))?;
+            let constant = response == Response::Constant;
+            invariants(report, a, b, params.magnitude, constant).map_err(|e| format!("CpuCollision: {e}"))?;
             outcome.result = "ok".into();
             outcome.contacts = report.colliding_b.len();
         }
@@ -495,7 +516,9 @@ fn agree(
 }
 
 /// The invariants of DESIGN §2 that a report keeps whatever its inputs.
-pub fn invariants(r: &ContactReport, a: &[Vec3], b: &[Vec3], m: f32) -> Result<(), String> {
+/// `constant`: every contact's force has the magnitude `m` (the paper's response); otherwise at
+/// most `m` (a penalty).
+pub fn invariants(r: &ContactReport, a: &[Vec3], b: &[Vec3], m: f32, constant: bool) -> Result<(), String> {
     if r.force_a.len() != a.len() || r.force_b.len() != b.len() {
         return Err(format!(
             "lengths {} / {} for bodies of {} / {}",
@@ -536,8 +559,11 @@ pub fn invariants(r: &ContactReport, a: &[Vec3], b: &[Vec3], m: f32) -> Result<(
         }
         if colliding[j] {
             let len = f64::from(f.x).hypot(f64::from(f.y)).hypot(f64::from(f.z));
-            if (len - f64::from(m)).abs() > 4e-6 * f64::from(m) {
+            if constant && (len - f64::from(m)).abs() > 4e-6 * f64::from(m) {
                 return Err(format!("|force_b[{j}]| = {len}, not the magnitude {m}"));
+            }
+            if !constant && len > f64::from(m) * (1.0 + 4e-6) {
+                return Err(format!("|force_b[{j}]| = {len}, above the penalty's largest force {m}"));
             }
         } else if *f != Vec3::ZERO {
             return Err(format!("force_b[{j}] = {f} on a B vertex that does not collide"));
