@@ -77,6 +77,12 @@ pub struct CandidateResult {
     pub footprint_area: f64,
     /// Whether the scene came to rest before `max_steps`.
     pub settled: bool,
+    /// Whether every contact of its run held (DESIGN §11): only then are its numbers an
+    /// answer.
+    pub held: bool,
+    /// Where it did not hold: why, a sentence.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
     /// The voxel size of the compared body's contact (scene units): the model removes
     /// penetrations deeper than that within a few steps.
     pub voxel_size: f32,
@@ -141,27 +147,31 @@ fn io(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Io { path: path.display().to_string(), message: e.to_string() }
 }
 
-/// The scene with `body` replaced by candidate `c`, filled to `volume_ml`, settling on. With
-/// `room` (the height between the body's position and the tissue above it, scene units), an
-/// implant starts deflated to fit under the tissue: at the scene's scale, or smaller where its
-/// projection at that scale would not leave a tenth of the room free.
+/// The most a candidate is flattened to at the start ([`BodySpec::flatten`]): a twentieth of
+/// its height, where the tissue lies on its base (no gap at all).
+///
+/// [`BodySpec::flatten`]: voxcollide_sim::scene_file::BodySpec
+pub const FLATTEST: f64 = 0.05;
+
+/// The scene with `body` replaced by candidate `c` at its full size, filled to `volume_ml`,
+/// settling on. With `fit` (its shape's height and the room between its base and the tissue
+/// above it, scene units), it starts deflated flat on its base under the tissue: at half its
+/// height, or flatter where that would not leave a tenth of the room free (at most
+/// [`FLATTEST`]), its rest shape its own.
 fn with_candidate(
     scene: &SceneFile,
     body: usize,
     c: &Candidate,
     volume_ml: Option<f64>,
-    room: Option<f64>,
+    fit: Option<(f64, f64)>,
 ) -> SceneFile {
     let mut s = scene.clone();
     s.time.settle = true;
-    let metres = scene.metres();
     let b = &mut s.bodies[body];
     b.geometry = c.geometry.clone();
-    if let (Some(room), Geometry::Shape(Shape::Implant { projection_mm, .. })) = (room, &c.geometry) {
-        let height = projection_mm * 1e-3 / metres;
-        if room > 0.0 && b.scale * height > 0.9 * room {
-            b.scale = 0.9 * room / height;
-        }
+    if let Some((height, room)) = fit {
+        b.scale = 1.0;
+        b.flatten = Some((0.9 * room / height).clamp(FLATTEST, 0.5));
     }
     if let Some(volume_ml) = volume_ml {
         let ramp = b.inflate.as_ref().map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
@@ -178,17 +188,20 @@ fn with_candidate(
     s
 }
 
-/// The candidate's own volume in mL: an implant's as given; any other shape's or mesh's as its
-/// shell encloses it at scale 1.
-fn own_volume_ml(scene: &SceneFile, body: usize, c: &Candidate) -> Result<f64, Error> {
-    if let Geometry::Shape(Shape::Implant { volume_ml, .. }) = c.geometry {
-        return Ok(volume_ml);
-    }
+/// The candidate's own volume in mL (an implant's as given; any other shape's or mesh's as its
+/// shell encloses it at scale 1), and its lowest and highest z at scale 1 (scene units).
+fn own_shape(scene: &SceneFile, body: usize, c: &Candidate) -> Result<(f64, f64, f64), Error> {
     let mut s = with_candidate(scene, body, c, None, None);
     s.bodies[body].scale = 1.0;
     s.bodies[body].inflate = None;
     let built = build_world(&s)?;
-    Ok(built.world.bodies[body].enclosed_volume() * scene.metres().powi(3) * 1e6)
+    let shell = &built.world.bodies[body];
+    let (lo, hi) = shell.pos.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into())));
+    let volume = match c.geometry {
+        Geometry::Shape(Shape::Implant { volume_ml, .. }) => volume_ml,
+        _ => shell.enclosed_volume() * scene.metres().powi(3) * 1e6,
+    };
+    Ok((volume, lo, hi))
 }
 
 /// Where a comparison is, for a progress display.
@@ -255,16 +268,15 @@ pub fn compare(
         ));
     }
 
-    // The room under the tissue: from the compared body's position up to the lowest tissue
-    // vertex at rest (the scene as given).
-    let given = build_world(&scene)?;
+    // The lowest tissue vertex at rest (the scene as given, its compared body not filled):
+    // each candidate starts flat in the room between its base and that.
+    let mut unfilled = scene.clone();
+    unfilled.bodies[body].inflate = None;
+    let given = build_world(&unfilled)?;
     let floor_of_tissue = tissue
         .iter()
         .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
         .fold(f64::INFINITY, f64::min);
-    let room = (floor_of_tissue - scene.bodies[body].position[2])
-        .is_finite()
-        .then(|| floor_of_tissue - scene.bodies[body].position[2]);
 
     // Every candidate is built first: a bad one is named before anything is written.
     let mut runs = Vec::with_capacity(catalogue.candidates.len());
@@ -274,8 +286,9 @@ pub fn compare(
             value: format!("candidate[{k}] {:?} of {}", c.name, catalogue.path.display()),
             rule: e.to_string(),
         };
-        let volume = own_volume_ml(&scene, body, c).map_err(named)?;
-        let s = with_candidate(&scene, body, c, Some(volume), room);
+        let (volume, lo, hi) = own_shape(&scene, body, c).map_err(named)?;
+        let fit = (floor_of_tissue.is_finite() && hi > lo).then(|| (hi - lo, (floor_of_tissue - lo).max(0.0)));
+        let s = with_candidate(&scene, body, c, Some(volume), fit);
         let built = build_world(&s).map_err(named)?;
         runs.push((c, volume, s, built));
     }
@@ -495,6 +508,12 @@ fn run_candidate(
         .map(|c| c.max_penetration)
         .fold(0.0, f32::max);
     result.settled = summary.settled;
+    result.held = summary.held;
+    result.failure = summary
+        .contacts
+        .iter()
+        .filter_map(|c| c.failure.as_ref().map(|f| format!("contact {} – {}: {f}", c.a, c.b)))
+        .reduce(|a, b| format!("{a}; {b}"));
     result.steps = summary.steps;
     Ok(result)
 }
@@ -749,6 +768,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         format!("footprint_area_{u}2"),
         "settled".into(),
         "steps".into(),
+        "held".into(),
+        "failure".into(),
     ])
     .map_err(|e| io(&path, e))?;
     for c in &comparison.candidates {
@@ -767,6 +788,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             format!("{:.1}", c.footprint_area),
             c.settled.to_string(),
             c.steps.to_string(),
+            c.held.to_string(),
+            c.failure.clone().unwrap_or_default(),
         ])
         .map_err(|e| io(&path, e))?;
     }
@@ -782,7 +805,14 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
 fn plots(comparison: &Comparison) -> Result<String, Error> {
     let u = &comparison.units;
     let each = |f: &dyn Fn(&CandidateResult) -> Vec<(f64, f64)>| -> Vec<Series> {
-        comparison.candidates.iter().map(|c| Series { label: c.name.clone(), points: f(c) }).collect()
+        comparison
+            .candidates
+            .iter()
+            .map(|c| Series {
+                label: if c.held { c.name.clone() } else { format!("{} (FAILED, not a result)", c.name) },
+                points: f(c),
+            })
+            .collect()
     };
     let over_time = |f: fn(&Sample) -> f64| {
         each(&|c: &CandidateResult| c.history.iter().map(|s| (s.time, f(s))).collect())
@@ -843,8 +873,16 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     let u = escape(&comparison.units);
     let mut rows = String::new();
     for c in &comparison.candidates {
+        if !c.held {
+            rows += &format!(
+                "<tr class=\"failed\"><th scope=\"row\">{}</th><td colspan=\"13\"><strong>FAILED — not a result.</strong> {}</td></tr>\n",
+                escape(&c.name),
+                escape(c.failure.as_deref().unwrap_or("a contact did not hold"))
+            );
+            continue;
+        }
         rows += &format!(
-            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1} %</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td></tr>\n",
+            "<tr><th scope=\"row\">{}</th><td>{:.1}</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.1} %</td><td>{:.2}</td><td>{:.2}</td><td>{:.2}</td><td>{:.0}</td><td>{:.2}</td><td>{:.0}</td><td>{}</td><td>{}</td></tr>\n",
             escape(&c.name),
             c.volume_ml,
             c.apex_lift,
@@ -857,12 +895,19 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             c.contact_area,
             c.max_penetration,
             c.footprint_area,
-            if c.settled { "yes" } else { "no (max_steps)" }
+            if c.settled { "yes" } else { "no (max_steps)" },
+            "yes"
         );
     }
     let mut figures = String::new();
     for c in &comparison.candidates {
         figures += &format!("<section><h3>{}</h3>\n", escape(&c.name));
+        if !c.held {
+            figures += &format!(
+                "<p class=\"failed\"><strong>FAILED — not a result:</strong> {}. Its pictures show where the run went wrong.</p>\n",
+                escape(c.failure.as_deref().unwrap_or("a contact did not hold"))
+            );
+        }
         if c.pictures.is_empty() {
             figures += "<p>No pictures: no adapter to draw them on.</p>\n";
         }
@@ -883,14 +928,14 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
 <style>
 body {{ font-family: sans-serif; margin: 2em; color: #222; }}
 table {{ border-collapse: collapse; font-size: 0.85em; }} th, td {{ border: 1px solid #bbb; padding: 0.25em 0.45em; text-align: right; }}
-th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
+th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; }} tr.failed td {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
 </style></head>
 <body>
 <h1>Implant comparison</h1>
 <p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
-<h2>Measurements</h2>
+{failed}<h2>Measurements</h2>
 <table id="measurements">
-<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>implant pressure (kPa)</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th></tr></thead>
+<thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>implant pressure (kPa)</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th><th>held</th></tr></thead>
 <tbody>
 {rows}</tbody></table>
 <h2>Plots</h2>
@@ -902,5 +947,19 @@ th[scope=row] {{ text-align: left; }} figure {{ display: inline-block; margin: 0
         scene = escape(&comparison.scene),
         body = escape(&comparison.body),
         plots = plots(comparison)?,
+        failed = {
+            let failed: Vec<String> =
+                comparison.candidates.iter().filter(|c| !c.held).map(|c| escape(&c.name)).collect();
+            if failed.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "<p class=\"failed\" id=\"failed\"><strong>{} of {} candidates FAILED</strong> ({}): a contact did not hold, so their numbers are not an answer. Their rows say why.</p>\n",
+                    failed.len(),
+                    comparison.candidates.len(),
+                    failed.join(", ")
+                )
+            }
+        },
     ))
 }

@@ -280,6 +280,9 @@ fn main() -> ExitCode {
                 s.steps_per_second * f64::from(s.dt)
             );
             println!("{:<28} {:.3} (voxel size {})", "max penetration", s.max_penetration, s.voxel_size);
+            for c in s.contacts.iter().filter_map(|c| c.failure.as_ref()) {
+                println!("{:<28} {c}: these numbers are not a result", "warning:");
+            }
             println!("{:<28} {:.2} %", "penetrating tissue", 100.0 * s.penetrating_fraction);
             println!(
                 "{:<28} {:.3} ({:.0} % of the layer's {:.3})",
@@ -347,13 +350,21 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
             }
             for c in &s.contacts {
                 println!(
-                    "{:<28} max penetration {:.3} {}, {:.2} % inside, {} in contact at the end",
+                    "{:<28} max penetration {:.3} {}, {:.2} % inside, {} in contact at the end; {}",
                     format!("contact {} – {}", c.a, c.b),
                     c.max_penetration,
                     s.units,
                     100.0 * c.penetrating_fraction,
-                    c.contacts_at_end
+                    c.contacts_at_end,
+                    if c.held {
+                        format!("held (within {:.3} {u}, at rest {:.3} {u})", c.bound, c.rest_bound, u = s.units)
+                    } else {
+                        "did NOT hold".into()
+                    }
                 );
+                if let Some(f) = &c.failure {
+                    println!("{:<28} {f}: these numbers are not a result", "warning:");
+                }
             }
             println!(
                 "{:<28} {} (over the last {:.3} s a vertex moved at most {:.3} of its spacing; at rest: {})",
@@ -501,29 +512,44 @@ fn compare(args: &CompareArgs) -> ExitCode {
         Ok(c) => {
             let w = c.candidates.iter().map(|r| r.name.chars().count()).max().unwrap_or(0).max(9);
             println!(
-                "{:<w$} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8}",
+                "{:<w$} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8} {:>8}",
                 "candidate",
                 "volume mL",
                 format!("lift {}", c.units),
                 format!("max disp {}", c.units),
                 "peak kPa",
                 format!("area {}²", c.units),
-                "settled"
+                "settled",
+                "held"
             );
             for r in &c.candidates {
                 println!(
-                    "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8}",
+                    "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8} {:>8}",
                     r.name,
                     r.volume_ml,
                     r.apex_lift,
                     r.max_tissue_displacement,
                     r.peak_contact_pressure_kpa,
                     r.contact_area,
-                    r.settled
+                    r.settled,
+                    if r.held { "yes" } else { "FAILED" }
                 );
             }
             println!("written: {}/report.html, compare.json, compare.csv", args.out.display());
-            ExitCode::SUCCESS
+            let failed: Vec<_> = c.candidates.iter().filter(|r| !r.held).collect();
+            for r in &failed {
+                eprintln!(
+                    "warning: candidate {:?} FAILED, its numbers are not a result: {}",
+                    r.name,
+                    r.failure.as_deref().unwrap_or("a contact did not hold")
+                );
+            }
+            if failed.is_empty() {
+                ExitCode::SUCCESS
+            } else {
+                eprintln!("error: {} of {} candidates failed (DESIGN §11)", failed.len(), c.candidates.len());
+                ExitCode::from(2)
+            }
         }
         Err(e) => {
             eprintln!("error: {e}");

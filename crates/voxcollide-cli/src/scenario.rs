@@ -92,8 +92,10 @@ pub struct Summary {
     pub max_tissue_displacement: f32,
     /// The tissue layer's thickness.
     pub layer_thickness: f32,
-    /// The voxel size of the collision model.
+    /// The voxel size of the collision model (the contact's bound, DESIGN §11).
     pub voxel_size: f32,
+    /// Whether the contact held: after first contact, within the voxel size at every frame.
+    pub held: bool,
     /// The penalty force per contact.
     pub magnitude: f32,
     /// The tissue's spring stiffness.
@@ -370,13 +372,37 @@ pub fn run(
             ..Default::default()
         },
     ];
+    // DESIGN §11: after first contact, every frame within the voxel size.
+    let bound = summary.voxel_size;
+    let touched = summary.frames.iter().position(|f| f.colliding > 0 || f.max_penetration > 0.0);
+    let worst = touched
+        .map(|t| &summary.frames[t..])
+        .unwrap_or_default()
+        .iter()
+        .filter(|f| f.max_penetration > bound)
+        .max_by(|x, y| x.max_penetration.total_cmp(&y.max_penetration));
+    let failure = worst.map(|f| {
+        format!(
+            "the tissue went {:.3} deep into the {name} at step {} (frame {}), beyond the contact's bound of {bound} (its voxel size)",
+            f.max_penetration, f.step, f.frame
+        )
+    });
     summary.contacts = vec![crate::scene_run::ContactSummary {
         a: name.into(),
         b: "tissue".into(),
         max_penetration: summary.frames.iter().map(|f| f.max_penetration).fold(0.0, f32::max),
         penetrating_fraction: summary.frames.iter().map(|f| f.penetrating_fraction).fold(0.0, f32::max),
         contacts_at_end: summary.frames.last().map_or(0, |f| f.colliding),
+        bound,
+        rest_bound: 0.5 * scene.tissue_spacing(),
+        held: worst.is_none(),
+        worst_frame: worst.map(|f| f.frame),
+        worst_step: worst.map(|f| f.step),
+        worst_depth: worst.map(|f| f.max_penetration),
+        failure,
+        checks: summary.frames.len() as u32,
     }];
+    summary.held = worst.is_none();
     summary.simulated_time = steps as f64 * f64::from(scene.dt);
     let path = config.out.join("summary.json");
     let json = serde_json::to_string_pretty(&summary).map_err(|e| io(&path, e))?;

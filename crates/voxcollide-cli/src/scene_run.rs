@@ -57,6 +57,29 @@ pub struct ContactSummary {
     pub penetrating_fraction: f32,
     /// `b`'s vertices in contact (the voxel model's count) at the last frame.
     pub contacts_at_end: usize,
+    /// The contact's bound (DESIGN §11): its voxel size. After first contact no vertex of `b`
+    /// may be deeper inside `a` than this at any check (file units).
+    pub bound: f32,
+    /// The bound at rest: half of `b`'s spacing (a settled run's last frame).
+    pub rest_bound: f32,
+    /// Whether the contact held: within `bound` at every check after first contact, and within
+    /// `rest_bound` at rest.
+    pub held: bool,
+    /// Where it did not hold, the output frame at (or just before) its deepest check beyond
+    /// the bound, and that check's step and depth.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worst_frame: Option<u32>,
+    /// See `worst_frame`: the step of the deepest check.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worst_step: Option<u64>,
+    /// See `worst_frame`: its depth (file units).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub worst_depth: Option<f32>,
+    /// Where it did not hold, a sentence saying how.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failure: Option<String>,
+    /// Checks of the penetration made over the run.
+    pub checks: u32,
 }
 
 /// What a scene-file run did, as written to `summary.json`.
@@ -95,6 +118,8 @@ pub struct FileSummary {
     pub bodies: Vec<BodySummary>,
     /// Per contact.
     pub contacts: Vec<ContactSummary>,
+    /// Whether every contact held (`contacts[].held`): the run's numbers are a result only then.
+    pub held: bool,
     /// Files written, relative to the output directory.
     pub files: Vec<String>,
 }
@@ -260,9 +285,13 @@ pub fn run_scene(
             .map(|c| ContactSummary {
                 a: world.names[c.a].clone(),
                 b: world.names[c.b].clone(),
+                bound: c.grid.voxel_size(),
+                rest_bound: 0.5 * mean_spring(&world.bodies[c.b]),
+                held: true,
                 ..Default::default()
             })
             .collect(),
+        held: true,
         ..FileSummary::default()
     };
     let size = world
@@ -283,9 +312,21 @@ pub fn run_scene(
     let window = settling_window(world, built.dt);
     summary.rest_window = window as f64 * f64::from(built.dt);
     let spacings: Vec<f32> = world.bodies.iter().map(mean_spring).collect();
+    // The contacts are checked at every frame and, between frames, at least 64 times over
+    // the schedule and 4 times a settling window (DESIGN §11: a failed contact is never shown
+    // as a result).
+    let check_every = (planned / 64).min(window / 4).clamp(1, chunk);
+    let mut checks = ContactChecks::new(world.contacts.len());
+    if file.time.settle && planned > file.time.max_steps {
+        note(&format!(
+            "warning: the schedule needs {planned} steps (dt {:.3e} s), more than max_steps = {}: the run will stop before it ends; raise [time] max_steps or shorten the schedule",
+            built.dt, file.time.max_steps
+        ));
+    }
     loop {
         let (world, reports) = run.frame()?;
         measure(world, &mut summary)?;
+        checks.check(world, &reports, &mut summary, done, frame, note)?;
         let motion = before.as_ref().map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &spacings));
         let long_enough = before.as_ref().is_some_and(|(at, _)| done - at >= window);
         let at_rest = done >= planned && long_enough && motion <= REST_TOLERANCE;
@@ -356,6 +397,7 @@ pub fn run_scene(
         observe(world, &reports, FrameAt { step: done, time: done as f64 * f64::from(built.dt), last })?;
         if last {
             summary.settled = file.time.settle && at_rest;
+            checks.at_end(world, &mut summary, done, note)?;
             for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
                 if spec.kind == BodyKind::Shell {
                     out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
@@ -370,12 +412,18 @@ pub fn run_scene(
         // Past the schedule, frames a settling window apart.
         let next = if done >= planned { chunk.max(window) } else { chunk };
         let target = (done + next).min(if file.time.settle { file.time.max_steps } else { planned });
-        let started = Instant::now();
+        let mut started = Instant::now();
         while done < target {
             run.step()?;
             done += 1;
             if done.is_multiple_of(16) || done == target {
                 progress(done, planned.max(done));
+            }
+            if done.is_multiple_of(check_every) && done < target {
+                stepping += started.elapsed().as_secs_f64();
+                let (world, reports) = run.frame()?;
+                checks.check(world, &reports, &mut summary, done, frame + 1, note)?;
+                started = Instant::now();
             }
         }
         stepping += started.elapsed().as_secs_f64();
@@ -393,6 +441,117 @@ pub fn run_scene(
     std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
     summary.files.push("summary.json".into());
     Ok(summary)
+}
+
+/// The contacts' checks against their bounds (DESIGN §11), over a run.
+struct ContactChecks {
+    /// Per contact: whether it has touched yet (a contact is bound after first contact).
+    touched: Vec<bool>,
+    /// Per contact: whether its warning has been given.
+    warned: Vec<bool>,
+}
+
+impl ContactChecks {
+    fn new(contacts: usize) -> ContactChecks {
+        ContactChecks { touched: vec![false; contacts], warned: vec![false; contacts] }
+    }
+
+    /// Checks every contact's penetration now (`step`, in output frame `frame`) against its
+    /// bound, recording the worst and warning the first time one goes beyond.
+    fn check(
+        &mut self,
+        world: &World,
+        reports: &[ContactReport],
+        summary: &mut FileSummary,
+        step: u64,
+        frame: u32,
+        note: &mut dyn FnMut(&str),
+    ) -> Result<(), Error> {
+        for (c, pair) in world.contacts.iter().enumerate() {
+            let depth = contact_depth(world, pair)?;
+            let s = &mut summary.contacts[c];
+            s.checks += 1;
+            self.touched[c] |= depth > 0.0 || reports.get(c).is_some_and(|r| !r.colliding_b.is_empty());
+            if !self.touched[c] || depth <= s.bound {
+                continue;
+            }
+            s.held = false;
+            if s.worst_depth.is_none_or(|w| depth > w) {
+                s.worst_depth = Some(depth);
+                s.worst_frame = Some(frame);
+                s.worst_step = Some(step);
+                s.failure = Some(format!(
+                    "{} and {} went {depth:.3} {u} deep into each other at step {step} (frame {frame}), beyond the contact's bound of {:.3} {u} (its voxel size)",
+                    s.a,
+                    s.b,
+                    s.bound,
+                    u = summary.units
+                ));
+            }
+            if !self.warned[c] {
+                self.warned[c] = true;
+                note(&format!(
+                    "warning: contact {} – {} did not hold: {depth:.3} {u} deep at step {step} (frame {frame}), beyond the bound of {:.3} {u}; this run's numbers are not a result",
+                    s.a,
+                    s.b,
+                    s.bound,
+                    u = summary.units
+                ));
+            }
+        }
+        summary.held = summary.contacts.iter().all(|c| c.held);
+        Ok(())
+    }
+
+    /// At the last frame: a settled run's contacts are held to their bound at rest, and each
+    /// contact that did not hold is said once more.
+    fn at_end(
+        &mut self,
+        world: &World,
+        summary: &mut FileSummary,
+        step: u64,
+        note: &mut dyn FnMut(&str),
+    ) -> Result<(), Error> {
+        for (c, pair) in world.contacts.iter().enumerate() {
+            let depth = contact_depth(world, pair)?;
+            let s = &mut summary.contacts[c];
+            if summary.settled && depth > s.rest_bound {
+                s.held = false;
+                if s.worst_depth.is_none() {
+                    s.worst_depth = Some(depth);
+                    s.worst_step = Some(step);
+                }
+                s.failure.get_or_insert_with(|| {
+                    format!(
+                        "at rest {} and {} are {depth:.3} {u} deep in each other, beyond the resting bound of {:.3} {u} (half of {}'s spacing)",
+                        s.a,
+                        s.b,
+                        s.rest_bound,
+                        s.b,
+                        u = summary.units
+                    )
+                });
+            }
+            if let Some(f) = &s.failure {
+                note(&format!("warning: contact {} – {} did not hold: {f}", s.a, s.b));
+            }
+        }
+        summary.held = summary.contacts.iter().all(|c| c.held);
+        Ok(())
+    }
+}
+
+/// How deep contact `pair`'s bodies are inside each other: the deepest vertex of `b` inside
+/// `a`'s closed (shown) surface, or of `a` inside `b`'s, whichever is deeper. Both sides, since
+/// the voxel model pushes only `b`'s vertices out of `a`: `a`'s could pass between them.
+fn contact_depth(world: &World, pair: &voxcollide_sim::ContactPair) -> Result<f32, Error> {
+    let inside = |outer: usize, inner: usize| -> Result<f32, Error> {
+        let (positions, mesh) = shown_surface(&world.bodies[outer]);
+        let surface = ClosedSurface::new(&positions, mesh)?;
+        let (inner_pos, _) = shown_surface(&world.bodies[inner]);
+        Ok(penetration(&surface, &inner_pos).max_depth)
+    };
+    Ok(inside(pair.a, pair.b)?.max(inside(pair.b, pair.a)?))
 }
 
 /// The contact force on each vertex of body `k`: its side's forces of every contact it is in,

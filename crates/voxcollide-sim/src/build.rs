@@ -19,7 +19,7 @@
 //! - pressures: `pressure_kpa · 10³ · s`; penalty magnitudes given in newtons: `N / s`.
 
 use glam::{DVec3, Mat3, UVec3, Vec3};
-use voxcollide::{Anchor, ContactParams, Direction, Error, Initializer, Search};
+use voxcollide::{Anchor, ContactParams, Direction, Error, Initializer, Response, Search};
 
 use crate::bodies::{
     CylinderShape, ImplantShape, box_lattice, cylinder, ellipsoid_shell, implant_surface, lattice_in_surface,
@@ -29,8 +29,8 @@ use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
-    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, SceneFile, SearchSpec,
-    Shape,
+    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, ResponseSpec, SceneFile,
+    SearchSpec, Shape,
 };
 use crate::world::{ContactPair, World};
 
@@ -46,6 +46,9 @@ pub struct BodyNote {
     pub coverage: Option<(f64, usize)>,
     /// Remarks: a surface turned outward, tetrahedra turned, springs left out across a gap.
     pub remarks: Vec<String>,
+    /// For a shell that starts flattened ([`BodySpec::flatten`](crate::scene_file::BodySpec)):
+    /// its full shape's surface area and enclosed volume (cubic and square file units).
+    pub full_shape: Option<(f64, f64)>,
 }
 
 /// A world built from a scene file, with its run length.
@@ -135,7 +138,8 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     let offset = Vec3::from_array(spec.position.map(|v| v as f32));
     let place = |p: Vec3| rot * (scale * p) + offset;
     let h = spec.spacing.map(|h| h as f32);
-    let mut note = BodyNote { name: spec.name.clone(), vertices: 0, coverage: None, remarks: Vec::new() };
+    let mut note =
+        BodyNote { name: spec.name.clone(), vertices: 0, coverage: None, remarks: Vec::new(), full_shape: None };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
         let critical = 2.0 * (kspring * mass).sqrt();
@@ -289,7 +293,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         BodyKind::Shell => {
             let edge = h.unwrap_or(1.0);
             let (material, kspring) = material_for(edge, cell_mass(edge));
-            match &spec.geometry {
+            let (mut shell, kspring) = match &spec.geometry {
                 Geometry::Shape(Shape::Sphere(_) | Shape::Ellipsoid(_)) => {
                     let radii = match &spec.geometry {
                         Geometry::Shape(Shape::Sphere(r)) => Vec3::splat(*r as f32),
@@ -317,7 +321,17 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                     note.remarks.extend(remark);
                     (shell_from_surface(&surface.positions, &surface.mesh, kspring, material)?, kspring)
                 }
+            };
+            if let Some(f) = spec.flatten {
+                // Flattened onto its lowest point (an implant's base): its heights above it
+                // times f, its springs still the full shape's.
+                note.full_shape = Some((shell.surface.area(&shell.pos), shell.enclosed_volume()));
+                let base = shell.pos.iter().map(|p| p.z).fold(f32::MAX, f32::min);
+                for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
+                    p.z = base + (p.z - base) * f as f32;
+                }
             }
+            (shell, kspring)
         }
         BodyKind::Rigid => {
             let edge = h.unwrap_or(1.0);
@@ -466,8 +480,10 @@ impl BodySchedule {
         };
         // To a volume: rest lengths grow by the cube root of the volume reached so far.
         let rest_scale = self.growth.map_or(1.0, |g| (1.0 + (g - 1.0) * f64::from(ramped)).cbrt() as f32);
+        // The fill's bulk modulus follows the volume it holds (see `fill_bulk`).
         let (fill_volume, fill_bulk) = self.fill.map_or((0.0, 0.0), |(start, end, bulk)| {
-            ((start + (end - start) * f64::from(ramped)) as f32, bulk)
+            let v = start + (end - start) * f64::from(ramped);
+            (v as f32, (f64::from(bulk) * v / end) as f32)
         });
         StepInputs {
             dt,
@@ -499,9 +515,15 @@ fn along(points: &[(f64, f64)], t: f64) -> f64 {
 /// the shell swelling as a whole, `bulk · A · a / V` per vertex for a surface of area `A`,
 /// vertex area `a = A / N` and volume `V`, stays at half the stiffness `k` of its springs, so
 /// that the springs' stability bound still holds: `bulk = k V N / (2 A²)`.
-fn fill_bulk(shell: &MassSpring, k: f32) -> f32 {
-    let area = shell.surface.area(&shell.pos);
-    (0.5 * f64::from(k) * shell.enclosed_volume() * shell.len() as f64 / (area * area)) as f32
+///
+/// The bulk modulus at the end, for the shell's largest surface (its full shape's, or the
+/// first grown by the fill): [`BodySchedule::inputs`] scales it with the volume the fill holds
+/// at each step, so that the bound holds from the first (small) volume to the last.
+fn fill_bulk(shell: &MassSpring, k: f32, target: f64, full: Option<(f64, f64)>) -> f32 {
+    let start = shell.surface.area(&shell.pos);
+    let grown = start * (target / shell.enclosed_volume()).cbrt().powi(2).max(1.0);
+    let area = full.map_or(grown, |(a, _)| a.max(start));
+    (0.5 * f64::from(k) * target * shell.len() as f64 / (area * area)) as f32
 }
 
 /// Builds the world of `file`.
@@ -547,7 +569,9 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         // The rest shape grows by the cube root of the ratio: beyond a thousandfold (ten times
         // the size) the springs and the voxel model's margin cannot follow.
         let ratio = target / start;
-        if !(1e-3..=1e3).contains(&ratio) {
+        // A flattened shell's rest shape does not grow: it fills to its own shape's volume.
+        let flattened = b.flatten.is_some();
+        if !flattened && !(1e-3..=1e3).contains(&ratio) {
             let ml_of = |v: f64| v * s.powi(3) * 1e6;
             return Err(file.body_error(k,
                 "inflate.volume_ml",
@@ -572,21 +596,84 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         }
         fills.push(Some((start, target)));
     }
+    let dt = match file.time.dt {
+        Auto::Value(dt) => dt as f32,
+        // Only bodies that move by their springs bound the step: a rigid body's vertices are
+        // all driven, and its material is only nominal.
+        Auto::Auto => bodies
+            .iter()
+            .filter(|b| b.mode.contains(&Mode::Free))
+            .map(|b| b.stable_dt(0.3))
+            .fold(f32::MAX, f32::min),
+    };
+    if !(dt.is_finite() && dt > 0.0) {
+        return Err(Error::Invalid {
+            what: "time step",
+            value: dt.to_string(),
+            rule: "the bodies give no finite stability bound; give [time] dt".into(),
+        });
+    }
     let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
     let mut contacts = Vec::with_capacity(file.contacts.len());
     for c in &file.contacts {
+        // A shell filled or inflated grows its edges with it: the plane of the three nearest
+        // needs them within the radius wherever b meets a face (a face's centre is 1/√3 of an
+        // edge from its corners), so the radius and the voxel follow the grown edge.
+        let edge_growth = |k: usize| -> f32 {
+            match (file.bodies[k].inflate.as_ref(), fills[k]) {
+                (None, _) => 1.0,
+                _ if file.bodies[k].flatten.is_some() => 1.0,
+                (Some(_), Some((start, target))) => (target / start).cbrt().max(1.0) as f32,
+                (Some(_), None) => 1.6,
+            }
+        };
+        let grown = |k: usize| spacing(k) * edge_growth(k);
         let h = spacing(c.a).max(spacing(c.b));
+        // (The paper's constant response keeps the rules it was shipped with: 0.75 h.)
+        let reach = match c.response {
+            ResponseSpec::Penalty => (0.75 * h).max(0.65 * grown(c.a)).max(0.65 * grown(c.b)),
+            ResponseSpec::Constant => 0.75 * h,
+        };
         let voxel = match c.voxel_size {
             Auto::Value(v) => v as f32,
-            Auto::Auto => 2f32.powi(h.log2().ceil() as i32),
+            Auto::Auto => 2f32.powi(h.max(reach).log2().ceil() as i32),
         };
         let radius = match c.radius {
             Auto::Value(r) => r as f32,
-            Auto::Auto => (0.75 * h).min(voxel),
+            Auto::Auto => reach.min(voxel),
         };
-        let magnitude = match c.magnitude {
-            Auto::Value(newtons) => (newtons / s) as f32,
-            Auto::Auto => 4.0 * stiffness[c.b] * spacing(c.b),
+        // The penalty's stiffness: half of what the step allows the lightest free vertex of the
+        // pair, `0.5 m / dt²` (a contact spring adds `k/m` to the `omega²` whose bound is
+        // `4/dt²`, of which the bodies' springs take a quarter at the automatic step), so that
+        // a depth is pushed out within a few steps, whatever the load.
+        let lightest = [c.a, c.b]
+            .iter()
+            .flat_map(|&k| {
+                let b = &bodies[k];
+                b.inv_mass.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Free).map(|(im, _)| 1.0 / *im)
+            })
+            .fold(f32::MAX, f32::min);
+        let lightest = if lightest == f32::MAX { 1.0 / bodies[c.b].inv_mass[0] } else { lightest };
+        let contact_k = match c.stiffness {
+            Auto::Value(n_per_m) => n_per_m as f32,
+            Auto::Auto => 0.5 * lightest / (dt * dt),
+        };
+        let response = match c.response {
+            ResponseSpec::Constant => Response::Constant,
+            ResponseSpec::Penalty => Response::Penalty {
+                stiffness: contact_k,
+                gap: match c.gap {
+                    Auto::Value(g) => g as f32,
+                    Auto::Auto => 0.0,
+                },
+            },
+        };
+        let magnitude = match (c.magnitude, c.response) {
+            (Auto::Value(newtons), _) => (newtons / s) as f32,
+            (Auto::Auto, ResponseSpec::Constant) => 4.0 * stiffness[c.b] * spacing(c.b),
+            // The penalty's largest force: at a depth of two voxels, twice the contact's bound,
+            // so that it never caps a contact that holds.
+            (Auto::Auto, ResponseSpec::Penalty) => contact_k * 2.0 * voxel,
         };
         let params = ContactParams {
             magnitude,
@@ -605,6 +692,10 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         let a = &bodies[c.a].pos;
         let growth = match (file.bodies[c.a].inflate.as_ref(), fills[c.a]) {
             (None, _) => 0.0,
+            // Flattened: it rises to its full height.
+            (Some(_), Some(_)) if file.bodies[c.a].flatten.is_some() => {
+                (1.0 / file.bodies[c.a].flatten.unwrap_or(1.0)).min(10.0) as f32 - 0.8
+            }
             // To a volume: its linear growth, and a fifth of its size more.
             (Some(_), Some((start, target))) => (target / start).cbrt().clamp(1.0, 10.0) as f32 - 0.8,
             (Some(_), None) => 0.6,
@@ -616,24 +707,12 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             2
         };
         let grid = Initializer::new(voxel).margin(margin).build(a)?;
-        contacts.push(ContactPair { a: c.a, b: c.b, grid, params });
-    }
-    let dt = match file.time.dt {
-        Auto::Value(dt) => dt as f32,
-        // Only bodies that move by their springs bound the step: a rigid body's vertices are
-        // all driven, and its material is only nominal.
-        Auto::Auto => bodies
-            .iter()
-            .filter(|b| b.mode.contains(&Mode::Free))
-            .map(|b| b.stable_dt(0.3))
-            .fold(f32::MAX, f32::min),
-    };
-    if !(dt.is_finite() && dt > 0.0) {
-        return Err(Error::Invalid {
-            what: "time step",
-            value: dt.to_string(),
-            rule: "the bodies give no finite stability bound; give [time] dt".into(),
-        });
+        response.validate(&params, &grid).map_err(|e| Error::Invalid {
+            what: "contact",
+            value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
+            rule: e.to_string(),
+        })?;
+        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, response });
     }
     let steps = match (file.time.steps, file.time.duration) {
         (Some(n), _) => n,
@@ -677,8 +756,8 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             (ramp, ease) = (i.ramp, i.ease);
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
             if let Some((start, target)) = fills[k] {
-                growth = Some(target / start);
-                fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k])));
+                growth = b.flatten.is_none().then_some(target / start);
+                fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape)));
                 // The schedule's volumes as fractions of the way from the first to the last.
                 let span = target - start;
                 steps = i

@@ -31,7 +31,7 @@ impl CpuWorld {
         let collisions = world
             .contacts
             .iter()
-            .map(|c| ParallelCpuCollision::new(c.grid, c.params))
+            .map(|c| ParallelCpuCollision::new(c.grid, c.params).and_then(|p| p.with_response(c.response)))
             .collect::<Result<Vec<_>, _>>()?;
         Ok(CpuWorld {
             reports: vec![ContactReport::default(); collisions.len()],

@@ -206,7 +206,7 @@ impl GpuWorld {
         let collisions = world
             .contacts
             .iter()
-            .map(|c| GpuCollision::new(ctx, c.grid, c.params))
+            .map(|c| GpuCollision::new(ctx, c.grid, c.params).and_then(|g| g.with_response(c.response)))
             .collect::<Result<Vec<_>, _>>()?;
         use Slot::{Read, ReadWrite, Uniform};
         let contacts_of = world.contacts_of();

@@ -9,7 +9,7 @@ use crate::world::{ContactPair, World};
 use voxcollide::error::Error;
 use voxcollide::grid::VoxelGrid;
 use voxcollide::initializer::Initializer;
-use voxcollide::params::{Anchor, ContactParams, Direction, Search};
+use voxcollide::params::{Anchor, ContactParams, Direction, Response, Search};
 
 /// Which of the paper's scenes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -300,7 +300,7 @@ impl Scene {
         World::new(
             vec!["tissue".into(), "foreign body".into()],
             vec![self.tissue.clone(), self.foreign.clone()],
-            vec![ContactPair { a: 1, b: 0, grid: self.grid, params: self.params }],
+            vec![ContactPair { a: 1, b: 0, grid: self.grid, params: self.params, response: Response::Constant }],
             self.v_max,
             std::sync::Arc::new(move |step| {
                 let (t, f) = schedule.at(step);

@@ -492,6 +492,18 @@ pub enum SearchSpec {
     Voxel,
 }
 
+/// A contact's response: how strongly it pushes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ResponseSpec {
+    /// A penalty growing with depth, stiff enough for the step and the bodies (the default):
+    /// the response that holds (docs/semantics.md, "Contacts that hold").
+    #[default]
+    Penalty,
+    /// The paper's constant magnitude, bit for bit.
+    Constant,
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawContact {
@@ -507,6 +519,12 @@ struct RawContact {
     voxel_size: Spanned<Auto<f64>>,
     #[serde(default = "unspanned")]
     magnitude: Spanned<Auto<f64>>,
+    #[serde(default)]
+    response: ResponseSpec,
+    #[serde(default = "unspanned")]
+    stiffness: Spanned<Auto<f64>>,
+    #[serde(default = "unspanned")]
+    gap: Spanned<Auto<f64>>,
 }
 
 /// `[output]`.
@@ -593,6 +611,12 @@ pub struct BodySpec {
     pub motion: Vec<Keyframe>,
     /// Inflation (shells).
     pub inflate: Option<Inflate>,
+    /// A shell that starts flattened onto its base: its vertices' heights above its lowest
+    /// point times this factor, in `(0, 1]`, its springs' rest lengths those of
+    /// its full shape (`voxcollide compare` starts a candidate so, to fit under the tissue
+    /// however close it lies; not a file key). Filled to a volume, it fills from what it
+    /// holds flattened, its rest shape unchanged.
+    pub flatten: Option<f64>,
 }
 
 /// One `[[contact]]`, checked: `a` and `b` are indices into [`SceneFile::bodies`].
@@ -610,8 +634,14 @@ pub struct ContactSpec {
     pub radius: Auto<f64>,
     /// Voxel size, a power of two in file units.
     pub voxel_size: Auto<f64>,
-    /// Penalty magnitude in newtons.
+    /// Penalty magnitude in newtons: the constant response's force, or the penalty's largest.
     pub magnitude: Auto<f64>,
+    /// How strongly it pushes: a penalty growing with depth, or the paper's constant.
+    pub response: ResponseSpec,
+    /// The penalty's stiffness in newtons per metre.
+    pub stiffness: Auto<f64>,
+    /// How far outside A the penalty begins, in file units (0 or more).
+    pub gap: Auto<f64>,
 }
 
 /// A scene file, read and checked.
@@ -1075,6 +1105,7 @@ impl SceneFile {
                 floor: b.floor,
                 motion,
                 inflate,
+                flatten: None,
             });
         }
 
@@ -1090,9 +1121,12 @@ impl SceneFile {
             if a == b {
                 return Err(err(c.b.span(), "a contact needs two different bodies".into()));
             }
-            for (what, v) in
-                [("radius", &c.radius), ("voxel_size", &c.voxel_size), ("magnitude", &c.magnitude)]
-            {
+            for (what, v) in [
+                ("radius", &c.radius),
+                ("voxel_size", &c.voxel_size),
+                ("magnitude", &c.magnitude),
+                ("stiffness", &c.stiffness),
+            ] {
                 if let Auto::Value(x) = v.get_ref()
                     && !(x.is_finite() && *x > 0.0)
                 {
@@ -1104,6 +1138,21 @@ impl SceneFile {
             {
                 return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
             }
+            if let Auto::Value(g) = c.gap.get_ref()
+                && !(g.is_finite() && *g >= 0.0)
+            {
+                return Err(err(c.gap.span(), format!("gap {g} must be \"auto\" or 0 or more")));
+            }
+            if c.response == ResponseSpec::Constant {
+                for (what, v) in [("stiffness", &c.stiffness), ("gap", &c.gap)] {
+                    if matches!(v.get_ref(), Auto::Value(_)) {
+                        return Err(err(
+                            v.span(),
+                            format!("{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"),
+                        ));
+                    }
+                }
+            }
             contacts.push(ContactSpec {
                 a,
                 b,
@@ -1112,6 +1161,9 @@ impl SceneFile {
                 radius: *c.radius.get_ref(),
                 voxel_size: *c.voxel_size.get_ref(),
                 magnitude: *c.magnitude.get_ref(),
+                response: c.response,
+                stiffness: *c.stiffness.get_ref(),
+                gap: *c.gap.get_ref(),
             });
         }
         if raw.output.frames == 0 {

@@ -8,7 +8,7 @@
 
 use std::sync::Arc;
 
-use voxcollide::{ContactParams, Error, VoxelGrid};
+use voxcollide::{ContactParams, Error, Response, VoxelGrid};
 
 use crate::body::{MassSpring, StepInputs};
 
@@ -24,6 +24,9 @@ pub struct ContactPair {
     pub grid: VoxelGrid,
     /// The pair's contact parameters.
     pub params: ContactParams,
+    /// How strongly the pair's contacts push: the paper's constant magnitude, or a penalty
+    /// growing with depth (docs/semantics.md, "Contacts that hold").
+    pub response: Response,
 }
 
 /// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
@@ -91,6 +94,7 @@ impl World {
                 ));
             }
             pair.params.validate(&pair.grid)?;
+            pair.response.validate(&pair.params, &pair.grid)?;
         }
         if !(v_max.is_finite() && v_max > 0.0) {
             return Err(invalid("v_max", v_max.to_string(), "must be finite and positive".into()));
