@@ -7,6 +7,7 @@
 
 pub mod bench; //    `voxcollide bench`: every backend against its workload's baseline
 pub mod compare; //  `voxcollide compare`: implant candidates through one scene, and the report
+pub mod matrix; //   the contact test matrix: every gap, stiffness, volume, spacing and modulus
 pub mod output; //   VTK / ParaView files of the bodies
 pub mod plots; //    line charts as SVG (compare's report)
 pub mod render; //   offscreen PNG pictures with wgpu

@@ -27,6 +27,11 @@ enum Command {
     /// shell replaced by each and filled to its volume, then settled; write report.html,
     /// compare.json, compare.csv and a folder per candidate.
     Compare(CompareArgs),
+    /// The contact test matrix: an implant filled under a tissue layer for every gap, shell
+    /// stiffness, volume, spacing and tissue modulus given; each cell passes when its contacts
+    /// held (DESIGN §11), its volume is within 2 % and its lift rises with volume. Prints the
+    /// table (Markdown) and exits non-zero when a cell fails.
+    Matrix(MatrixArgs),
     /// Watch a scene live in a window (DESIGN §10): orbit, pan and zoom; pause, step and reset;
     /// cycle the colouring; drag an instrument with the mouse while the tissue responds.
     View(ViewArgs),
@@ -88,6 +93,34 @@ struct CompareArgs {
     /// one.
     #[arg(long, default_value_t = 0)]
     jobs: usize,
+}
+
+#[derive(clap::Args, Debug)]
+struct MatrixArgs {
+    /// Gaps between the chest wall and the tissue, mm, comma-separated.
+    #[arg(long, default_value = "0,2,10,24", value_delimiter = ',')]
+    gaps: Vec<f64>,
+    /// Shell moduli, kPa.
+    #[arg(long, default_value = "30,500,3000", value_delimiter = ',')]
+    shells: Vec<f64>,
+    /// Implant volumes on one 140 mm base, mL.
+    #[arg(long, default_value = "200,400,800", value_delimiter = ',')]
+    volumes: Vec<f64>,
+    /// Tissue spacings (and shell edges), mm.
+    #[arg(long, default_value = "4,6", value_delimiter = ',')]
+    spacings: Vec<f64>,
+    /// Tissue moduli, kPa.
+    #[arg(long, default_value = "1,3,30", value_delimiter = ',')]
+    tissues: Vec<f64>,
+    /// Each run's step cap.
+    #[arg(long, default_value_t = 60000)]
+    max_steps: u64,
+    /// Where the cells' scenes and runs go.
+    #[arg(long, default_value = "out/matrix")]
+    out: PathBuf,
+    /// Where to run.
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: BackendArg,
 }
 
 #[derive(clap::Args, Debug)]
@@ -226,6 +259,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => return bench(&args),
         Command::Compare(args) => return compare(&args),
         Command::View(args) => return view(&args),
+        Command::Matrix(args) => return matrix(&args),
     };
     let backend = match args.backend {
         BackendArg::Auto => Backend::Auto,
@@ -382,6 +416,41 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+fn matrix(args: &MatrixArgs) -> ExitCode {
+    use voxcollide_cli::matrix::{Axes, group_dir, groups, run_group, table};
+    let axes = Axes {
+        gaps: args.gaps.clone(),
+        shells: args.shells.clone(),
+        volumes: args.volumes.clone(),
+        spacings: args.spacings.clone(),
+        tissues: args.tissues.clone(),
+    };
+    let groups = groups(&axes);
+    let mut cells = Vec::new();
+    for (k, g) in groups.iter().enumerate() {
+        eprintln!(
+            "group {}/{}: gap {} mm, shell {} kPa, spacing {} mm, tissue {} kPa",
+            k + 1,
+            groups.len(),
+            g.gap,
+            g.shell,
+            g.spacing,
+            g.tissue
+        );
+        match run_group(g, &axes.volumes, args.max_steps, &group_dir(&args.out, g), backend_of(args.backend), &mut |_| {}) {
+            Ok(c) => cells.extend(c),
+            Err(e) => {
+                eprintln!("error: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    }
+    print!("{}", table(&cells));
+    let failed = cells.iter().filter(|c| c.failure.is_some()).count();
+    println!("{} of {} cells pass", cells.len() - failed, cells.len());
+    if failed == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) }
 }
 
 fn backend_of(arg: BackendArg) -> Backend {

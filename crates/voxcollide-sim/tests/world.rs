@@ -35,13 +35,17 @@ fn world() -> World {
         direction: Direction::PlaneNormal,
         anchor: Anchor::FollowA,
     };
-    let contact = |a: usize, shell: &MassSpring| ContactPair {
+    // One contact with the paper's constant response, one with a penalty: the GPU world
+    // must step both as the CPU does.
+    let contact = |a: usize, shell: &MassSpring, response: Response| ContactPair {
         a,
         b: 0,
         grid: Initializer::new(0.25).margin(4).build(&shell.pos).unwrap(),
         params,
+        response,
     };
-    let contacts = vec![contact(1, &left), contact(2, &right)];
+    let penalty = Response::Penalty { stiffness: 40.0, gap: 0.0 };
+    let contacts = vec![contact(1, &left, Response::Constant), contact(2, &right, penalty)];
     let schedule = Arc::new(move |step: u64| {
         let still = StepInputs {
             dt,

@@ -1,0 +1,274 @@
+//! The contact test matrix (issue "Contacts that hold"): an implant filled under a tissue layer
+//! for every combination of the parameters a user changes — the gap to the chest wall, the
+//! shell's stiffness, the volume on one base, the tissue's spacing and modulus — each cell a
+//! `compare` of its volumes, judged by what a planner relies on: every contact held (DESIGN
+//! §11), the volume within 2 %, and the apex lift rising with the volume.
+//!
+//! Nothing here is tuned to one geometry: the scene is written from the axes alone, and a cell
+//! the model cannot build (an implant shape that cannot hold its volume on the base, say) is
+//! refused by name before anything runs.
+
+use std::path::{Path, PathBuf};
+
+use crate::compare::{CandidateResult, CompareConfig, compare};
+use crate::scenario::Backend;
+use voxcollide::Error;
+
+/// The base every volume of the matrix stands on, in mm.
+pub const BASE_MM: f64 = 140.0;
+
+/// The axes of the matrix.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Axes {
+    /// Gaps between the chest wall and the tissue's underside, mm.
+    pub gaps: Vec<f64>,
+    /// Shell moduli, kPa.
+    pub shells: Vec<f64>,
+    /// Implant volumes on [`BASE_MM`], mL.
+    pub volumes: Vec<f64>,
+    /// Tissue lattice spacings (and the shell's edge), mm.
+    pub spacings: Vec<f64>,
+    /// Tissue moduli, kPa.
+    pub tissues: Vec<f64>,
+}
+
+impl Axes {
+    /// The issue's axes: gaps {0, 2, 10, 24} mm, shells {30, 500, 3000} kPa, volumes
+    /// {200, 400, 800} mL, spacings {4, 6} mm, tissue {1, 3, 30} kPa.
+    #[must_use]
+    pub fn full() -> Axes {
+        Axes {
+            gaps: vec![0.0, 2.0, 10.0, 24.0],
+            shells: vec![30.0, 500.0, 3000.0],
+            volumes: vec![200.0, 400.0, 800.0],
+            spacings: vec![4.0, 6.0],
+            tissues: vec![1.0, 3.0, 30.0],
+        }
+    }
+}
+
+/// One group of the matrix: everything but the volume fixed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Group {
+    /// Gap to the chest wall, mm.
+    pub gap: f64,
+    /// Shell modulus, kPa.
+    pub shell: f64,
+    /// Spacing, mm.
+    pub spacing: f64,
+    /// Tissue modulus, kPa.
+    pub tissue: f64,
+}
+
+/// One cell's outcome.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Cell {
+    /// Its group.
+    pub group: Group,
+    /// Its volume, mL.
+    pub volume: f64,
+    /// Its candidate's result; `None` when the group was refused.
+    pub result: Option<CandidateResult>,
+    /// Why it failed or was refused; `None` when it passed.
+    pub failure: Option<String>,
+}
+
+/// The projection of an implant of `volume_ml` on [`BASE_MM`]: its volume as 0.6 of the
+/// cylinder of the base (a dome's share), in mm.
+#[must_use]
+pub fn projection_mm(volume_ml: f64) -> f64 {
+    let r = 0.5 * BASE_MM;
+    volume_ml * 1e3 / (0.6 * std::f64::consts::PI * r * r)
+}
+
+/// The scene of `group`: a 20 mm layer of tissue held at its rim `gap` above the chest wall,
+/// and an implant shell on the chest wall under it.
+#[must_use]
+pub fn scene_text(group: &Group, max_steps: u64) -> String {
+    let Group { gap, shell, spacing, tissue } = *group;
+    format!(
+        r#"# A cell group of the contact test matrix (voxcollide_cli::matrix), written from its axes.
+units = "mm"
+
+[time]
+duration = 0.4
+settle = true
+max_steps = {max_steps}
+
+[[body]]
+name = "tissue"
+kind = "soft"
+shape = {{ box = [200, 200, 20] }}
+spacing = {spacing}
+position = [0, 0, {z}]
+material = {{ young_kpa = {tissue}, density = 950.0, damping = 0.5 }}
+fixed = [{{ rim = 1 }}]
+
+[[body]]
+name = "implant"
+kind = "shell"
+shape = {{ implant = {{ volume_ml = 300, base_mm = {BASE_MM}, projection_mm = {p}, style = "round" }} }}
+spacing = {spacing}
+position = [0, 0, 0]
+material = {{ young_kpa = {shell}, density = 1000.0, damping = 0.5 }}
+floor = 0.0
+inflate = {{ volume_ml = 300, ramp = 0.3, ease = "smooth" }}
+
+[[contact]]
+a = "implant"
+b = "tissue"
+direction = "plane-normal"
+
+[output]
+frames = 2
+images = false
+vtk = false
+"#,
+        z = gap + 10.0,
+        p = projection_mm(300.0),
+    )
+}
+
+/// The catalogue of `volumes` on [`BASE_MM`].
+#[must_use]
+pub fn catalogue_text(volumes: &[f64]) -> String {
+    volumes
+        .iter()
+        .map(|v| {
+            format!(
+                "[[candidate]]\nname = \"{v} mL\"\nshape = {{ implant = {{ volume_ml = {v}, base_mm = {BASE_MM}, projection_mm = {:.3}, style = \"round\" }} }}\n",
+                projection_mm(*v)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// Runs `group` over `volumes` in `out` (its own folder), on `backend`: each volume's cell,
+/// judged. A group that cannot be built is refused, every cell naming why.
+///
+/// # Errors
+/// File errors writing the scene; a failed run is a failed cell, not an error.
+pub fn run_group(
+    group: &Group,
+    volumes: &[f64],
+    max_steps: u64,
+    out: &Path,
+    backend: Backend,
+    note: &mut dyn FnMut(&str),
+) -> Result<Vec<Cell>, Error> {
+    let io = |p: &Path, e: std::io::Error| Error::Io { path: p.display().to_string(), message: e.to_string() };
+    std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
+    let scene = out.join("scene.toml");
+    std::fs::write(&scene, scene_text(group, max_steps)).map_err(|e| io(&scene, e))?;
+    let candidates = out.join("candidates.toml");
+    std::fs::write(&candidates, catalogue_text(volumes)).map_err(|e| io(&candidates, e))?;
+    let config = CompareConfig {
+        scene,
+        body: "implant".into(),
+        candidates,
+        out: out.join("run"),
+        backend,
+        image: (320, 200),
+        jobs: 0,
+    };
+    let cells = match compare(&config, &mut |_| {}, note) {
+        Err(e) => volumes
+            .iter()
+            .map(|&volume| Cell { group: *group, volume, result: None, failure: Some(format!("refused: {e}")) })
+            .collect(),
+        Ok(c) => judge(group, volumes, c.candidates),
+    };
+    Ok(cells)
+}
+
+/// The cells of a group's results: each passes when its contacts held and its volume is within
+/// 2 % of its own, and the group's lifts rise with the volume.
+#[must_use]
+pub fn judge(group: &Group, volumes: &[f64], results: Vec<CandidateResult>) -> Vec<Cell> {
+    let mut cells: Vec<Cell> = volumes
+        .iter()
+        .zip(results)
+        .map(|(&volume, r)| {
+            let mut why = Vec::new();
+            if !r.held {
+                why.push(r.failure.clone().unwrap_or_else(|| "a contact did not hold".into()));
+            }
+            let error = (r.volume_ml - volume).abs() / volume;
+            if error > 0.02 {
+                why.push(format!("volume {:.1} mL, {:.1} % from {volume} mL", r.volume_ml, 100.0 * error));
+            }
+            let failure = (!why.is_empty()).then(|| why.join("; "));
+            Cell { group: *group, volume, result: Some(r), failure }
+        })
+        .collect();
+    for k in 1..cells.len() {
+        let (lo, hi) = (cells[k - 1].result.as_ref(), cells[k].result.as_ref());
+        if let (Some(lo), Some(hi)) = (lo, hi)
+            && cells[k].volume > cells[k - 1].volume
+            && hi.apex_lift <= lo.apex_lift
+        {
+            let what = format!(
+                "apex lift {:.2} mm, not above the {:.2} mm of {} mL",
+                hi.apex_lift, lo.apex_lift, cells[k - 1].volume
+            );
+            let f = &mut cells[k].failure;
+            *f = Some(f.take().map_or(what.clone(), |f| format!("{f}; {what}")));
+        }
+    }
+    cells
+}
+
+/// The cells as a Markdown table.
+#[must_use]
+pub fn table(cells: &[Cell]) -> String {
+    let mut s = String::from(
+        "| gap mm | shell kPa | spacing mm | tissue kPa | volume mL | filled mL | apex lift mm | max penetration mm | held | settled | pass |\n| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- | --- | --- |\n",
+    );
+    for c in cells {
+        let g = &c.group;
+        let (filled, lift, pen, held, settled): (String, String, String, String, String) = c.result.as_ref().map_or(
+            ("–".into(), "–".into(), "–".into(), "–".into(), "–".into()),
+            |r| {
+                (
+                    format!("{:.1}", r.volume_ml),
+                    format!("{:.2}", r.apex_lift),
+                    format!("{:.2}", r.max_penetration),
+                    if r.held { "yes".into() } else { "no".into() },
+                    r.settled.to_string(),
+                )
+            },
+        );
+        let pass = match &c.failure {
+            None => "pass".to_string(),
+            Some(f) => format!("FAIL: {f}"),
+        };
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {filled} | {lift} | {pen} | {held} | {settled} | {pass} |\n",
+            g.gap, g.shell, g.spacing, g.tissue, c.volume
+        );
+    }
+    s
+}
+
+/// Every group of `axes`, in order (gap slowest, tissue fastest).
+#[must_use]
+pub fn groups(axes: &Axes) -> Vec<Group> {
+    let mut out = Vec::new();
+    for &gap in &axes.gaps {
+        for &shell in &axes.shells {
+            for &spacing in &axes.spacings {
+                for &tissue in &axes.tissues {
+                    out.push(Group { gap, shell, spacing, tissue });
+                }
+            }
+        }
+    }
+    out
+}
+
+/// A group's folder under `out`.
+#[must_use]
+pub fn group_dir(out: &Path, g: &Group) -> PathBuf {
+    out.join(format!("gap{}_shell{}_h{}_e{}", g.gap, g.shell, g.spacing, g.tissue))
+}
