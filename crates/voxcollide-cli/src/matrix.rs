@@ -198,6 +198,15 @@ pub fn judge(group: &Group, volumes: &[f64], results: Vec<CandidateResult>) -> V
             if error > 0.02 {
                 why.push(format!("volume {:.1} mL, {:.1} % from {volume} mL", r.volume_ml, 100.0 * error));
             }
+            // An implant taller than the gap must lift the tissue: one that does not has gone
+            // through it, though a thin layer leaves no vertex deeper than the bound at the end.
+            let above = projection_mm(volume) - group.gap;
+            if above > 1.0 && f64::from(r.apex_lift) < 0.1 * above {
+                why.push(format!(
+                    "apex lift {:.2} mm though the implant stands {above:.1} mm above the gap: it went through the tissue",
+                    r.apex_lift
+                ));
+            }
             let failure = (!why.is_empty()).then(|| why.join("; "));
             Cell { group: *group, volume, result: Some(r), failure }
         })
