@@ -163,15 +163,24 @@ fn with_candidate(
     body: usize,
     c: &Candidate,
     volume_ml: Option<f64>,
-    fit: Option<(f64, f64)>,
+    fit: Option<(f64, f64, f64)>,
 ) -> SceneFile {
     let mut s = scene.clone();
     s.time.settle = true;
     let b = &mut s.bodies[body];
     b.geometry = c.geometry.clone();
-    if let Some((height, room)) = fit {
+    if let Some((height, room, spacing)) = fit {
+        // Its top starts a tenth of the room (at least a twentieth of the tissue's spacing)
+        // under the tissue, but it is never flatter than its own edge (or FLATTEST): thinner,
+        // the three nearest of its vertices to a tissue vertex mix its top and its base, and
+        // their plane stands on edge. Where that start stands higher than the room, it
+        // starts that much lower, on a floor as much lower, both rising back as it fills.
+        let top = room - (0.1 * room).max(0.05 * spacing);
+        let edge = b.spacing.unwrap_or(0.0);
+        let f = (top / height).max(FLATTEST).max(edge / height).min(0.5);
         b.scale = 1.0;
-        b.flatten = Some((0.9 * room / height).clamp(FLATTEST, 0.5));
+        b.flatten = Some(f);
+        b.sink = (f * height - top).max(0.0);
     }
     if let Some(volume_ml) = volume_ml {
         let ramp = b.inflate.as_ref().map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
@@ -277,6 +286,7 @@ pub fn compare(
         .iter()
         .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
         .fold(f64::INFINITY, f64::min);
+    let tissue_spacing = tissue.iter().map(|&t| scene.bodies[t].spacing.unwrap_or(1.0)).fold(0.0, f64::max);
 
     // Every candidate is built first: a bad one is named before anything is written.
     let mut runs = Vec::with_capacity(catalogue.candidates.len());
@@ -287,7 +297,8 @@ pub fn compare(
             rule: e.to_string(),
         };
         let (volume, lo, hi) = own_shape(&scene, body, c).map_err(named)?;
-        let fit = (floor_of_tissue.is_finite() && hi > lo).then(|| (hi - lo, (floor_of_tissue - lo).max(0.0)));
+        let fit = (floor_of_tissue.is_finite() && hi > lo)
+            .then(|| (hi - lo, (floor_of_tissue - lo).max(0.0), tissue_spacing));
         let s = with_candidate(&scene, body, c, Some(volume), fit);
         let built = build_world(&s).map_err(named)?;
         runs.push((c, volume, s, built));

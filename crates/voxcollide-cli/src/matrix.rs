@@ -103,6 +103,7 @@ spacing = {spacing}
 position = [0, 0, {z}]
 material = {{ young_kpa = {tissue}, density = 950.0, damping = 0.5 }}
 fixed = [{{ rim = 1 }}]
+floor = 0.0
 
 [[body]]
 name = "implant"

@@ -331,6 +331,11 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                     p.z = base + (p.z - base) * f as f32;
                 }
             }
+            if spec.sink > 0.0 {
+                for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
+                    p.z -= spec.sink as f32;
+                }
+            }
             (shell, kspring)
         }
         BodyKind::Rigid => {
@@ -443,6 +448,8 @@ struct BodySchedule {
     ramp: f64,
     ease: Ease,
     floor: f32,
+    /// How far below `floor` the floor starts, rising to it over the ramp.
+    sink: f32,
 }
 
 impl BodySchedule {
@@ -493,7 +500,7 @@ impl BodySchedule {
             pressure: self.pressure * ramped,
             fill_volume,
             fill_bulk,
-            floor: self.floor,
+            floor: if self.sink > 0.0 { self.floor - self.sink * (1.0 - ramped) } else { self.floor },
         }
     }
 }
@@ -780,6 +787,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             ramp,
             ease,
             floor: b.floor.map_or(f32::MIN, |f| f as f32),
+            sink: b.sink as f32,
         });
     }
     let schedule = std::sync::Arc::new(move |step: u64| {

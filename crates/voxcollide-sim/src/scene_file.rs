@@ -617,6 +617,11 @@ pub struct BodySpec {
     /// however close it lies; not a file key). Filled to a volume, it fills from what it
     /// holds flattened, its rest shape unchanged.
     pub flatten: Option<f64>,
+    /// How far below its place a shell starts, its floor as far below, both rising back over
+    /// its inflation ramp (file units; 0: none): where the tissue lies on the chest wall, a
+    /// flattened shell starts under it and lifts it as it fills (set by `voxcollide compare`;
+    /// not a file key).
+    pub sink: f64,
 }
 
 /// One `[[contact]]`, checked: `a` and `b` are indices into [`SceneFile::bodies`].
@@ -1106,6 +1111,7 @@ impl SceneFile {
                 motion,
                 inflate,
                 flatten: None,
+                sink: 0.0,
             });
         }
 
