@@ -411,3 +411,37 @@ fn a_shell_from_an_stl_surface_inflates() {
     assert!(v1 > 1.01 * v0, "{v0} → {v1}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_contact_responds_with_a_penalty_stiff_for_the_step_unless_told_otherwise() {
+    use voxcollide::Response;
+    let built = build_world(&SceneFile::parse("indent.toml", INDENT).unwrap()).unwrap();
+    let pair = &built.world.contacts[0];
+    let Response::Penalty { stiffness, gap } = pair.response else {
+        panic!("{:?}", pair.response);
+    };
+    // Half of what the step allows the block's lightest free vertex: 0.5 m / dt².
+    let block = &built.world.bodies[0];
+    let lightest = block
+        .inv_mass
+        .iter()
+        .zip(&block.mode)
+        .filter(|(_, m)| **m == Mode::Free)
+        .map(|(w, _)| 1.0 / *w)
+        .fold(f32::MAX, f32::min);
+    let expected = 0.5 * lightest / (built.dt * built.dt);
+    assert!((stiffness / expected - 1.0).abs() < 1e-5, "{stiffness} vs {expected}");
+    assert_eq!(gap, 0.0);
+    // Its largest force is that of two voxels' depth.
+    let voxel = pair.grid.voxel_size();
+    assert!((pair.params.magnitude / (stiffness * 2.0 * voxel) - 1.0).abs() < 1e-6);
+
+    // Given: the stiffness in N/m as it is (internal force per length is N/m in any unit), the
+    // gap in file units; and the paper's constant response with its own magnitude rule.
+    let given = INDENT.replace("[[contact]]", "[[contact]]\nstiffness = 250\ngap = 0.5");
+    let built = build_world(&SceneFile::parse("indent.toml", &given).unwrap()).unwrap();
+    assert_eq!(built.world.contacts[0].response, Response::Penalty { stiffness: 250.0, gap: 0.5 });
+    let constant = INDENT.replace("[[contact]]", "[[contact]]\nresponse = \"constant\"");
+    let built = build_world(&SceneFile::parse("indent.toml", &constant).unwrap()).unwrap();
+    assert_eq!(built.world.contacts[0].response, Response::Constant);
+}

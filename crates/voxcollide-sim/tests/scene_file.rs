@@ -109,6 +109,8 @@ fn every_key_of_the_contract_is_read() {
     let d = s.contacts[1];
     assert_eq!((d.a, d.b, d.direction, d.search), (2, 0, DirectionSpec::Pairwise, SearchSpec::Neighbours));
     assert_eq!((d.radius, d.voxel_size, d.magnitude), (Auto::Auto, Auto::Auto, Auto::Auto));
+    // ... and the penalty that holds, its stiffness and gap chosen (DESIGN §11).
+    assert_eq!((d.response, d.stiffness, d.gap), (ResponseSpec::Penalty, Auto::Auto, Auto::Auto));
     assert_eq!(s.output, Output { frames: 6, images: false, vtk: true });
 }
 
@@ -299,6 +301,42 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             13,
             "contact[0].direction",
             "unknown variant",
+        ),
+        (
+            with(
+                "[[body]]\nname = \"u\"\nkind = \"rigid\"\nshape = { sphere = 1 }\nspacing = 1\n[[contact]]\na = \"u\"\nb = \"t\"\nresponse = \"soft\"\n",
+            ),
+            14,
+            12,
+            "contact[0].response",
+            "unknown variant",
+        ),
+        (
+            with(
+                "[[body]]\nname = \"u\"\nkind = \"rigid\"\nshape = { sphere = 1 }\nspacing = 1\n[[contact]]\na = \"u\"\nb = \"t\"\ngap = -1\n",
+            ),
+            14,
+            7,
+            "contact[0].gap",
+            "0 or more",
+        ),
+        (
+            with(
+                "[[body]]\nname = \"u\"\nkind = \"rigid\"\nshape = { sphere = 1 }\nspacing = 1\n[[contact]]\na = \"u\"\nb = \"t\"\nstiffness = 0\n",
+            ),
+            14,
+            13,
+            "contact[0].stiffness",
+            "positive",
+        ),
+        (
+            with(
+                "[[body]]\nname = \"u\"\nkind = \"rigid\"\nshape = { sphere = 1 }\nspacing = 1\n[[contact]]\na = \"u\"\nb = \"t\"\nresponse = \"constant\"\nstiffness = 5\n",
+            ),
+            15,
+            13,
+            "contact[0].stiffness",
+            "a penalty's",
         ),
     ]
 }
