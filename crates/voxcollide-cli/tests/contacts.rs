@@ -162,3 +162,93 @@ fn a_sample_of_the_contact_matrix_passes() {
         assert!(c.failure.is_none(), "{t}");
     }
 }
+
+#[test]
+fn a_comparison_with_a_failed_candidate_marks_it_everywhere_and_exits_non_zero() {
+    let d = dir("failed-compare");
+    // The paper's constant response with a force far too small for a filling implant: the
+    // tissue goes into it, and the candidate is marked failed, not shown as an answer.
+    let scene = r#"units = "mm"
+[time]
+duration = 0.3
+settle = true
+max_steps = 3000
+[[body]]
+name = "tissue"
+kind = "soft"
+shape = { box = [150, 150, 20] }
+spacing = 10
+position = [0, 0, 30]
+material = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }
+fixed = [{ rim = 1 }]
+[[body]]
+name = "implant"
+kind = "shell"
+shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+spacing = 10
+position = [0, 0, 0]
+material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+floor = 0.0
+inflate = { volume_ml = 300, ramp = 0.2, ease = "smooth" }
+[[contact]]
+a = "implant"
+b = "tissue"
+direction = "plane-normal"
+response = "constant"
+magnitude = 0.00001
+[output]
+frames = 1
+vtk = false
+images = false
+"#;
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    std::fs::write(
+        d.join("candidates.toml"),
+        "[[candidate]]\nname = \"300 mL\"\nshape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }\n",
+    )
+    .unwrap();
+    let out = d.join("out");
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .arg("compare")
+        .arg(d.join("scene.toml"))
+        .args(["--body", "implant", "--backend", "cpu", "--candidates"])
+        .arg(d.join("candidates.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    // Non-zero, after writing its files.
+    assert_eq!(output.status.code(), Some(2), "{stdout}\n{stderr}");
+    assert!(stdout.contains("FAILED") && stderr.contains("warning") && stderr.contains("300 mL"), "{stdout}\n{stderr}");
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
+    let c = &json["candidates"][0];
+    assert_eq!(c["held"], false, "{c}");
+    assert!(c["failure"].as_str().unwrap().contains("bound"), "{c}");
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let held = header.iter().position(|h| *h == "held").unwrap();
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(row[held], "false", "{csv}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("id=\"failed\"") && html.contains("FAILED — not a result"), "the report shows it failed");
+    assert!(html.contains("300 mL (FAILED, not a result)"), "the plots' legend says so too");
+    // Its run's summary says which contact did not hold, and its worst frame.
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("300_mL/summary.json")).unwrap()).unwrap();
+    assert_eq!(s["contacts"][0]["held"], false);
+    assert!(s["contacts"][0]["worst_depth"].as_f64().unwrap() > s["contacts"][0]["bound"].as_f64().unwrap());
+}
+
+#[test]
+fn a_schedule_longer_than_max_steps_is_said_before_the_run() {
+    let d = dir("max-steps");
+    let scene = probe_scene(2.0, "").replace("[time]\nduration = 0.3", "[time]\nduration = 0.3\nsettle = true\nmax_steps = 50");
+    let (stdout, stderr, s) = run(&d, &scene);
+    let said = format!("{stdout}\n{stderr}");
+    let line = said.lines().find(|l| l.contains("warning: the schedule needs")).unwrap_or_else(|| panic!("{said}"));
+    assert!(line.contains("max_steps = 50"), "{line}");
+    // Said before it ran: ahead of the run's table.
+    assert!(stderr.contains("warning: the schedule needs") || said.find(line) < said.find("steps  "), "{said}");
+    assert_eq!(s["steps"], 50);
+}
