@@ -136,6 +136,32 @@ pub struct Time {
     /// A cap on all steps; reaching it unsettled is reported, not an error.
     #[serde(default = "default_max_steps")]
     pub max_steps: u64,
+    /// The integrator (DESIGN §12): the paper's semi-implicit Euler, `"explicit"` (the
+    /// default). `"implicit"` is read and refused by its key until it is built.
+    #[serde(default)]
+    pub integrator: IntegratorSpec,
+}
+
+/// `[time] integrator` (DESIGN §12).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum IntegratorSpec {
+    /// The paper's semi-implicit (symplectic) Euler, its step within the stability bound.
+    #[default]
+    Explicit,
+    /// An implicit method whose step is not bound by stability (not built yet: refused).
+    Implicit,
+}
+
+/// A material's model (DESIGN §12).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MaterialModel {
+    /// The paper's spring lattice (Poisson's ratio 1/4 whatever the file says), the default.
+    #[default]
+    Springs,
+    /// Finite elements that honour `poisson` (not built yet: refused).
+    NeoHookean,
 }
 
 fn default_max_steps() -> u64 {
@@ -144,7 +170,14 @@ fn default_max_steps() -> u64 {
 
 impl Default for Time {
     fn default() -> Time {
-        Time { duration: None, steps: None, dt: Auto::Auto, settle: false, max_steps: default_max_steps() }
+        Time {
+            duration: None,
+            steps: None,
+            dt: Auto::Auto,
+            settle: false,
+            max_steps: default_max_steps(),
+            integrator: IntegratorSpec::Explicit,
+        }
     }
 }
 
@@ -283,6 +316,9 @@ pub struct MaterialSpec {
     pub damping: f64,
     /// Damping ratio of the damping along each spring (default: `damping`).
     pub spring_damping: Option<f64>,
+    /// The model: `"springs"` (the default) or `"neo-hookean"` (refused until it is built).
+    #[serde(default)]
+    pub model: MaterialModel,
 }
 
 fn default_young() -> f64 {
@@ -306,6 +342,7 @@ impl Default for MaterialSpec {
             density: default_density(),
             damping: default_damping(),
             spring_damping: None,
+            model: MaterialModel::Springs,
         }
     }
 }
@@ -911,6 +948,12 @@ impl SceneFile {
         if time.duration.is_none() && time.steps.is_none() {
             time.duration = Some(1.0);
         }
+        if time.integrator == IntegratorSpec::Implicit {
+            return Err(time_err(
+                "integrator",
+                "\"implicit\" is not built yet (DESIGN §12, issue 21): use \"explicit\", the paper's semi-implicit Euler".into(),
+            ));
+        }
 
         let mut bodies: Vec<BodySpec> = Vec::with_capacity(raw.body.len());
         for (k, b) in raw.body.into_iter().enumerate() {
@@ -1304,6 +1347,12 @@ pub(crate) fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
 }
 
 fn check_material(m: &MaterialSpec) -> Result<(), (&'static str, String)> {
+    if m.model == MaterialModel::NeoHookean {
+        return Err((
+            "model",
+            "\"neo-hookean\" is not built yet (DESIGN §12, issue 21): use \"springs\", the paper's lattice (Poisson's ratio 1/4)".into(),
+        ));
+    }
     if !(m.young_kpa.is_finite() && m.young_kpa > 0.0) {
         return Err(("young_kpa", format!("{} must be a positive modulus in kPa", m.young_kpa)));
     }
