@@ -205,7 +205,8 @@ fn own_shape(scene: &SceneFile, body: usize, c: &Candidate) -> Result<(f64, f64,
     s.bodies[body].inflate = None;
     let built = build_world(&s)?;
     let shell = &built.world.bodies[body];
-    let (lo, hi) = shell.pos.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into())));
+    let (lo, hi) =
+        shell.pos.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into())));
     let volume = match c.geometry {
         Geometry::Shape(Shape::Implant { volume_ml, .. }) => volume_ml,
         _ => shell.enclosed_volume() * scene.metres().powi(3) * 1e6,

@@ -391,7 +391,12 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     100.0 * c.penetrating_fraction,
                     c.contacts_at_end,
                     if c.held {
-                        format!("held (within {:.3} {u}, at rest {:.3} {u})", c.bound, c.rest_bound, u = s.units)
+                        format!(
+                            "held (within {:.3} {u}, at rest {:.3} {u})",
+                            c.bound,
+                            c.rest_bound,
+                            u = s.units
+                        )
                     } else {
                         "did NOT hold".into()
                     }
@@ -439,7 +444,14 @@ fn matrix(args: &MatrixArgs) -> ExitCode {
             g.spacing,
             g.tissue
         );
-        match run_group(g, &axes.volumes, args.max_steps, &group_dir(&args.out, g), backend_of(args.backend), &mut |_| {}) {
+        match run_group(
+            g,
+            &axes.volumes,
+            args.max_steps,
+            &group_dir(&args.out, g),
+            backend_of(args.backend),
+            &mut |_| {},
+        ) {
             Ok(c) => cells.extend(c),
             Err(e) => {
                 eprintln!("error: {e}");

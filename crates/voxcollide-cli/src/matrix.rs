@@ -158,7 +158,8 @@ pub fn run_group(
     backend: Backend,
     note: &mut dyn FnMut(&str),
 ) -> Result<Vec<Cell>, Error> {
-    let io = |p: &Path, e: std::io::Error| Error::Io { path: p.display().to_string(), message: e.to_string() };
+    let io =
+        |p: &Path, e: std::io::Error| Error::Io { path: p.display().to_string(), message: e.to_string() };
     std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
     let scene = out.join("scene.toml");
     std::fs::write(&scene, scene_text(group, max_steps)).map_err(|e| io(&scene, e))?;
@@ -176,7 +177,12 @@ pub fn run_group(
     let cells = match compare(&config, &mut |_| {}, note) {
         Err(e) => volumes
             .iter()
-            .map(|&volume| Cell { group: *group, volume, result: None, failure: Some(format!("refused: {e}")) })
+            .map(|&volume| Cell {
+                group: *group,
+                volume,
+                result: None,
+                failure: Some(format!("refused: {e}")),
+            })
             .collect(),
         Ok(c) => judge(group, volumes, c.candidates),
     };
@@ -220,7 +226,9 @@ pub fn judge(group: &Group, volumes: &[f64], results: Vec<CandidateResult>) -> V
         {
             let what = format!(
                 "apex lift {:.2} mm, not above the {:.2} mm of {} mL",
-                hi.apex_lift, lo.apex_lift, cells[k - 1].volume
+                hi.apex_lift,
+                lo.apex_lift,
+                cells[k - 1].volume
             );
             let f = &mut cells[k].failure;
             *f = Some(f.take().map_or(what.clone(), |f| format!("{f}; {what}")));
@@ -237,9 +245,10 @@ pub fn table(cells: &[Cell]) -> String {
     );
     for c in cells {
         let g = &c.group;
-        let (filled, lift, pen, held, settled): (String, String, String, String, String) = c.result.as_ref().map_or(
-            ("–".into(), "–".into(), "–".into(), "–".into(), "–".into()),
-            |r| {
+        let (filled, lift, pen, held, settled): (String, String, String, String, String) = c
+            .result
+            .as_ref()
+            .map_or(("–".into(), "–".into(), "–".into(), "–".into(), "–".into()), |r| {
                 (
                     format!("{:.1}", r.volume_ml),
                     format!("{:.2}", r.apex_lift),
@@ -247,8 +256,7 @@ pub fn table(cells: &[Cell]) -> String {
                     if r.held { "yes".into() } else { "no".into() },
                     r.settled.to_string(),
                 )
-            },
-        );
+            });
         let pass = match &c.failure {
             None => "pass".to_string(),
             Some(f) => format!("FAIL: {f}"),

@@ -123,7 +123,12 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     assert!(high.apex_lift > 1.5 * low.apex_lift, "{} vs {}", high.apex_lift, low.apex_lift);
     // (Over a footprint no wider: at this 10 mm lattice, with contacts that hold, the two
     // differ by a cell or two of 100 mm², 6,300 against 6,100 mm² when first measured.)
-    assert!(high.footprint_area < 1.05 * low.footprint_area, "{} vs {}", high.footprint_area, low.footprint_area);
+    assert!(
+        high.footprint_area < 1.05 * low.footprint_area,
+        "{} vs {}",
+        high.footprint_area,
+        low.footprint_area
+    );
     for r in &c.candidates {
         // Every contact held (DESIGN §11), so these are results.
         assert!(r.held && r.failure.is_none(), "{}: {:?}", r.name, r.failure);
@@ -176,7 +181,12 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     // against 17.8 mm when first measured; with the constant response it did, by going
     // through the tissue): it is held to within a tenth here, and the skin's effect is checked
     // below on the pressure the implant needs. Issue 21's static solve is to settle it.
-    assert!((stiff_high.apex_lift / high.apex_lift - 1.0).abs() < 0.1, "{} vs {}", stiff_high.apex_lift, high.apex_lift);
+    assert!(
+        (stiff_high.apex_lift / high.apex_lift - 1.0).abs() < 0.1,
+        "{} vs {}",
+        stiff_high.apex_lift,
+        high.apex_lift
+    );
     // The implant presses on the tissue: harder under the stiffer skin, and for the larger volume.
     for r in c.candidates.iter().chain(&stiff.candidates) {
         assert!(

@@ -31,8 +31,10 @@ fn run(d: &Path, scene: &str) -> (String, String, serde_json::Value) {
         .arg(&out)
         .output()
         .unwrap();
-    let (stdout, stderr) =
-        (String::from_utf8_lossy(&output.stdout).into_owned(), String::from_utf8_lossy(&output.stderr).into_owned());
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&output.stdout).into_owned(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+    );
     assert!(output.status.success(), "{stdout}\n{stderr}");
     let summary = serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
     (stdout, stderr, summary)
@@ -104,7 +106,10 @@ fn the_papers_constant_response_too_weak_for_the_load_is_caught_and_said() {
     assert!(worst > bound, "{c}");
     assert!(c["worst_frame"].is_u64() && c["worst_step"].is_u64() && c["failure"].is_string(), "{c}");
     let said = format!("{stdout}\n{stderr}");
-    let warning = said.lines().find(|l| l.contains("warning") && l.contains("ball – block")).unwrap_or_else(|| panic!("{said}"));
+    let warning = said
+        .lines()
+        .find(|l| l.contains("warning") && l.contains("ball – block"))
+        .unwrap_or_else(|| panic!("{said}"));
     assert!(warning.contains("deep") && warning.contains("bound"), "{warning}");
 }
 
@@ -154,7 +159,10 @@ fn a_sample_of_the_contact_matrix_passes() {
     let mut cells = Vec::new();
     for gap in [10.0] {
         let g = Group { gap, shell: 30.0, spacing: 6.0, tissue: 3.0 };
-        cells.extend(run_group(&g, &[200.0, 400.0], 20000, &d.join(format!("gap{gap}")), Backend::Cpu, &mut |_| {}).unwrap());
+        cells.extend(
+            run_group(&g, &[200.0, 400.0], 20000, &d.join(format!("gap{gap}")), Backend::Cpu, &mut |_| {})
+                .unwrap(),
+        );
     }
     let t = table(&cells);
     eprintln!("{t}");
@@ -220,8 +228,12 @@ images = false
     let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
     // Non-zero, after writing its files.
     assert_eq!(output.status.code(), Some(2), "{stdout}\n{stderr}");
-    assert!(stdout.contains("FAILED") && stderr.contains("warning") && stderr.contains("300 mL"), "{stdout}\n{stderr}");
-    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
+    assert!(
+        stdout.contains("FAILED") && stderr.contains("warning") && stderr.contains("300 mL"),
+        "{stdout}\n{stderr}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
     let c = &json["candidates"][0];
     assert_eq!(c["held"], false, "{c}");
     assert!(c["failure"].as_str().unwrap().contains("bound"), "{c}");
@@ -231,7 +243,10 @@ images = false
     let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
     assert_eq!(row[held], "false", "{csv}");
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
-    assert!(html.contains("id=\"failed\"") && html.contains("FAILED — not a result"), "the report shows it failed");
+    assert!(
+        html.contains("id=\"failed\"") && html.contains("FAILED — not a result"),
+        "the report shows it failed"
+    );
     assert!(html.contains("300 mL (FAILED, not a result)"), "the plots' legend says so too");
     // Its run's summary says which contact did not hold, and its worst frame.
     let s: serde_json::Value =
@@ -243,12 +258,17 @@ images = false
 #[test]
 fn a_schedule_longer_than_max_steps_is_said_before_the_run() {
     let d = dir("max-steps");
-    let scene = probe_scene(2.0, "").replace("[time]\nduration = 0.3", "[time]\nduration = 0.3\nsettle = true\nmax_steps = 50");
+    let scene = probe_scene(2.0, "")
+        .replace("[time]\nduration = 0.3", "[time]\nduration = 0.3\nsettle = true\nmax_steps = 50");
     let (stdout, stderr, s) = run(&d, &scene);
     let said = format!("{stdout}\n{stderr}");
-    let line = said.lines().find(|l| l.contains("warning: the schedule needs")).unwrap_or_else(|| panic!("{said}"));
+    let line =
+        said.lines().find(|l| l.contains("warning: the schedule needs")).unwrap_or_else(|| panic!("{said}"));
     assert!(line.contains("max_steps = 50"), "{line}");
     // Said before it ran: ahead of the run's table.
-    assert!(stderr.contains("warning: the schedule needs") || said.find(line) < said.find("steps  "), "{said}");
+    assert!(
+        stderr.contains("warning: the schedule needs") || said.find(line) < said.find("steps  "),
+        "{said}"
+    );
     assert_eq!(s["steps"], 50);
 }

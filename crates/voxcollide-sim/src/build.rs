@@ -138,8 +138,13 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     let offset = Vec3::from_array(spec.position.map(|v| v as f32));
     let place = |p: Vec3| rot * (scale * p) + offset;
     let h = spec.spacing.map(|h| h as f32);
-    let mut note =
-        BodyNote { name: spec.name.clone(), vertices: 0, coverage: None, remarks: Vec::new(), full_shape: None };
+    let mut note = BodyNote {
+        name: spec.name.clone(),
+        vertices: 0,
+        coverage: None,
+        remarks: Vec::new(),
+        full_shape: None,
+    };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
         let critical = 2.0 * (kspring * mass).sqrt();
@@ -764,7 +769,8 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
             if let Some((start, target)) = fills[k] {
                 growth = b.flatten.is_none().then_some(target / start);
-                fill = Some((start, target, fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape)));
+                fill =
+                    Some((start, target, fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape)));
                 // The schedule's volumes as fractions of the way from the first to the last.
                 let span = target - start;
                 steps = i

@@ -300,7 +300,13 @@ impl Scene {
         World::new(
             vec!["tissue".into(), "foreign body".into()],
             vec![self.tissue.clone(), self.foreign.clone()],
-            vec![ContactPair { a: 1, b: 0, grid: self.grid, params: self.params, response: Response::Constant }],
+            vec![ContactPair {
+                a: 1,
+                b: 0,
+                grid: self.grid,
+                params: self.params,
+                response: Response::Constant,
+            }],
             self.v_max,
             std::sync::Arc::new(move |step| {
                 let (t, f) = schedule.at(step);

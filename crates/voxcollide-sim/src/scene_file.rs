@@ -1197,7 +1197,9 @@ impl SceneFile {
                     if matches!(v.get_ref(), Auto::Value(_)) {
                         return Err(err(
                             v.span(),
-                            format!("{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"),
+                            format!(
+                                "{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"
+                            ),
                         ));
                     }
                 }

@@ -19,12 +19,14 @@ fn benches(c: &mut Criterion) {
         group.sample_size(10);
         group.throughput(Throughput::Elements((w.a.len() + w.b.len()) as u64));
         for (name, response) in [("constant", Response::Constant), ("penalty", penalty)] {
-            let mut cpu = CpuCollision::new(w.grid, w.params).and_then(|c| c.with_response(response)).expect("params");
+            let mut cpu =
+                CpuCollision::new(w.grid, w.params).and_then(|c| c.with_response(response)).expect("params");
             group.bench_with_input(BenchmarkId::new("reference", name), &w, |bench, w| {
                 bench.iter(|| black_box(cpu.step(&w.a, &w.b).expect("step")));
             });
-            let mut par =
-                ParallelCpuCollision::new(w.grid, w.params).and_then(|c| c.with_response(response)).expect("params");
+            let mut par = ParallelCpuCollision::new(w.grid, w.params)
+                .and_then(|c| c.with_response(response))
+                .expect("params");
             let mut report = voxcollide::ContactReport::default();
             group.bench_with_input(BenchmarkId::new("parallel", name), &w, |bench, w| {
                 bench.iter(|| {

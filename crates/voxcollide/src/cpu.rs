@@ -56,7 +56,10 @@ impl CpuCollision {
             params,
             response: Response::Constant,
             detector: VoxelDetector::new(params.search, params.direction == Direction::PlaneNormal),
-            eliminator: eliminator(params.direction, ForceLaw::new(&params, Response::Constant, grid.voxel_size())),
+            eliminator: eliminator(
+                params.direction,
+                ForceLaw::new(&params, Response::Constant, grid.voxel_size()),
+            ),
         })
     }
 

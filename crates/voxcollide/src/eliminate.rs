@@ -155,7 +155,14 @@ pub fn plane_normal(center: Vec3, a0: Vec3, a1: Vec3, a2: Vec3) -> Option<Vec3> 
     Some(if dot(n, centroid - center) >= 0.0 { n } else { -n })
 }
 
-fn pairwise(law: &ForceLaw, center: Vec3, a: &[Vec3], b: &[Vec3], contact: &Contact, forces: &mut ForceAccumulator) {
+fn pairwise(
+    law: &ForceLaw,
+    center: Vec3,
+    a: &[Vec3],
+    b: &[Vec3],
+    contact: &Contact,
+    forces: &mut ForceAccumulator,
+) {
     let (pa, pb) = (a[contact.partner as usize], b[contact.b as usize]);
     let d = pairwise_direction(center, pa, pb);
     let f_b = law.pairwise(dist2(pb, pa)) * d;

@@ -14,7 +14,8 @@ fn params(direction: Direction, magnitude: f32) -> ContactParams {
 /// that they agree to the bit, and returns the reference's report.
 fn step_all(a: &[Vec3], b: &[Vec3], params: ContactParams, response: Response) -> ContactReport {
     let grid = Initializer::new(1.0).margin(2).build(a).unwrap();
-    let reference = CpuCollision::new(grid, params).unwrap().with_response(response).unwrap().step(a, b).unwrap();
+    let reference =
+        CpuCollision::new(grid, params).unwrap().with_response(response).unwrap().step(a, b).unwrap();
     let parallel =
         ParallelCpuCollision::new(grid, params).unwrap().with_response(response).unwrap().step(a, b).unwrap();
     assert_eq!(reference, parallel, "parallel backend");
@@ -33,7 +34,12 @@ fn step_all(a: &[Vec3], b: &[Vec3], params: ContactParams, response: Response) -
 /// A triangle of A in the plane z = 0 (outward +z from the grid centre below it) and one more A
 /// vertex deep below, so that the grid centre lies under the plane.
 fn floor_a() -> Vec<Vec3> {
-    vec![Vec3::new(-0.5, -0.4, 0.0), Vec3::new(0.5, -0.4, 0.0), Vec3::new(0.0, 0.6, 0.0), Vec3::new(0.0, 0.0, -3.0)]
+    vec![
+        Vec3::new(-0.5, -0.4, 0.0),
+        Vec3::new(0.5, -0.4, 0.0),
+        Vec3::new(0.0, 0.6, 0.0),
+        Vec3::new(0.0, 0.0, -3.0),
+    ]
 }
 
 #[test]
@@ -68,7 +74,8 @@ fn the_penalty_grows_with_depth_behind_the_plane() {
 fn the_penalty_never_pushes_harder_than_the_magnitude() {
     let a = floor_a();
     let b = [Vec3::new(0.0, 0.0, -0.5)];
-    let r = step_all(&a, &b, params(Direction::PlaneNormal, 2.0), Response::Penalty { stiffness: 1e6, gap: 0.0 });
+    let r =
+        step_all(&a, &b, params(Direction::PlaneNormal, 2.0), Response::Penalty { stiffness: 1e6, gap: 0.0 });
     assert!((r.force_b[0].length() - 2.0).abs() < 1e-5, "{}", r.force_b[0]);
 }
 
@@ -77,7 +84,8 @@ fn a_pairwise_penalty_grows_inside_the_sphere_of_gap_and_radius() {
     let a = [Vec3::ZERO, Vec3::new(3.0, 0.0, 0.0)];
     // 0.25 from its partner, radius 1, gap 0.5: depth 1.25, force 2.5 along +y.
     let b = [Vec3::new(3.0, 0.25, 0.0)];
-    let r = step_all(&a, &b, params(Direction::Pairwise, 10.0), Response::Penalty { stiffness: 2.0, gap: 0.5 });
+    let r =
+        step_all(&a, &b, params(Direction::Pairwise, 10.0), Response::Penalty { stiffness: 2.0, gap: 0.5 });
     assert!((r.force_b[0] - Vec3::new(0.0, 2.5, 0.0)).length() < 1e-6, "{}", r.force_b[0]);
     assert!((r.force_a[1] + r.force_b[0]).length() < 1e-3);
 }
@@ -87,8 +95,12 @@ fn the_constant_response_is_the_papers_to_the_bit() {
     let (a, b, _, grid) = common::bodies(7, 3000);
     for params in common::all_params(0.75, 0.6) {
         let plain = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
-        let constant =
-            CpuCollision::new(grid, params).unwrap().with_response(Response::Constant).unwrap().step(&a, &b).unwrap();
+        let constant = CpuCollision::new(grid, params)
+            .unwrap()
+            .with_response(Response::Constant)
+            .unwrap()
+            .step(&a, &b)
+            .unwrap();
         assert_eq!(plain, constant, "{params:?}");
         let parallel = ParallelCpuCollision::new(grid, params)
             .unwrap()

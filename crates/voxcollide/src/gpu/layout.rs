@@ -3,8 +3,8 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::grid::VoxelGrid;
 use crate::eliminate::ForceLaw;
+use crate::grid::VoxelGrid;
 use crate::params::{Anchor, ContactParams, Direction, Search};
 
 /// The step's parameters, a uniform. Keep in sync with `Params` in `shaders/common.wgsl`.

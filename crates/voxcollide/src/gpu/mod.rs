@@ -26,9 +26,9 @@ use layout::{GpuParams, GpuState};
 
 use crate::collision::Collision;
 use crate::cpu::check_body;
+use crate::eliminate::ForceLaw;
 use crate::error::{Body, Error};
 use crate::grid::VoxelGrid;
-use crate::eliminate::ForceLaw;
 use crate::params::{Anchor, ContactParams, Response};
 use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots};
@@ -200,7 +200,11 @@ impl Buffers {
             cap_a,
             cap_b,
             cap_slots,
-            params: make("voxcollide params", std::mem::size_of::<GpuParams>() as u64, BufferUsages::UNIFORM | BufferUsages::COPY_DST),
+            params: make(
+                "voxcollide params",
+                std::mem::size_of::<GpuParams>() as u64,
+                BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            ),
             state: make("voxcollide state", GpuState::SIZE, storage),
             sort_a: SortBuffers::new(|label, size| make(label, size, storage), slots, a, ""),
             sort_b: SortBuffers::new(|label, size| make(label, size, storage), slots, b, "_b"),
@@ -334,7 +338,8 @@ impl GpuCollision {
         params.validate(&grid)?;
         let device = ctx.device();
         let limits = device.limits();
-        let base = GpuParams::new(&grid, &params, &ForceLaw::new(&params, Response::Constant, grid.voxel_size()));
+        let base =
+            GpuParams::new(&grid, &params, &ForceLaw::new(&params, Response::Constant, grid.voxel_size()));
         let kernels = ctx.kernels((base.search, base.direction), || {
             scoped(device, || Kernels::new(device, &base)).map(std::sync::Arc::new)
         })?;
@@ -415,7 +420,11 @@ impl GpuCollision {
     /// [`Error::Response`] when `response` is invalid for the grid.
     pub fn with_response(self, response: Response) -> Result<GpuCollision, Error> {
         response.validate(&self.params, &self.grid)?;
-        let base = GpuParams::new(&self.grid, &self.params, &ForceLaw::new(&self.params, response, self.grid.voxel_size()));
+        let base = GpuParams::new(
+            &self.grid,
+            &self.params,
+            &ForceLaw::new(&self.params, response, self.grid.voxel_size()),
+        );
         Ok(GpuCollision { base, uploaded: GpuParams::default(), recorded: None, ..self })
     }
 

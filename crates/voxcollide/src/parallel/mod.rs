@@ -408,8 +408,14 @@ impl Run<'_> {
         fixed.truncate(3 * binned);
         fixed.resize_with(3 * binned, T::zero);
         let m = self.params.magnitude;
-        let probe =
-            Probe { grid: self.grid, params: self.params, law: self.law, bins: self.bins, fixed, scale: 65536.0 / m };
+        let probe = Probe {
+            grid: self.grid,
+            params: self.params,
+            law: self.law,
+            bins: self.bins,
+            fixed,
+            scale: 65536.0 / m,
+        };
         // Probe in A's slot order, in long runs, so that most of A's accumulators are one run's
         // alone (`own_bins`): a quarter of a thread's share each.
         let sorted = self.b.rec.len();
