@@ -325,8 +325,8 @@ pub fn run_scene(
     }
     loop {
         let (world, reports) = run.frame()?;
-        measure(world, &mut summary)?;
-        checks.check(world, &reports, &mut summary, done, frame, note)?;
+        measure(world, &mut summary);
+        checks.check(world, &reports, &mut summary, done, frame, true, note)?;
         let motion = before.as_ref().map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &spacings));
         let long_enough = before.as_ref().is_some_and(|(at, _)| done - at >= window);
         let at_rest = done >= planned && long_enough && motion <= REST_TOLERANCE;
@@ -397,7 +397,7 @@ pub fn run_scene(
         observe(world, &reports, FrameAt { step: done, time: done as f64 * f64::from(built.dt), last })?;
         if last {
             summary.settled = file.time.settle && at_rest;
-            checks.at_end(world, &mut summary, done, note)?;
+            checks.at_end(&mut summary, done, note);
             for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
                 if spec.kind == BodyKind::Shell {
                     out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
@@ -422,7 +422,7 @@ pub fn run_scene(
             if done.is_multiple_of(check_every) && done < target {
                 stepping += started.elapsed().as_secs_f64();
                 let (world, reports) = run.frame()?;
-                checks.check(world, &reports, &mut summary, done, frame + 1, note)?;
+                checks.check(world, &reports, &mut summary, done, frame + 1, false, note)?;
                 started = Instant::now();
             }
         }
@@ -447,17 +447,19 @@ pub fn run_scene(
 struct ContactChecks {
     /// Per contact: whether it has touched yet (a contact is bound after first contact).
     touched: Vec<bool>,
-    /// Per contact: whether its warning has been given.
-    warned: Vec<bool>,
+    /// Per contact: the depth of the last check (at the end, the last frame's).
+    last: Vec<f32>,
 }
 
 impl ContactChecks {
     fn new(contacts: usize) -> ContactChecks {
-        ContactChecks { touched: vec![false; contacts], warned: vec![false; contacts] }
+        ContactChecks { touched: vec![false; contacts], last: vec![0.0; contacts] }
     }
 
     /// Checks every contact's penetration now (`step`, in output frame `frame`) against its
-    /// bound, recording the worst and warning the first time one goes beyond.
+    /// bound, recording the worst and warning the first time one goes beyond. At a frame
+    /// (`at_frame`) the summary's penetration maxima take the same measurement.
+    #[allow(clippy::too_many_arguments)]
     fn check(
         &mut self,
         world: &World,
@@ -465,16 +467,25 @@ impl ContactChecks {
         summary: &mut FileSummary,
         step: u64,
         frame: u32,
+        at_frame: bool,
         note: &mut dyn FnMut(&str),
     ) -> Result<(), Error> {
         for (c, pair) in world.contacts.iter().enumerate() {
-            let depth = contact_depth(world, pair)?;
+            let (b_in_a, a_in_b) = contact_depths(world, pair)?;
+            let depth = b_in_a.max_depth.max(a_in_b);
+            self.last[c] = depth;
             let s = &mut summary.contacts[c];
+            if at_frame {
+                s.max_penetration = s.max_penetration.max(b_in_a.max_depth);
+                s.penetrating_fraction = s.penetrating_fraction.max(b_in_a.fraction);
+            }
             s.checks += 1;
             self.touched[c] |= depth > 0.0 || reports.get(c).is_some_and(|r| !r.colliding_b.is_empty());
             if !self.touched[c] || depth <= s.bound {
                 continue;
             }
+            // The first time beyond the bound is the time to warn.
+            let first = s.held;
             s.held = false;
             if s.worst_depth.is_none_or(|w| depth > w) {
                 s.worst_depth = Some(depth);
@@ -488,8 +499,7 @@ impl ContactChecks {
                     u = summary.units
                 ));
             }
-            if !self.warned[c] {
-                self.warned[c] = true;
+            if first {
                 note(&format!(
                     "warning: contact {} – {} did not hold: {depth:.3} {u} deep at step {step} (frame {frame}), beyond the bound of {:.3} {u}; this run's numbers are not a result",
                     s.a,
@@ -505,16 +515,8 @@ impl ContactChecks {
 
     /// At the last frame: a settled run's contacts are held to their bound at rest, and each
     /// contact that did not hold is said once more.
-    fn at_end(
-        &mut self,
-        world: &World,
-        summary: &mut FileSummary,
-        step: u64,
-        note: &mut dyn FnMut(&str),
-    ) -> Result<(), Error> {
-        for (c, pair) in world.contacts.iter().enumerate() {
-            let depth = contact_depth(world, pair)?;
-            let s = &mut summary.contacts[c];
+    fn at_end(&self, summary: &mut FileSummary, step: u64, note: &mut dyn FnMut(&str)) {
+        for (s, &depth) in summary.contacts.iter_mut().zip(&self.last) {
             if summary.settled && depth > s.rest_bound {
                 s.held = false;
                 if s.worst_depth.is_none() {
@@ -537,21 +539,23 @@ impl ContactChecks {
             }
         }
         summary.held = summary.contacts.iter().all(|c| c.held);
-        Ok(())
     }
 }
 
-/// How deep contact `pair`'s bodies are inside each other: the deepest vertex of `b` inside
-/// `a`'s closed (shown) surface, or of `a` inside `b`'s, whichever is deeper. Both sides, since
-/// the voxel model pushes only `b`'s vertices out of `a`: `a`'s could pass between them.
-fn contact_depth(world: &World, pair: &voxcollide_sim::ContactPair) -> Result<f32, Error> {
-    let inside = |outer: usize, inner: usize| -> Result<f32, Error> {
-        let (positions, mesh) = shown_surface(&world.bodies[outer]);
-        let surface = ClosedSurface::new(&positions, mesh)?;
-        let (inner_pos, _) = shown_surface(&world.bodies[inner]);
-        Ok(penetration(&surface, &inner_pos).max_depth)
-    };
-    Ok(inside(pair.a, pair.b)?.max(inside(pair.b, pair.a)?))
+/// How deep contact `pair`'s bodies are inside each other: `b`'s vertices inside `a`'s closed
+/// (shown) surface (the summary's penetration), and the deepest of `a`'s shown vertices inside
+/// `b`'s. Both sides, since the voxel model pushes only `b`'s vertices out of `a`: `a`'s could
+/// pass between them.
+fn contact_depths(
+    world: &World,
+    pair: &voxcollide_sim::ContactPair,
+) -> Result<(voxcollide_sim::geometry::Penetration, f32), Error> {
+    let surface_of = |k: usize| shown_surface(&world.bodies[k]);
+    let (a_pos, a_mesh) = surface_of(pair.a);
+    let b_in_a = penetration(&ClosedSurface::new(&a_pos, a_mesh)?, &world.bodies[pair.b].pos);
+    let (b_pos, b_mesh) = surface_of(pair.b);
+    let a_in_b = penetration(&ClosedSurface::new(&b_pos, b_mesh)?, &a_pos).max_depth;
+    Ok((b_in_a, a_in_b))
 }
 
 /// The contact force on each vertex of body `k`: its side's forces of every contact it is in,
@@ -654,23 +658,13 @@ fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
         .fold(0.0, f32::max)
 }
 
-/// Updates the summary's maxima with this frame: displacements, and per contact the
-/// penetration of `b` into `a`'s closed surface (its own surface, independent of the voxel
-/// model).
-fn measure(world: &World, summary: &mut FileSummary) -> Result<(), Error> {
+/// Updates the summary's displacement maxima with this frame (the contacts' penetration is
+/// [`ContactChecks::check`]'s, independent of the voxel model).
+fn measure(world: &World, summary: &mut FileSummary) {
     for (body, s) in world.bodies.iter().zip(summary.bodies.iter_mut()) {
         let d = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
         s.max_displacement = s.max_displacement.max(d);
     }
-    for (pair, s) in world.contacts.iter().zip(summary.contacts.iter_mut()) {
-        let a = &world.bodies[pair.a];
-        let (positions, mesh) = shown_surface(a);
-        let surface = ClosedSurface::new(&positions, mesh)?;
-        let p = penetration(&surface, &world.bodies[pair.b].pos);
-        s.max_penetration = s.max_penetration.max(p.max_depth);
-        s.penetrating_fraction = s.penetrating_fraction.max(p.fraction);
-    }
-    Ok(())
 }
 
 /// Every body's mesh for a picture, by its shown surface (`shown`: positions and how far each

@@ -98,10 +98,7 @@ impl ForceLaw {
     pub fn plane(&self, b: Vec3, a0: Vec3, a1: Vec3, a2: Vec3, n: Vec3) -> f32 {
         match self.penalty {
             None => self.magnitude,
-            Some(p) => {
-                let centroid = (a0 + a1 + a2) / 3.0;
-                p.of_depth(p.gap - dot(b - centroid, n))
-            }
+            Some(p) => p.of_depth(p.gap - dot(b - centroid(a0, a1, a2), n)),
         }
     }
 
@@ -151,8 +148,15 @@ pub fn plane_normal(center: Vec3, a0: Vec3, a1: Vec3, a2: Vec3) -> Option<Vec3> 
         return None;
     }
     let n = c / len;
-    let centroid = (a0 + a1 + a2) / 3.0;
-    Some(if dot(n, centroid - center) >= 0.0 { n } else { -n })
+    Some(if dot(n, centroid(a0, a1, a2) - center) >= 0.0 { n } else { -n })
+}
+
+/// The centroid of three points, `(a0 + a1 + a2) / 3`, as the plane's orientation and the
+/// penalty's depth (and `shaders/probe.wgsl`) compute it.
+#[inline(always)]
+#[must_use]
+pub fn centroid(a0: Vec3, a1: Vec3, a2: Vec3) -> Vec3 {
+    (a0 + a1 + a2) / 3.0
 }
 
 fn pairwise(
