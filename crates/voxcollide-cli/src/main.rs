@@ -115,12 +115,22 @@ struct MatrixArgs {
     /// Each run's step cap.
     #[arg(long, default_value_t = 60000)]
     max_steps: u64,
+    /// The integrator every cell runs under: explicit (the paper's) or implicit.
+    #[arg(long, value_enum, default_value = "explicit")]
+    integrator: IntegratorArg,
     /// Where the cells' scenes and runs go.
     #[arg(long, default_value = "out/matrix")]
     out: PathBuf,
     /// Where to run.
     #[arg(long, value_enum, default_value = "cpu")]
     backend: BackendArg,
+}
+
+/// `--integrator`.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+enum IntegratorArg {
+    Explicit,
+    Implicit,
 }
 
 #[derive(clap::Args, Debug)]
@@ -413,6 +423,14 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 s.rest_motion,
                 voxcollide_cli::scene_run::REST_TOLERANCE
             );
+            if let Some(r) = s.residual {
+                println!(
+                    "{:<28} implicit; residual force {r:.2e} of the largest load (at rest: {:.0e}); rest judged by {}",
+                    "integrator",
+                    voxcollide_cli::scene_run::RESIDUAL_TOLERANCE,
+                    s.criterion
+                );
+            }
             println!("{:<28} {} files in {}", "written", s.files.len(), args.out.display());
             ExitCode::SUCCESS
         }
@@ -425,6 +443,7 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
 
 fn matrix(args: &MatrixArgs) -> ExitCode {
     use voxcollide_cli::matrix::{Axes, group_dir, groups, run_group, table};
+    use voxcollide_sim::scene_file::IntegratorSpec;
     let axes = Axes {
         gaps: args.gaps.clone(),
         shells: args.shells.clone(),
@@ -448,6 +467,10 @@ fn matrix(args: &MatrixArgs) -> ExitCode {
             g,
             &axes.volumes,
             args.max_steps,
+            match args.integrator {
+                IntegratorArg::Explicit => IntegratorSpec::Explicit,
+                IntegratorArg::Implicit => IntegratorSpec::Implicit,
+            },
             &group_dir(&args.out, g),
             backend_of(args.backend),
             &mut |_| {},

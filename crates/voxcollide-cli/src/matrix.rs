@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 use crate::compare::{CandidateResult, CompareConfig, compare};
 use crate::scenario::Backend;
 use voxcollide::Error;
+use voxcollide_sim::scene_file::IntegratorSpec;
 
 /// The base every volume of the matrix stands on, in mm.
 pub const BASE_MM: f64 = 140.0;
@@ -84,7 +85,7 @@ pub fn projection_mm(volume_ml: f64) -> f64 {
 /// The scene of `group`: a 20 mm layer of tissue held at its rim `gap` above the chest wall,
 /// and an implant shell on the chest wall under it.
 #[must_use]
-pub fn scene_text(group: &Group, max_steps: u64) -> String {
+pub fn scene_text(group: &Group, max_steps: u64, integrator: IntegratorSpec) -> String {
     let Group { gap, shell, spacing, tissue } = *group;
     format!(
         r#"# A cell group of the contact test matrix (voxcollide_cli::matrix), written from its axes.
@@ -94,6 +95,7 @@ units = "mm"
 duration = 0.4
 settle = true
 max_steps = {max_steps}
+integrator = "{integrator}"
 
 [[body]]
 name = "tissue"
@@ -127,6 +129,7 @@ vtk = false
 "#,
         z = gap + 10.0,
         p = projection_mm(300.0),
+        integrator = integrator.name(),
     )
 }
 
@@ -154,6 +157,7 @@ pub fn run_group(
     group: &Group,
     volumes: &[f64],
     max_steps: u64,
+    integrator: IntegratorSpec,
     out: &Path,
     backend: Backend,
     note: &mut dyn FnMut(&str),
@@ -162,7 +166,7 @@ pub fn run_group(
         |p: &Path, e: std::io::Error| Error::Io { path: p.display().to_string(), message: e.to_string() };
     std::fs::create_dir_all(out).map_err(|e| io(out, e))?;
     let scene = out.join("scene.toml");
-    std::fs::write(&scene, scene_text(group, max_steps)).map_err(|e| io(&scene, e))?;
+    std::fs::write(&scene, scene_text(group, max_steps, integrator)).map_err(|e| io(&scene, e))?;
     let candidates = out.join("candidates.toml");
     std::fs::write(&candidates, catalogue_text(volumes)).map_err(|e| io(&candidates, e))?;
     let config = CompareConfig {

@@ -19,7 +19,7 @@ use voxcollide::report::ContactReport;
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
-use voxcollide_sim::{CpuWorld, GpuWorld, MassSpring, World};
+use voxcollide_sim::{CpuWorld, GpuWorld, Integrator, MassSpring, World};
 
 /// A body in `summary.json`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -111,6 +111,18 @@ pub struct FileSummary {
     /// last frame), in spacings of its body: what `settled` is judged by (at rest: at most
     /// [`REST_TOLERANCE`]).
     pub rest_motion: f32,
+    /// `"explicit"` or `"implicit"` (DESIGN §12).
+    pub integrator: String,
+    /// The criterion for rest that `settled` was judged by: `"rest_motion"`
+    /// ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling window,
+    /// either integrator) or `"residual"` (the implicit one: the net force at rest within
+    /// [`RESIDUAL_TOLERANCE`] of the gross force, [`residual`](Self::residual)).
+    pub criterion: String,
+    /// The implicit integrator's residual at the end: the net force on the free vertices over
+    /// the largest gross force of the run (`√Σ|f|² / max √Σ(Σ|f_term|)²`); absent under the
+    /// explicit one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual: Option<f64>,
     /// The settling window, in seconds: twice the time an elastic wave takes to cross the
     /// largest deformable body ([`settling_window`]).
     pub rest_window: f64,
@@ -156,6 +168,29 @@ impl Run {
         match self {
             Run::Cpu(w) => w.step(),
             Run::Gpu(w) => w.step(),
+        }
+    }
+
+    /// The implicit integrator's last residual at rest, relative (None: explicit).
+    pub(crate) fn residual(&self) -> Option<f64> {
+        match self {
+            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => Some(w.residual.relative()),
+            _ => None,
+        }
+    }
+
+    /// Simulated seconds so far (`steps · dt` but where the implicit step grew to settle).
+    pub(crate) fn time(&self, steps: u64, dt: f32) -> f64 {
+        match self {
+            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => w.time,
+            _ => steps as f64 * f64::from(dt),
+        }
+    }
+
+    /// Implicit only: let the step grow by up to `factor` towards rest (1: the schedule's).
+    pub(crate) fn accelerate(&mut self, factor: f32) {
+        if let Run::Cpu(w) = self {
+            w.accelerate(factor);
         }
     }
 
@@ -233,9 +268,26 @@ pub fn run_scene(
             note(&format!("{}: {r}", n.name));
         }
     }
+    let implicit = built.world.integrator != Integrator::Explicit;
+    if implicit && config.backend == Backend::Gpu {
+        return Err(Error::Invalid {
+            what: "backend",
+            value: "gpu".into(),
+            rule: format!(
+                "{}: [time] integrator = \"implicit\" steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu",
+                config.path.display()
+            ),
+        });
+    }
     let wants_pictures = file.output.images;
     let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
+    if implicit && ctx.is_some() {
+        note("the implicit integrator steps on the CPU, on every core (the GPU draws the pictures)");
+    }
     let (mut run, backend, adapter) = match (config.backend, &ctx) {
+        (_, Some(ctx)) if implicit => {
+            (Run::new(None, built.world.clone())?, "cpu", format!("pictures on {}", ctx.adapter_name()))
+        }
         (Backend::Cpu, _) | (Backend::Auto, None) => (
             Run::new(None, built.world.clone())?,
             "cpu",
@@ -292,6 +344,7 @@ pub fn run_scene(
             })
             .collect(),
         held: true,
+        integrator: if implicit { "implicit" } else { "explicit" }.into(),
         ..FileSummary::default()
     };
     let size = world
@@ -324,12 +377,16 @@ pub fn run_scene(
         ));
     }
     loop {
+        let (residual, now) = (run.residual(), run.time(done, built.dt));
         let (world, reports) = run.frame()?;
         measure(world, &mut summary);
         checks.check(world, &reports, &mut summary, done, frame, true, note)?;
         let motion = before.as_ref().map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &spacings));
         let long_enough = before.as_ref().is_some_and(|(at, _)| done - at >= window);
-        let at_rest = done >= planned && long_enough && motion <= REST_TOLERANCE;
+        // At rest by motion (either integrator), or by the residual force (the implicit one).
+        let still = done >= planned && long_enough && motion <= REST_TOLERANCE;
+        let balanced = done >= planned && done > 0 && residual.is_some_and(|r| r <= RESIDUAL_TOLERANCE);
+        let at_rest = still || balanced;
         before = Some((done, world.bodies.iter().map(|b| b.pos.clone()).collect()));
         let last = if file.time.settle {
             (done >= planned && at_rest) || done >= file.time.max_steps
@@ -354,7 +411,7 @@ pub fn run_scene(
                 }
             }
             let name = format!("{}_{frame:04}.vtp", world.names[k]);
-            let time = done as f64 * f64::from(built.dt);
+            let time = now;
             match &body.embedded {
                 None => {
                     let displacement: Vec<Vec3> =
@@ -394,7 +451,7 @@ pub fn run_scene(
             }
             summary.files.push(name);
         }
-        observe(world, &reports, FrameAt { step: done, time: done as f64 * f64::from(built.dt), last })?;
+        observe(world, &reports, FrameAt { step: done, time: now, last })?;
         if last {
             summary.settled = file.time.settle && at_rest;
             checks.at_end(&mut summary, done, note);
@@ -404,6 +461,8 @@ pub fn run_scene(
                 }
             }
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
+            summary.residual = residual;
+            summary.criterion = if balanced { "residual" } else { "rest_motion" }.into();
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
@@ -412,10 +471,18 @@ pub fn run_scene(
         // Past the schedule, frames a settling window apart.
         let next = if done >= planned { chunk.max(window) } else { chunk };
         let target = (done + next).min(if file.time.settle { file.time.max_steps } else { planned });
+        if file.time.settle && done >= planned {
+            run.accelerate(SETTLE_ACCELERATION);
+        }
         let mut started = Instant::now();
         while done < target {
             run.step()?;
             done += 1;
+            // The implicit integrator at rest needs no more steps to show it.
+            if file.time.settle && done >= planned && run.residual().is_some_and(|r| r <= RESIDUAL_TOLERANCE)
+            {
+                break;
+            }
             if done.is_multiple_of(16) || done == target {
                 progress(done, planned.max(done));
             }
@@ -433,7 +500,7 @@ pub fn run_scene(
         summary.files.extend(world.names.iter().map(|n| format!("{n}.pvd")));
     }
     summary.steps = done;
-    summary.simulated_time = done as f64 * f64::from(built.dt);
+    summary.simulated_time = run.time(done, built.dt);
     summary.steps_per_second = if stepping > 0.0 { done as f64 / stepping } else { 0.0 };
     summary.realtime_factor = if stepping > 0.0 { summary.simulated_time / stepping } else { 0.0 };
     let path = config.out.join("summary.json");
@@ -608,6 +675,14 @@ pub(crate) fn shown_surface(
 /// which is why speeds at an instant cannot be the test — and a shape that changes by less
 /// over the time its body needs to respond is the final one for planning.
 pub const REST_TOLERANCE: f32 = 0.05;
+
+/// The implicit integrator is at rest when the net force on its free vertices is at most this
+/// fraction of the gross force (see [`FileSummary::residual`]).
+pub const RESIDUAL_TOLERANCE: f64 = 1e-3;
+
+/// Past the schedule, the implicit step may grow to this many times the schedule's while it
+/// settles (see `CpuWorld::accelerate`).
+pub const SETTLE_ACCELERATION: f32 = 64.0;
 
 /// The settling window in steps: twice the time an elastic wave takes to cross the largest
 /// deformable body, `2 · extent / c` with the lattice's wave speed `c = h · √(k/m)` (its mean

@@ -12,6 +12,7 @@ use std::process::Command;
 
 use voxcollide_cli::matrix::{Group, run_group, table};
 use voxcollide_cli::scenario::Backend;
+use voxcollide_sim::scene_file::IntegratorSpec;
 
 fn dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("voxcollide-contacts-{name}-{}", std::process::id()));
@@ -160,8 +161,16 @@ fn a_sample_of_the_contact_matrix_passes() {
     for gap in [10.0] {
         let g = Group { gap, shell: 30.0, spacing: 6.0, tissue: 3.0 };
         cells.extend(
-            run_group(&g, &[200.0, 400.0], 20000, &d.join(format!("gap{gap}")), Backend::Cpu, &mut |_| {})
-                .unwrap(),
+            run_group(
+                &g,
+                &[200.0, 400.0],
+                20000,
+                IntegratorSpec::Explicit,
+                &d.join(format!("gap{gap}")),
+                Backend::Cpu,
+                &mut |_| {},
+            )
+            .unwrap(),
         );
     }
     let t = table(&cells);

@@ -26,13 +26,22 @@ use crate::bodies::{
     shell_from_surface, tetrahedral_body,
 };
 use crate::body::{MassSpring, Material, Mode, StepInputs};
+use crate::implicit::ImplicitSettings;
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
-    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, ResponseSpec, SceneFile,
-    SearchSpec, Shape,
+    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, IntegratorSpec,
+    ResponseSpec, SceneFile, SearchSpec, Shape,
 };
-use crate::world::{ContactPair, World};
+use crate::world::{ContactPair, Integrator, World};
+
+/// The implicit integrator's automatic step: the schedule's duration in this many steps…
+pub const IMPLICIT_STEPS: f64 = 200.0;
+/// … at most this many seconds (and never below the explicit bound).
+pub const IMPLICIT_DT: f32 = 5e-3;
+/// The implicit integrator's fill is this many times stiffer in bulk than the explicit
+/// bound allows.
+pub const IMPLICIT_BULK: f32 = 100.0;
 
 /// What building a world found worth saying about each body.
 #[derive(Clone, Debug, PartialEq)]
@@ -608,15 +617,23 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         }
         fills.push(Some((start, target)));
     }
+    // Only bodies that move by their springs bound the step: a rigid body's vertices are all
+    // driven, and its material is only nominal.
+    let stable = bodies
+        .iter()
+        .filter(|b| b.mode.contains(&Mode::Free))
+        .map(|b| b.stable_dt(0.3))
+        .fold(f32::MAX, f32::min);
+    let implicit = file.time.integrator == IntegratorSpec::Implicit;
     let dt = match file.time.dt {
         Auto::Value(dt) => dt as f32,
-        // Only bodies that move by their springs bound the step: a rigid body's vertices are
-        // all driven, and its material is only nominal.
-        Auto::Auto => bodies
-            .iter()
-            .filter(|b| b.mode.contains(&Mode::Free))
-            .map(|b| b.stable_dt(0.3))
-            .fold(f32::MAX, f32::min),
+        // The implicit step is chosen for accuracy: the schedule in IMPLICIT_STEPS steps, at
+        // most IMPLICIT_DT, never below the explicit bound.
+        Auto::Auto if implicit => match (file.time.steps, file.time.duration) {
+            (None, Some(d)) => ((d / IMPLICIT_STEPS) as f32).min(IMPLICIT_DT).max(stable),
+            _ => stable,
+        },
+        Auto::Auto => stable,
     };
     if !(dt.is_finite() && dt > 0.0) {
         return Err(Error::Invalid {
@@ -666,9 +683,12 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             })
             .fold(f32::MAX, f32::min);
         let lightest = if lightest == f32::MAX { 1.0 / bodies[c.b].inv_mass[0] } else { lightest };
+        // (Under the implicit integrator the contact's stiffness enters the solve, so it keeps
+        // the explicit bound's: a property of the bodies, not of the step.)
+        let material_dt = if implicit { stable.min(dt) } else { dt };
         let contact_k = match c.stiffness {
             Auto::Value(n_per_m) => n_per_m as f32,
-            Auto::Auto => 0.5 * lightest / (dt * dt),
+            Auto::Auto => 0.5 * lightest / (material_dt * material_dt),
         };
         let response = match c.response {
             ResponseSpec::Constant => Response::Constant,
@@ -769,8 +789,11 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
             if let Some((start, target)) = fills[k] {
                 growth = b.flatten.is_none().then_some(target / start);
-                fill =
-                    Some((start, target, fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape)));
+                let bulk = fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape);
+                // The implicit solve takes the fill's bulk response whole: a fill as
+                // incompressible as the liquid it stands for.
+                let bulk = if implicit { IMPLICIT_BULK * bulk } else { bulk };
+                fill = Some((start, target, bulk));
                 // The schedule's volumes as fractions of the way from the first to the last.
                 let span = target - start;
                 steps = i
@@ -801,6 +824,23 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         schedule_specs.iter().map(|b| b.inputs(t, dt)).collect()
     });
     // A vertex that moves a tenth of the scene in one step has blown up.
-    let world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
+    let mut world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
+    if implicit {
+        // No vertex moves more than a quarter of the finest contact's reach in a step, so that
+        // every contact sees it arrive.
+        let max_move = world
+            .contacts
+            .iter()
+            .map(|c| match c.params.search {
+                Search::Neighbours { radius } => radius.min(c.grid.voxel_size()),
+                Search::Voxel => c.grid.voxel_size(),
+            })
+            .fold(f32::INFINITY, f32::min)
+            * 0.25;
+        world = world.with_integrator(Integrator::Implicit(ImplicitSettings {
+            max_move,
+            ..ImplicitSettings::default()
+        }));
+    }
     Ok(Built { world, dt, steps, notes })
 }

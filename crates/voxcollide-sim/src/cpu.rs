@@ -1,12 +1,14 @@
 //! Worlds stepped on the CPU: each contact on the parallel collision backend (the reference's
 //! reports, on all cores), then spring forces and integration for every body.
 
-use glam::Vec3;
+use glam::{Mat3, Vec3};
 
+use crate::implicit::{Residual, StepStats};
 use crate::scene::Scene;
-use crate::world::World;
+use crate::world::{Integrator, World};
 use voxcollide::error::Error;
 use voxcollide::parallel::ParallelCpuCollision;
+use voxcollide::params::Response;
 use voxcollide::report::ContactReport;
 
 /// A world stepping on the CPU.
@@ -20,6 +22,15 @@ pub struct CpuWorld {
     contact_force: Vec<Vec<Vec3>>,
     force: Vec<Vec3>,
     step: u64,
+    /// Simulated seconds so far.
+    pub time: f64,
+    /// Implicit only: the last step's residual at rest over all bodies (at its start).
+    pub residual: Residual,
+    /// Implicit only: the last step's solve, per body.
+    pub stats: Vec<StepStats>,
+    /// Implicit only: the step is the schedule's times this (see [`accelerate`](Self::accelerate)).
+    dt_scale: f32,
+    accelerate_to: f32,
 }
 
 impl CpuWorld {
@@ -38,10 +49,32 @@ impl CpuWorld {
             contacts_of: world.contacts_of(),
             contact_force: world.bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect(),
             force: Vec::new(),
+            stats: vec![StepStats::default(); world.bodies.len()],
             collisions,
             world,
             step: 0,
+            time: 0.0,
+            residual: Residual::default(),
+            dt_scale: 1.0,
+            accelerate_to: 1.0,
         })
+    }
+
+    /// Implicit only: from now on, let the step grow up to `factor` times the schedule's while
+    /// every solve converges and no vertex is held to the step's largest move, halving it when
+    /// one is (pseudo-transient continuation: towards rest, with the loads at their final
+    /// values, the equilibrium does not depend on the step). 1 returns to the schedule's step.
+    pub fn accelerate(&mut self, factor: f32) {
+        self.accelerate_to = factor.max(1.0);
+        if factor <= 1.0 {
+            self.dt_scale = 1.0;
+        }
+    }
+
+    /// The step the last step took, in seconds, relative to the schedule's.
+    #[must_use]
+    pub fn dt_scale(&self) -> f32 {
+        self.dt_scale
     }
 
     /// Steps taken so far.
@@ -62,7 +95,15 @@ impl CpuWorld {
             let (a, b) = (&w.bodies[pair.a].pos, &w.bodies[pair.b].pos);
             self.collisions[c].step_into(a, b, &mut self.reports[c])?;
         }
-        let inputs = w.inputs(self.step)?;
+        let mut inputs = w.inputs(self.step)?;
+        let implicit = match w.integrator {
+            Integrator::Explicit => None,
+            Integrator::Implicit(settings) => Some(settings),
+        };
+        if implicit.is_some() {
+            inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
+        }
+        let mut residual = Residual::default();
         for (k, body) in w.bodies.iter_mut().enumerate() {
             let sum = &mut self.contact_force[k];
             for (n, &(c, as_a)) in self.contacts_of[k].iter().enumerate() {
@@ -74,7 +115,45 @@ impl CpuWorld {
                 }
             }
             body.forces(&inputs[k], sum, &mut self.force);
-            body.integrate(&inputs[k], &self.force);
+            match implicit {
+                None => body.integrate(&inputs[k], &self.force),
+                Some(settings) => {
+                    // Each penalty's stiffness along the force it gives each vertex it pushes.
+                    let mut contact_k = vec![Mat3::ZERO; body.len()];
+                    for &(c, as_a) in &self.contacts_of[k] {
+                        let Response::Penalty { stiffness, .. } = w.contacts[c].response else { continue };
+                        let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
+                        for (kc, f) in contact_k.iter_mut().zip(f) {
+                            let len = f.length();
+                            if len > 0.0 {
+                                let n = *f / len;
+                                *kc += stiffness * Mat3::from_cols(n * n.x, n * n.y, n * n.z);
+                            }
+                        }
+                    }
+                    residual = residual.plus(body.residual(&inputs[k], sum));
+                    self.stats[k] =
+                        body.integrate_implicit(&inputs[k], &self.force, sum, &contact_k, &settings);
+                }
+            }
+        }
+        if let Some(settings) = implicit {
+            let peak_gross = self.residual.peak_gross.max(residual.gross);
+            let before = self.residual.net;
+            self.residual = Residual { peak_gross, ..residual };
+            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
+            // Switched evolution relaxation: the step grows as the residual falls and shrinks
+            // as it rises (a contact chattering), halving where a solve fell short or a vertex
+            // was held to the largest move.
+            let calm = self
+                .stats
+                .iter()
+                .all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
+            let ratio = if residual.net > 0.0 { (before / residual.net) as f32 } else { 1.5 };
+            let grown = if calm { self.dt_scale * ratio.clamp(0.5, 1.5) } else { self.dt_scale * 0.5 };
+            self.dt_scale = grown.clamp(1.0, self.accelerate_to);
+        } else {
+            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         }
         self.step += 1;
         for (k, body) in w.bodies.iter().enumerate() {

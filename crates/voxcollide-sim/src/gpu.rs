@@ -199,9 +199,16 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`].
+    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
+        if world.integrator != crate::world::Integrator::Explicit {
+            return Err(Error::Invalid {
+                what: "integrator",
+                value: "implicit".into(),
+                rule: "the GPU world steps the explicit integrator only: the implicit one steps on the CPU (CpuWorld)".into(),
+            });
+        }
         let device = ctx.device();
         let collisions = world
             .contacts

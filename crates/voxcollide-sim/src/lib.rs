@@ -12,6 +12,7 @@ pub mod catalogue; // implant catalogues (DESIGN §9): the candidates `compare` 
 pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
+pub mod implicit; // backward Euler, matrix-free conjugate gradient (DESIGN §12)
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
@@ -21,5 +22,6 @@ pub mod world; //    `World`: any number of bodies and contacts, each pair its o
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
 pub use cpu::{CpuSim, CpuWorld};
 pub use gpu::{GpuSim, GpuWorld};
+pub use implicit::{ImplicitSettings, Residual};
 pub use scene::{Kind, Scene, SceneConfig};
-pub use world::{ContactPair, World};
+pub use world::{ContactPair, Integrator, World};

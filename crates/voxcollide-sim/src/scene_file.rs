@@ -137,7 +137,7 @@ pub struct Time {
     #[serde(default = "default_max_steps")]
     pub max_steps: u64,
     /// The integrator (DESIGN §12): the paper's semi-implicit Euler, `"explicit"` (the
-    /// default). `"implicit"` is read and refused by its key until it is built.
+    /// default), or `"implicit"`: backward Euler ([`crate::implicit`]).
     #[serde(default)]
     pub integrator: IntegratorSpec,
 }
@@ -149,8 +149,19 @@ pub enum IntegratorSpec {
     /// The paper's semi-implicit (symplectic) Euler, its step within the stability bound.
     #[default]
     Explicit,
-    /// An implicit method whose step is not bound by stability (not built yet: refused).
+    /// Backward Euler, whose step is not bound by stability ([`crate::implicit`]).
     Implicit,
+}
+
+impl IntegratorSpec {
+    /// The name a scene file gives it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            IntegratorSpec::Explicit => "explicit",
+            IntegratorSpec::Implicit => "implicit",
+        }
+    }
 }
 
 /// A material's model (DESIGN §12).
@@ -947,12 +958,6 @@ impl SceneFile {
         }
         if time.duration.is_none() && time.steps.is_none() {
             time.duration = Some(1.0);
-        }
-        if time.integrator == IntegratorSpec::Implicit {
-            return Err(time_err(
-                "integrator",
-                "\"implicit\" is not built yet (DESIGN §12, issue 21): use \"explicit\", the paper's semi-implicit Euler".into(),
-            ));
         }
 
         let mut bodies: Vec<BodySpec> = Vec::with_capacity(raw.body.len());

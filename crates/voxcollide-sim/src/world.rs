@@ -11,6 +11,20 @@ use std::sync::Arc;
 use voxcollide::{ContactParams, Error, Response, VoxelGrid};
 
 use crate::body::{MassSpring, StepInputs};
+use crate::implicit::ImplicitSettings;
+
+/// How a world's bodies move from one step to the next (DESIGN §12).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum Integrator {
+    /// The paper's semi-implicit (symplectic) Euler, its step within the stability bound
+    /// ([`MassSpring::integrate`]), bit for bit on the CPU and the GPU.
+    #[default]
+    Explicit,
+    /// Backward Euler, linearised per step and solved by conjugate gradient
+    /// ([`MassSpring::integrate_implicit`]): a step chosen for accuracy, not stability. The CPU
+    /// steps it; [`crate::GpuWorld`] refuses it by name.
+    Implicit(ImplicitSettings),
+}
 
 /// One pair of bodies in contact: `a` is binned (its voxel model follows it under
 /// [`Anchor::FollowA`](voxcollide::Anchor::FollowA)), `b` probes.
@@ -47,6 +61,8 @@ pub struct World {
     pub schedule: Schedule,
     /// What a blow-up's error names as its likely cause (see [`with_cause`](Self::with_cause)).
     pub likely_cause: String,
+    /// How the bodies move from step to step.
+    pub integrator: Integrator,
 }
 
 impl std::fmt::Debug for World {
@@ -108,7 +124,14 @@ impl World {
             likely_cause: "a time step above the integrator's stability bound, a penalty magnitude \
                            too large for the bodies' stiffness, or a degenerate body"
                 .into(),
+            integrator: Integrator::Explicit,
         })
+    }
+
+    /// The same world moved by `integrator`.
+    #[must_use]
+    pub fn with_integrator(self, integrator: Integrator) -> World {
+        World { integrator, ..self }
     }
 
     /// The same world whose blow-up errors name `cause` as the likely one.

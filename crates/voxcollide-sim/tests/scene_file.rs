@@ -324,7 +324,6 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             "unknown variant",
         ),
         // DESIGN §12's keys are read; what is not built yet is refused by its key.
-        ("[time]\nintegrator = \"implicit\"\n", 2, 1, "time.integrator", "not built yet"),
         ("[time]\nintegrator = \"leapfrog\"\n", 2, 14, "time.integrator", "unknown variant"),
         (with("material = { model = \"neo-hookean\" }\n"), 6, 12, "body[0].material.model", "not built yet"),
         (with("material = { model = \"foam\" }\n"), 6, 22, "body[0].material.model", "unknown variant"),
@@ -428,4 +427,20 @@ fn the_papers_integrator_and_material_are_read_by_name() {
     .unwrap();
     assert_eq!(s.time.integrator, IntegratorSpec::Explicit);
     assert_eq!(s.bodies[0].material.model, MaterialModel::Springs);
+}
+
+#[test]
+fn the_implicit_integrator_is_read_by_name_and_built() {
+    let s = SceneFile::parse(
+        "p.toml",
+        "[time]\nintegrator = \"implicit\"\nduration = 0.4\n[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [10, 10, 10] }\nspacing = 2.5\n",
+    )
+    .unwrap();
+    assert_eq!(s.time.integrator, IntegratorSpec::Implicit);
+    let built = voxcollide_sim::build::build_world(&s).unwrap();
+    assert!(matches!(built.world.integrator, voxcollide_sim::Integrator::Implicit(_)));
+    // The step is chosen for accuracy: the schedule in IMPLICIT_STEPS steps, far above the bound.
+    let stable = built.world.bodies[0].stable_dt(0.3);
+    assert!(built.dt > 10.0 * stable, "dt {} against the bound {stable}", built.dt);
+    assert_eq!(built.steps, voxcollide_sim::build::IMPLICIT_STEPS as u64);
 }

@@ -1,0 +1,134 @@
+//! `[time] integrator = "implicit"` through the command (DESIGN §12): what summary.json and
+//! the console say of it, the explicit integrator's answer at rest, and the GPU backend's
+//! refusal by name.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("voxcollide-implicit-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run_on(d: &Path, name: &str, scene: &str, backend: &str) -> Output {
+    std::fs::write(d.join(format!("{name}.toml")), scene).unwrap();
+    Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .arg("run")
+        .arg(d.join(format!("{name}.toml")))
+        .args(["--backend", backend, "--out"])
+        .arg(d.join(name))
+        .output()
+        .unwrap()
+}
+
+/// Runs `scene` on the CPU; its stdout and summary.json.
+fn run(d: &Path, name: &str, scene: &str) -> (String, serde_json::Value) {
+    let output = run_on(d, name, scene, "cpu");
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    let summary =
+        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("summary.json")).unwrap()).unwrap();
+    (stdout, summary)
+}
+
+const BALLOON: &str = r#"units = "mm"
+[time]
+duration = 0.3
+settle = true
+max_steps = 40000
+integrator = "INTEGRATOR"
+[[body]]
+name = "balloon"
+kind = "shell"
+shape = { sphere = 20 }
+spacing = 4
+material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+fixed = [{ below = { z = -19 } }]
+inflate = { volume_ml = 50, ramp = 0.2 }
+[output]
+frames = 4
+images = false
+vtk = false
+"#;
+
+const PRESS: &str = r#"units = "mm"
+[time]
+duration = 0.4
+settle = true
+max_steps = 12000
+integrator = "INTEGRATOR"
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [40, 40, 10] }
+spacing = 2.5
+material = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }
+fixed = [{ below = { z = -4.9 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 8 }
+spacing = 2.0
+position = [0, 0, 14]
+motion = [{ t = 0.0, position = [0, 0, 14] }, { t = 0.3, position = [0, 0, 11] }]
+[[contact]]
+a = "ball"
+b = "block"
+[output]
+frames = 4
+images = false
+vtk = false
+"#;
+
+#[test]
+fn an_implicit_fill_records_its_integrator_criterion_and_residual() {
+    let d = dir("balloon");
+    let (stdout, implicit) = run(&d, "implicit", &BALLOON.replace("INTEGRATOR", "implicit"));
+    assert_eq!(implicit["integrator"], "implicit");
+    assert_eq!(implicit["settled"], true, "{stdout}");
+    let criterion = implicit["criterion"].as_str().unwrap();
+    assert!(criterion == "residual" || criterion == "rest_motion", "{criterion}");
+    let residual = implicit["residual"].as_f64().unwrap();
+    assert!(residual.is_finite() && residual < 0.01, "residual {residual}");
+    if criterion == "residual" {
+        assert!(residual <= 1e-3);
+    }
+    assert!(stdout.contains("integrator") && stdout.contains("residual force"), "{stdout}");
+    let volume = implicit["bodies"][0]["volume_ml"].as_f64().unwrap();
+    assert!((volume - 50.0).abs() < 0.25, "{volume} mL of 50");
+    // The explicit run has no residual, and judges rest by motion.
+    let (_, explicit) = run(&d, "explicit", &BALLOON.replace("INTEGRATOR", "explicit"));
+    assert_eq!(explicit["integrator"], "explicit");
+    assert_eq!(explicit["criterion"], "rest_motion");
+    assert!(explicit.get("residual").is_none());
+    assert!(implicit["steps"].as_u64().unwrap() * 10 < explicit["steps"].as_u64().unwrap());
+}
+
+#[test]
+fn a_ball_pressed_in_rests_where_the_explicit_integrator_puts_it() {
+    let d = dir("press");
+    let (_, implicit) = run(&d, "implicit", &PRESS.replace("INTEGRATOR", "implicit"));
+    let (_, explicit) = run(&d, "explicit", &PRESS.replace("INTEGRATOR", "explicit"));
+    for s in [&implicit, &explicit] {
+        assert_eq!(s["held"], true, "{s}");
+        assert_eq!(s["settled"], true, "{s}");
+    }
+    let moved = |s: &serde_json::Value| s["bodies"][0]["max_displacement"].as_f64().unwrap();
+    let (a, b) = (moved(&implicit), moved(&explicit));
+    assert!(b > 2.0 && (a - b).abs() < 0.03 * b, "block moved {a} mm (implicit) and {b} mm (explicit)");
+}
+
+#[test]
+fn the_gpu_backend_refuses_the_implicit_integrator_by_name() {
+    let d = dir("gpu");
+    let output = run_on(&d, "gpu", &BALLOON.replace("INTEGRATOR", "implicit"), "gpu");
+    assert!(!output.status.success());
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        stderr.contains("integrator = \"implicit\"") && stderr.contains("--backend auto or cpu"),
+        "{stderr}"
+    );
+    assert!(!d.join("gpu").join("summary.json").exists());
+}

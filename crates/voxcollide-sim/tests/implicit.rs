@@ -1,0 +1,142 @@
+//! The implicit integrator (DESIGN §12): stable far beyond the explicit bound, a fill that
+//! holds its volume, the explicit integrator's answer at rest, and the same trajectory on any
+//! number of threads.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::sync::Arc;
+
+use voxcollide::glam::{Mat3, UVec3, Vec3};
+use voxcollide_sim::bodies::box_lattice;
+use voxcollide_sim::build::build_world;
+use voxcollide_sim::scene_file::SceneFile;
+use voxcollide_sim::*;
+
+/// A 6×6×6 lattice pinned at its base, its top layer pulled up by 20 % and let go.
+fn plucked(dt: f32, integrator: Integrator) -> World {
+    let material = Material { mass: 1.0, stiffening: 10.0, spring_damping: 0.0, damping: 0.05 };
+    let n = UVec3::splat(6);
+    let mut body =
+        box_lattice(n, 1.0, Vec3::ZERO, 50.0, material, |v| if v.z == 0 { Mode::Pinned } else { Mode::Free })
+            .unwrap();
+    for p in &mut body.pos {
+        p.z *= 1.2;
+    }
+    let schedule = Arc::new(move |_| {
+        vec![StepInputs {
+            dt,
+            rest_scale: 1.0,
+            drive: Vec3::ZERO,
+            turn: Mat3::IDENTITY,
+            pressure: 0.0,
+            fill_volume: 0.0,
+            fill_bulk: 0.0,
+            floor: f32::MIN,
+        }]
+    });
+    World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)
+        .unwrap()
+        .with_integrator(integrator)
+}
+
+fn max_speed(w: &CpuWorld) -> f32 {
+    w.world.bodies[0].vel.iter().map(|v| v.length()).fold(0.0, f32::max)
+}
+
+#[test]
+fn a_step_fifty_times_the_explicit_bound_is_stable_and_comes_to_rest() {
+    let bound = plucked(1.0, Integrator::Explicit).bodies[0].stable_dt(0.3);
+    let dt = 50.0 * bound;
+    // Explicit at that step blows up…
+    let mut explicit = CpuWorld::new(plucked(dt, Integrator::Explicit)).unwrap();
+    let blew_up = (0..200).any(|_| explicit.step().is_err());
+    assert!(blew_up, "the explicit step 50× its bound should run away");
+    // …the implicit one comes to rest at the block's rest shape, its residual falling.
+    let mut implicit = CpuWorld::new(plucked(dt, Integrator::Implicit(ImplicitSettings::default()))).unwrap();
+    implicit.step().unwrap();
+    let first = implicit.residual.relative();
+    for _ in 0..300 {
+        implicit.step().unwrap();
+    }
+    let body = &implicit.world.bodies[0];
+    let worst = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    assert!(worst < 0.01, "still {worst} from rest after 300 steps");
+    assert!(max_speed(&implicit) < 1e-2, "still moving at {}", max_speed(&implicit));
+    assert!(
+        implicit.residual.relative() < 1e-3 && first > 0.1,
+        "residual {first} → {}",
+        implicit.residual.relative()
+    );
+    assert!(implicit.stats[0].iterations > 0 && implicit.stats[0].relative_residual <= 1e-4);
+}
+
+#[test]
+fn the_same_trajectory_on_one_thread_and_two() {
+    let bound = plucked(1.0, Integrator::Explicit).bodies[0].stable_dt(0.3);
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let mut w =
+                CpuWorld::new(plucked(20.0 * bound, Integrator::Implicit(ImplicitSettings::default())))
+                    .unwrap();
+            for _ in 0..40 {
+                w.step().unwrap();
+            }
+            w.world.bodies[0].pos.clone()
+        })
+    };
+    assert_eq!(run(1), run(2));
+}
+
+const BALLOON: &str = r#"
+units = "mm"
+[time]
+duration = 0.3
+settle = true
+integrator = "INTEGRATOR"
+[[body]]
+name = "balloon"
+kind = "shell"
+shape = { sphere = 20 }
+spacing = 4
+material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+fixed = [{ below = { z = -19 } }]
+inflate = { volume_ml = 50, ramp = 0.2 }
+"#;
+
+/// Steps `text`'s world through its schedule and `extra` steps more; the volume held (mL) and
+/// the steps taken.
+fn fill(integrator: &str, extra: u64) -> (f64, u64, World) {
+    let file = SceneFile::parse("balloon.toml", &BALLOON.replace("INTEGRATOR", integrator)).unwrap();
+    let built = build_world(&file).unwrap();
+    let steps = built.steps + extra;
+    let mut w = CpuWorld::new(built.world).unwrap();
+    for _ in 0..steps {
+        w.step().unwrap();
+    }
+    (w.world.bodies[0].enclosed_volume() * 1e-3, steps, w.world)
+}
+
+#[test]
+fn a_fill_holds_its_volume_in_a_tenth_of_the_explicit_steps() {
+    let (explicit, explicit_steps, _) = fill("explicit", 0);
+    let (implicit, implicit_steps, world) = fill("implicit", 50);
+    assert!((implicit - 50.0).abs() < 0.25, "implicit fill {implicit} mL of 50");
+    assert!((explicit - 50.0).abs() < 1.5, "explicit fill {explicit} mL of 50");
+    assert!(implicit_steps * 10 < explicit_steps, "{implicit_steps} implicit steps against {explicit_steps}");
+    // The two agree on the shape: the same rise of the balloon's top, within 5 %.
+    let (_, _, explicit_world) = fill("explicit", 4000);
+    let top = |w: &World| w.bodies[0].pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    let (a, b) = (top(&world), top(&explicit_world));
+    assert!((a - b).abs() < 0.05 * b.abs(), "top at {a} (implicit) and {b} (explicit)");
+}
+
+#[test]
+fn the_gpu_world_refuses_the_implicit_integrator_by_name() {
+    let w = plucked(1e-3, Integrator::Implicit(ImplicitSettings::default()));
+    // (Skips without an adapter, unless VOXCOLLIDE_REQUIRE_GPU makes that a failure.)
+    let Some(ctx) = common::gpu() else { return };
+    let Err(e) = GpuWorld::new(&ctx, w) else { panic!("the GPU world took the implicit integrator") };
+    assert!(e.to_string().contains("implicit"), "{e}");
+}
