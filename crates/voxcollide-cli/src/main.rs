@@ -389,7 +389,11 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     b.vertices,
                     b.max_displacement,
                     s.units,
-                    b.volume_ml.map_or(String::new(), |v| format!(", {v:.1} mL inside at the end"))
+                    match (b.volume_ml, b.volume) {
+                        (Some(ml), _) => format!(", {ml:.1} mL inside at the end"),
+                        (None, Some(v)) => format!(", {v:.4} cubic {} inside at the end", s.units),
+                        (None, None) => String::new(),
+                    }
                 );
             }
             for c in &s.contacts {

@@ -33,7 +33,11 @@ pub struct BodySummary {
     /// The largest distance of one of its vertices from where it started, over the run (file
     /// units).
     pub max_displacement: f32,
-    /// For a shell: the volume it encloses at the end, in mL.
+    /// For a shell: the volume it encloses at the end, in cubic file units (the only volume a
+    /// scene in layer units has).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<f64>,
+    /// For a shell in a scene of physical units: the volume it encloses at the end, in mL.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_ml: Option<f64>,
     /// For a lattice in a surface: the fraction of the surface's volume it covers.
@@ -457,7 +461,10 @@ pub fn run_scene(
             checks.at_end(&mut summary, done, note);
             for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
                 if spec.kind == BodyKind::Shell {
-                    out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
+                    out.volume = Some(b.enclosed_volume());
+                    if file.units.is_physical() {
+                        out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
+                    }
                 }
             }
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };

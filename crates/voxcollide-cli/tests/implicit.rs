@@ -132,3 +132,28 @@ fn the_gpu_backend_refuses_the_implicit_integrator_by_name() {
     );
     assert!(!d.join("gpu").join("summary.json").exists());
 }
+
+#[test]
+fn the_papers_scene_file_speaks_in_layer_units_never_metres_or_millilitres() {
+    // Issue 21, item 7: scenes/implant.toml's lengths are the paper's layer units.
+    let d = dir("layer");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/implant.toml");
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .arg("run")
+        .arg(&scene)
+        .args(["--backend", "cpu", "--out"])
+        .arg(d.join("out"))
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}");
+    assert!(stdout.contains("moved up to") && stdout.contains("layer units"), "{stdout}");
+    assert!(!stdout.contains(" mL") && !stdout.contains(" m,") && !stdout.contains(" m\n"), "{stdout}");
+    assert!(stdout.contains("cubic layer units inside"), "{stdout}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("out/summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["units"], "layer units");
+    let implant = &summary["bodies"][1];
+    assert!(implant.get("volume_ml").is_none(), "{implant}");
+    assert!(implant["volume"].as_f64().unwrap() > 1.0, "{implant}");
+}

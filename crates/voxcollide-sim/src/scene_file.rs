@@ -56,6 +56,11 @@ pub enum Units {
     Cm,
     /// Metres.
     M,
+    /// The paper's layer units (DESIGN §1: the tissue layer is 8 wide): lengths with no
+    /// physical size. They are computed as metres, so that the paper's constants carry over
+    /// unchanged (`k = 0.4·E·h`), and printed and drawn as "layer units", never as metres, with
+    /// volumes in cubic layer units, never in millilitres.
+    Layer,
 }
 
 impl Units {
@@ -65,17 +70,26 @@ impl Units {
         match self {
             Units::Mm => 1e-3,
             Units::Cm => 1e-2,
-            Units::M => 1.0,
+            Units::M | Units::Layer => 1.0,
         }
     }
 
-    /// The unit's symbol, as written in files.
+    /// Whether a length in these units is a physical one (millimetres, centimetres, metres),
+    /// so that a volume can be given in millilitres.
+    #[must_use]
+    pub fn is_physical(self) -> bool {
+        self != Units::Layer
+    }
+
+    /// The unit's symbol, as printed after a length (`"layer units"` for [`Units::Layer`],
+    /// whose name in a file is `"layer"`).
     #[must_use]
     pub fn symbol(self) -> &'static str {
         match self {
             Units::Mm => "mm",
             Units::Cm => "cm",
             Units::M => "m",
+            Units::Layer => "layer units",
         }
     }
 }
@@ -1123,6 +1137,12 @@ impl SceneFile {
                         }
                         i.volume_ml = Some(last);
                         i.ramp = 0.0;
+                    }
+                    if i.volume_ml.is_some() && !raw.units.is_physical() {
+                        return Err(err(
+                            span,
+                            "a scene in layer units has no millilitres: inflate it by `pressure_kpa`, or give the scene physical units (\"mm\", \"cm\" or \"m\")".into(),
+                        ));
                     }
                     let amount = match (i.pressure_kpa, i.volume_ml) {
                         (Some(p), None) => p,

@@ -444,3 +444,15 @@ fn the_implicit_integrator_is_read_by_name_and_built() {
     assert!(built.dt > 10.0 * stable, "dt {} against the bound {stable}", built.dt);
     assert_eq!(built.steps, voxcollide_sim::build::IMPLICIT_STEPS as u64);
 }
+
+#[test]
+fn a_scene_in_layer_units_has_no_millilitres() {
+    let text = "units = \"layer\"\n[[body]]\nname = \"s\"\nkind = \"shell\"\nshape = { sphere = 1 }\nspacing = 0.3\ninflate = { volume_ml = 5, ramp = 0.1 }\n";
+    let e = SceneFile::parse("layer.toml", text).unwrap_err().to_string();
+    assert!(e.contains("layer.toml") && e.contains("inflate") && e.contains("no millilitres"), "{e}");
+    let ok = text.replace("volume_ml = 5", "pressure_kpa = 0.1");
+    let s = SceneFile::parse("layer.toml", &ok).unwrap();
+    assert_eq!(s.units.symbol(), "layer units");
+    assert!(!s.units.is_physical());
+    assert_eq!(s.metres(), 1.0);
+}
