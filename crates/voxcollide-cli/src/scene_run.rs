@@ -153,6 +153,18 @@ pub struct FileRunConfig {
     pub image: (u32, u32),
 }
 
+/// Why `world` steps on the CPU only, if it does: `[time] integrator = "implicit"` or a
+/// `"neo-hookean"` body (their WGSL passes are not built yet).
+pub(crate) fn cpu_only(world: &World) -> Option<&'static str> {
+    if world.integrator != Integrator::Explicit {
+        Some("[time] integrator = \"implicit\"")
+    } else if world.bodies.iter().any(|b| b.elements.is_some()) {
+        Some("material model = \"neo-hookean\"")
+    } else {
+        None
+    }
+}
+
 /// A world stepping on either backend (a scene file's run, a live view).
 pub(crate) enum Run {
     Cpu(Box<CpuWorld>),
@@ -272,21 +284,27 @@ pub fn run_scene(
             note(&format!("{}: {r}", n.name));
         }
     }
-    let implicit = built.world.integrator != Integrator::Explicit;
-    if implicit && config.backend == Backend::Gpu {
+    let implicit = cpu_only(&built.world);
+    if let Some(why) = implicit
+        && config.backend == Backend::Gpu
+    {
         return Err(Error::Invalid {
             what: "backend",
             value: "gpu".into(),
             rule: format!(
-                "{}: [time] integrator = \"implicit\" steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu",
+                "{}: {why} steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu",
                 config.path.display()
             ),
         });
     }
+    let implicit = implicit.is_some();
     let wants_pictures = file.output.images;
     let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
     if implicit && ctx.is_some() {
-        note("the implicit integrator steps on the CPU, on every core (the GPU draws the pictures)");
+        note(&format!(
+            "{} steps on the CPU, on every core (the GPU draws the pictures)",
+            cpu_only(&built.world).unwrap_or_default()
+        ));
     }
     let (mut run, backend, adapter) = match (config.backend, &ctx) {
         (_, Some(ctx)) if implicit => {
@@ -348,7 +366,8 @@ pub fn run_scene(
             })
             .collect(),
         held: true,
-        integrator: if implicit { "implicit" } else { "explicit" }.into(),
+        integrator: if built.world.integrator == Integrator::Explicit { "explicit" } else { "implicit" }
+            .into(),
         ..FileSummary::default()
     };
     let size = world
@@ -694,7 +713,7 @@ pub const SETTLE_ACCELERATION: f32 = 64.0;
 /// The settling window in steps: twice the time an elastic wave takes to cross the largest
 /// deformable body, `2 · extent / c` with the lattice's wave speed `c = h · √(k/m)` (its mean
 /// spring length, stiffness and vertex mass) — the time over which a body still adjusting to
-/// its load must show it. At least one step.
+/// its load must show it (for a body of finite elements, its P-wave speed). At least one step.
 pub fn settling_window(world: &World, dt: f32) -> u64 {
     let seconds = world
         .bodies
@@ -705,7 +724,12 @@ pub fn settling_window(world: &World, dt: f32) -> u64 {
             let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / b.springs.len() as f64;
             let m = b.inv_mass.iter().map(|w| 1.0 / f64::from(*w)).sum::<f64>() / b.len() as f64;
             let (lo, hi) = b.rest_pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
-            2.0 * f64::from((hi - lo).max_element()) / (h * (k / m).sqrt())
+            // A body of elements: its P-wave speed √((λ + 2μ)/ρ), with ρ = m/h³.
+            let speed = match &b.elements {
+                Some(e) => (f64::from(e.lambda + e.mu) * h * h * h / m).sqrt(),
+                None => h * (k / m).sqrt(),
+            };
+            2.0 * f64::from((hi - lo).max_element()) / speed
         })
         .filter(|t| t.is_finite())
         .fold(0.0, f64::max);

@@ -93,6 +93,10 @@ pub struct MassSpring {
     /// pictures, VTK files and penetration use instead of [`surface`](Self::surface); `None`
     /// for a body whose own surface is the user's.
     pub embedded: Option<Embedding>,
+    /// Finite elements (DESIGN §12's `"neo-hookean"`): their forces add to the springs' (a
+    /// body of elements keeps its springs for its damping only, their stiffness 0); `None`
+    /// for the paper's spring lattice.
+    pub elements: Option<crate::fem::Elements>,
 }
 
 /// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
@@ -272,6 +276,7 @@ impl MassSpring {
             offsets,
             adjacency,
             embedded: None,
+            elements: None,
         })
     }
 
@@ -327,17 +332,19 @@ impl MassSpring {
         self.surface.volume(&self.pos)
     }
 
-    /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`.
+    /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`
+    /// (with a body's elements, their Gershgorin bound added: [`crate::fem::Elements::stiffness_bound`]).
     #[must_use]
     pub fn stable_dt(&self, s_max: f32) -> f32 {
         let m = &self.material;
         let stiffen = 1.0 + 3.0 * m.stiffening * s_max * s_max;
+        let elements = self.elements.as_ref().map(|e| e.stiffness_bound(self.len()));
         let omega2 = (0..self.len())
             .map(|i| {
                 let adj = &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize];
-                4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>()
-                    * stiffen
-                    * self.inv_mass[i]
+                let springs =
+                    4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>() * stiffen;
+                (springs + elements.as_ref().map_or(0.0, |e| e[i])) * self.inv_mass[i]
             })
             .fold(0.0f32, f32::max);
         if omega2 > 0.0 { 0.5 * 2.0 / omega2.sqrt() } else { f32::INFINITY }
@@ -365,6 +372,9 @@ impl MassSpring {
                     s.k,
                     m,
                 );
+            }
+            if let Some(e) = &self.elements {
+                f += e.force_on(&self.pos, i);
             }
             if pressure != 0.0 {
                 // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.

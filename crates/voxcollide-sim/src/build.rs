@@ -31,7 +31,7 @@ use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
     Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, IntegratorSpec,
-    ResponseSpec, SceneFile, SearchSpec, Shape,
+    MaterialModel, ResponseSpec, SceneFile, SearchSpec, Shape,
 };
 use crate::world::{ContactPair, Integrator, World};
 
@@ -230,6 +230,34 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         }
         Ok((surface, remark))
     };
+    let neo_hookean = spec.material.model == MaterialModel::NeoHookean;
+    let index = file.bodies.iter().position(|b| b.name == spec.name).unwrap_or(0);
+    if neo_hookean && spec.kind != BodyKind::Soft {
+        return Err(file.body_error(
+            index,
+            "material.model",
+            format!(
+                "\"neo-hookean\" is a soft body's material (tetrahedra); {:?} is a {:?}: use \"springs\"",
+                spec.name, spec.kind
+            ),
+        ));
+    }
+    if neo_hookean && !spec.layers.is_empty() {
+        return Err(file.body_error(
+            index,
+            "layers",
+            "layers of another modulus are springs' for now: a \"neo-hookean\" body has one material",
+        ));
+    }
+    if neo_hookean && file.time.integrator == IntegratorSpec::Implicit {
+        return Err(file.body_error(
+            index,
+            "material.model",
+            "\"neo-hookean\" runs under the explicit integrator for now: [time] integrator = \"implicit\" has no element Hessian yet",
+        ));
+    }
+    // A mesh's own tetrahedra, for the elements.
+    let mut mesh_tets: Option<Vec<[u32; 4]>> = None;
     let (mut body, kspring) = match spec.kind {
         BodyKind::Soft => {
             let h = h.unwrap_or(1.0);
@@ -255,6 +283,13 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         segments: (6 * rings).max(12),
                         layers: ((height / h).round() as u32).max(2) + 1,
                     };
+                    if neo_hookean {
+                        return Err(file.body_error(
+                            index,
+                            "material.model",
+                            "a solid cylinder is a polar lattice, which has no tetrahedra yet: give it as a mesh (.vtu, .msh or a closed surface) for \"neo-hookean\"",
+                        ));
+                    }
                     (cylinder(shape, kspring, material)?, kspring)
                 }
                 Geometry::Mesh(path)
@@ -278,6 +313,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         / tets.tets.len() as f32;
                     let (material, kspring) = material_for(edge, cell_mass(edge));
                     let density = (m.density * s.powi(3)) as f32; // kg per cubic file unit
+                    mesh_tets = Some(tets.tets.clone());
                     (tetrahedral_body(&tets, kspring, density, material, |_| Mode::Free)?, kspring)
                 }
                 _ => {
@@ -438,7 +474,20 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         ));
     }
     note.vertices = body.len();
-    if spec.kind != BodyKind::Rigid && (m.poisson - 0.25).abs() > 1e-9 {
+    if neo_hookean {
+        let h = h.unwrap_or(1.0);
+        let tets = mesh_tets.unwrap_or_else(|| crate::fem::lattice_tets(&body.rest_pos, h));
+        let young = m.young_kpa * 1e3 * s;
+        let elements = crate::fem::Elements::new(&body.rest_pos, &tets, young, m.poisson)
+            .map_err(|e| file.body_error(index, "material.model", e.to_string()))?;
+        note.remarks.push(format!(
+            "neo-hookean: {} tetrahedra, poisson = {} (the springs keep only their damping)",
+            elements.tets.len(),
+            m.poisson
+        ));
+        body.elements = Some(elements);
+        body.springs.iter_mut().for_each(|s| s.k = 0.0);
+    } else if spec.kind != BodyKind::Rigid && (m.poisson - 0.25).abs() > 1e-9 {
         note.remarks.push(format!(
             "poisson = {}: a spring network has its own Poisson ratio (1/4 for a cubic lattice); Young's modulus is matched, the ratio is not",
             m.poisson

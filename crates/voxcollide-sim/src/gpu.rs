@@ -199,9 +199,18 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator.
+    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator or
+    /// finite elements.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
+        if let Some(k) = world.bodies.iter().position(|b| b.elements.is_some()) {
+            return Err(Error::Invalid {
+                what: "material",
+                value: format!("neo-hookean ({})", world.names[k]),
+                rule: "the GPU world steps spring lattices only: finite elements step on the CPU (CpuWorld)"
+                    .into(),
+            });
+        }
         if world.integrator != crate::world::Integrator::Explicit {
             return Err(Error::Invalid {
                 what: "integrator",

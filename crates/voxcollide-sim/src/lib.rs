@@ -10,6 +10,7 @@ pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integr
 pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units
 pub mod catalogue; // implant catalogues (DESIGN §9): the candidates `compare` runs, checked
 pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
+pub mod fem; //      finite elements: stable Neo-Hookean tetrahedra (DESIGN §12)
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
 pub mod implicit; // backward Euler, matrix-free conjugate gradient (DESIGN §12)

@@ -185,7 +185,7 @@ pub enum MaterialModel {
     /// The paper's spring lattice (Poisson's ratio 1/4 whatever the file says), the default.
     #[default]
     Springs,
-    /// Finite elements that honour `poisson` (not built yet: refused).
+    /// Finite elements that honour `poisson` ([`crate::fem`]).
     NeoHookean,
 }
 
@@ -341,7 +341,8 @@ pub struct MaterialSpec {
     pub damping: f64,
     /// Damping ratio of the damping along each spring (default: `damping`).
     pub spring_damping: Option<f64>,
-    /// The model: `"springs"` (the default) or `"neo-hookean"` (refused until it is built).
+    /// The model: `"springs"` (the default: the paper's lattice, ν = 1/4) or `"neo-hookean"`
+    /// (tetrahedra that honour `poisson`: [`crate::fem`]).
     #[serde(default)]
     pub model: MaterialModel,
 }
@@ -1374,12 +1375,6 @@ pub(crate) fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
 }
 
 fn check_material(m: &MaterialSpec) -> Result<(), (&'static str, String)> {
-    if m.model == MaterialModel::NeoHookean {
-        return Err((
-            "model",
-            "\"neo-hookean\" is not built yet (DESIGN §12, issue 21): use \"springs\", the paper's lattice (Poisson's ratio 1/4)".into(),
-        ));
-    }
     if !(m.young_kpa.is_finite() && m.young_kpa > 0.0) {
         return Err(("young_kpa", format!("{} must be a positive modulus in kPa", m.young_kpa)));
     }

@@ -341,6 +341,22 @@ impl Live {
             }
             Backend::Auto => true,
         };
+        let on_gpu = match crate::scene_run::cpu_only(&built.world) {
+            Some(why) if on_gpu => {
+                if config.backend == Backend::Gpu {
+                    return Err(Error::Invalid {
+                        what: "backend",
+                        value: "gpu".into(),
+                        rule: format!(
+                            "{why} steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu"
+                        ),
+                    });
+                }
+                note(&format!("{why} steps on the CPU"));
+                false
+            }
+            _ => on_gpu,
+        };
         let world = &built.world;
         let extent = world
             .bodies

@@ -1,0 +1,169 @@
+//! The Neo-Hookean tetrahedra (DESIGN §12, issue 21): they honour the file's Poisson ratio,
+//! where the paper's spring lattice has its own 1/4.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use std::sync::Arc;
+
+use voxcollide::glam::{Mat3, UVec3, Vec3};
+use voxcollide_sim::bodies::box_lattice;
+use voxcollide_sim::fem::{Elements, lattice_tets};
+use voxcollide_sim::*;
+
+/// A bar `w × w × 4w` cells of spacing 1, pinned at its base, its top driven up by `strain`;
+/// `nu`: its elements' Poisson ratio (None: the paper's springs, `k = 0.4 E h`). The lateral
+/// and axial strains of its middle, at rest.
+fn stretch(w: u32, strain: f32, nu: Option<f64>) -> (f32, f32) {
+    let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.3, damping: 0.3 };
+    let n = UVec3::new(w + 1, w + 1, 4 * w + 1);
+    let top = n.z - 1;
+    let mut body = box_lattice(n, 1.0, Vec3::ZERO, 0.4, material, |v| {
+        if v.z == 0 {
+            Mode::Pinned
+        } else if v.z == top {
+            Mode::Driven
+        } else {
+            Mode::Free
+        }
+    })
+    .unwrap();
+    if let Some(nu) = nu {
+        body.elements =
+            Some(Elements::new(&body.rest_pos, &lattice_tets(&body.rest_pos, 1.0), 1.0, nu).unwrap());
+        body.springs.iter_mut().for_each(|s| s.k = 0.0);
+    }
+    let dt = body.stable_dt(0.1);
+    let length = top as f32;
+    let schedule = Arc::new(move |step: u64| {
+        let ramp = (step as f32 / 2000.0).min(1.0);
+        vec![StepInputs {
+            dt,
+            rest_scale: 1.0,
+            drive: Vec3::new(0.0, 0.0, ramp * strain * length),
+            turn: Mat3::IDENTITY,
+            pressure: 0.0,
+            fill_volume: 0.0,
+            fill_bulk: 0.0,
+            floor: f32::MIN,
+        }]
+    });
+    let world = World::new(vec!["bar".into()], vec![body], Vec::new(), 1e6, schedule).unwrap();
+    let mut w_ = CpuWorld::new(world).unwrap();
+    for _ in 0..12000 {
+        w_.step().unwrap();
+    }
+    let b = &w_.world.bodies[0];
+    let layer =
+        |k: f32| b.rest_pos.iter().zip(&b.pos).filter(move |(r, _)| (r.z - k).abs() < 0.01).map(|(_, p)| *p);
+    let mid = 2.0 * w as f32;
+    let (lo, hi) = layer(mid).fold((f32::MAX, f32::MIN), |(l, h), p| (l.min(p.x), h.max(p.x)));
+    let lateral = (hi - lo) / w as f32 - 1.0;
+    let mean_z = |k: f32| {
+        let v: Vec<f32> = layer(k).map(|p| p.z).collect();
+        v.iter().sum::<f32>() / v.len() as f32
+    };
+    let span = w as f32;
+    let axial = (mean_z(mid + span / 2.0) - mean_z(mid - span / 2.0)) / span - 1.0;
+    (lateral, axial)
+}
+
+#[test]
+fn a_stretched_bar_contracts_by_the_files_poisson_ratio() {
+    for nu in [0.3, 0.45, 0.49] {
+        let (lateral, axial) = stretch(4, 0.01, Some(nu));
+        let measured = -lateral / axial;
+        eprintln!("nu {nu}: lateral {lateral:.5} axial {axial:.5} → {measured:.4}");
+        assert!((measured - nu as f32).abs() < 0.05 * nu as f32, "ν {measured} for {nu}");
+    }
+}
+
+#[test]
+fn the_spring_lattice_keeps_its_own_quarter() {
+    // The contrast the elements are for: the paper's lattice gives 1/4 whatever the file says.
+    let (lateral, axial) = stretch(4, 0.01, None);
+    let measured = -lateral / axial;
+    assert!((measured - 0.25).abs() < 0.03, "springs gave ν {measured}");
+}
+
+const BLOCK: &str = "units = \"mm\"\n[time]\nduration = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [20, 20, 10] }\nspacing = 2.5\nmaterial = { model = \"neo-hookean\", young_kpa = 3.0, poisson = 0.45, density = 1000.0, damping = 0.5 }\nfixed = [{ below = { z = -4.9 } }]\n";
+
+#[test]
+fn a_scene_files_neo_hookean_block_is_tetrahedra_at_the_files_ratio() {
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::scene_file::SceneFile;
+    let file = SceneFile::parse("block.toml", BLOCK).unwrap();
+    let built = build_world(&file).unwrap();
+    let body = &built.world.bodies[0];
+    let e = body.elements.as_ref().expect("elements");
+    // 8 × 8 × 4 cubes, six tetrahedra each, filling the block's volume.
+    assert_eq!(e.tets.len(), 8 * 8 * 4 * 6);
+    let volume: f32 = e.volume.iter().sum();
+    assert!((volume - 20.0 * 20.0 * 10.0).abs() < 1.0, "{volume}");
+    let (mu, lambda) = voxcollide_sim::fem::lame(3e3 * 1e-3, 0.45);
+    assert!((e.mu - mu as f32).abs() < 1e-6 && (e.lambda - (lambda + mu) as f32).abs() < 1e-4);
+    assert!(body.springs.iter().all(|s| s.k == 0.0));
+    assert!(built.notes[0].remarks.iter().any(|r| r.contains("neo-hookean")), "{:?}", built.notes[0].remarks);
+    // Its step is bound by the elements (ν = 0.45 is stiffer in bulk than the lattice).
+    let springs = build_world(
+        &SceneFile::parse("block.toml", &BLOCK.replace("model = \"neo-hookean\", ", "")).unwrap(),
+    )
+    .unwrap();
+    assert!(built.dt < springs.dt, "{} against the lattice's {}", built.dt, springs.dt);
+    // It steps, and stays at rest where nothing loads it.
+    let mut w = CpuWorld::new(built.world).unwrap();
+    for _ in 0..50 {
+        w.step().unwrap();
+    }
+    let b = &w.world.bodies[0];
+    let moved = b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    assert!(moved < 1e-4, "an unloaded block moved {moved}");
+}
+
+#[test]
+fn what_the_elements_do_not_take_yet_is_refused_by_key() {
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::scene_file::SceneFile;
+    let cases = [
+        (BLOCK.replace("[time]\n", "[time]\nintegrator = \"implicit\"\n"), "material", "explicit integrator"),
+        (
+            BLOCK.replace(
+                "kind = \"soft\"\nshape = { box = [20, 20, 10] }",
+                "kind = \"shell\"\nshape = { sphere = 10 }",
+            ),
+            "material",
+            "soft body",
+        ),
+        (
+            BLOCK.replace(
+                "fixed =",
+                "layers = [{ region = { above = { z = 2 } }, young_kpa = 30.0 }]\nfixed =",
+            ),
+            "layers",
+            "one material",
+        ),
+        (
+            BLOCK.replace(
+                "shape = { box = [20, 20, 10] }",
+                "shape = { cylinder = { radius = 10, height = 10 } }",
+            ),
+            "material",
+            "polar lattice",
+        ),
+    ];
+    for (text, key, words) in cases {
+        let file = SceneFile::parse("block.toml", &text).unwrap();
+        let e = build_world(&file).unwrap_err().to_string();
+        assert!(e.contains("block.toml") && e.contains(key) && e.contains(words), "{e}");
+    }
+}
+
+#[test]
+fn the_gpu_world_refuses_elements_by_name() {
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::scene_file::SceneFile;
+    let built = build_world(&SceneFile::parse("block.toml", BLOCK).unwrap()).unwrap();
+    let Some(ctx) = common::gpu() else { return };
+    let Err(e) = GpuWorld::new(&ctx, built.world) else { panic!("the GPU world took finite elements") };
+    assert!(e.to_string().contains("neo-hookean"), "{e}");
+}
