@@ -153,13 +153,16 @@ pub struct FileRunConfig {
     pub image: (u32, u32),
 }
 
-/// Why `world` steps on the CPU only, if it does: `[time] integrator = "implicit"` or a
-/// `"neo-hookean"` body (their WGSL passes are not built yet).
+/// Why `world` steps on the CPU only, if it does: `[time] integrator = "implicit"`, a
+/// `"neo-hookean"` body or a contact with `response = "surface"` (their WGSL passes are not
+/// built yet).
 pub(crate) fn cpu_only(world: &World) -> Option<&'static str> {
     if world.integrator != Integrator::Explicit {
         Some("[time] integrator = \"implicit\"")
     } else if world.bodies.iter().any(|b| b.elements.is_some()) {
         Some("material model = \"neo-hookean\"")
+    } else if world.contacts.iter().any(|c| c.surface.is_some()) {
+        Some("contact response = \"surface\" (the default)")
     } else {
         None
     }
@@ -715,25 +718,7 @@ pub const SETTLE_ACCELERATION: f32 = 64.0;
 /// spring length, stiffness and vertex mass) — the time over which a body still adjusting to
 /// its load must show it (for a body of finite elements, its P-wave speed). At least one step.
 pub fn settling_window(world: &World, dt: f32) -> u64 {
-    let seconds = world
-        .bodies
-        .iter()
-        .filter(|b| b.mode.contains(&voxcollide_sim::Mode::Free) && !b.springs.is_empty())
-        .map(|b| {
-            let h = f64::from(mean_spring(b));
-            let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / b.springs.len() as f64;
-            let m = b.inv_mass.iter().map(|w| 1.0 / f64::from(*w)).sum::<f64>() / b.len() as f64;
-            let (lo, hi) = b.rest_pos.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
-            // A body of elements: its P-wave speed √((λ + 2μ)/ρ), with ρ = m/h³.
-            let speed = match &b.elements {
-                Some(e) => (f64::from(e.lambda + e.mu) * h * h * h / m).sqrt(),
-                None => h * (k / m).sqrt(),
-            };
-            2.0 * f64::from((hi - lo).max_element()) / speed
-        })
-        .filter(|t| t.is_finite())
-        .fold(0.0, f64::max);
-    ((seconds / f64::from(dt)).ceil() as u64).max(1)
+    ((voxcollide_sim::world::response_time(&world.bodies) / f64::from(dt)).ceil() as u64).max(1)
 }
 
 /// A body's spacing: the mean rest length of its springs (1 without springs).

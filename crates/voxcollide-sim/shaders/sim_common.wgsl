@@ -26,7 +26,7 @@ struct SimParams {
     tri_count: u32,
     fill_volume: f32,      // > 0: a fill of this volume (the pressure is the volume pass's)
     fill_bulk: f32,
-    _pad0: u32,
+    fill_hold: f32,        // > 0: per step, the held pressure's growth per relative deficit (over fill_bulk)
     _pad1: u32,
 }
 

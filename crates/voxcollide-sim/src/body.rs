@@ -93,6 +93,9 @@ pub struct MassSpring {
     /// pictures, VTK files and penetration use instead of [`surface`](Self::surface); `None`
     /// for a body whose own surface is the user's.
     pub embedded: Option<Embedding>,
+    /// The pressure a fill has built up to hold its volume (see [`StepInputs::fill_hold`]); 0
+    /// at the start.
+    pub held_pressure: f32,
     /// Finite elements (DESIGN §12's `"neo-hookean"`): their forces add to the springs' (a
     /// body of elements keeps its springs for its damping only, their stiffness 0); `None`
     /// for the paper's spring lattice.
@@ -171,6 +174,12 @@ pub struct StepInputs {
     pub fill_volume: f32,
     /// The fill's bulk modulus (pressure units); used only with `fill_volume`.
     pub fill_bulk: f32,
+    /// Once a fill has reached its final volume: each step its held pressure
+    /// ([`MassSpring::held_pressure`]) grows by `fill_hold · fill_bulk · (fill_volume − V) /
+    /// fill_volume`, an integral term, so that at rest the fill holds its volume exactly, however
+    /// hard the tissue presses, while the bulk modulus stays within the step's stability bound.
+    /// `dt / τ` for an integral time `τ`; 0 for none.
+    pub fill_hold: f32,
     /// Free vertices are kept at `z >= floor` (the chest wall); `f32::MIN` for none.
     pub floor: f32,
 }
@@ -277,6 +286,7 @@ impl MassSpring {
             adjacency,
             embedded: None,
             elements: None,
+            held_pressure: 0.0,
         })
     }
 
@@ -298,9 +308,22 @@ impl MassSpring {
     pub fn pressure(&self, inputs: &StepInputs) -> f32 {
         if inputs.fill_volume > 0.0 {
             let v = self.fill_volume_now();
-            inputs.pressure + inputs.fill_bulk * (inputs.fill_volume - v) / inputs.fill_volume
+            inputs.pressure
+                + inputs.fill_bulk * (inputs.fill_volume - v) / inputs.fill_volume
+                + self.held_pressure
         } else {
             inputs.pressure
+        }
+    }
+
+    /// A fill's integral term, once a step before its forces: the held pressure grows by
+    /// `fill_hold · fill_bulk` times the relative deficit of the volume now (see
+    /// [`StepInputs::fill_hold`]). CPU twin of `shaders/volume.wgsl`'s `fill[2]`.
+    pub fn hold_fill(&mut self, inputs: &StepInputs) {
+        if inputs.fill_volume > 0.0 && inputs.fill_hold > 0.0 {
+            let v = self.fill_volume_now();
+            self.held_pressure +=
+                inputs.fill_hold * inputs.fill_bulk * ((inputs.fill_volume - v) / inputs.fill_volume);
         }
     }
 

@@ -26,6 +26,7 @@ use crate::bodies::{
     shell_from_surface, tetrahedral_body,
 };
 use crate::body::{MassSpring, Material, Mode, StepInputs};
+use crate::contact::SurfacePenalty;
 use crate::implicit::ImplicitSettings;
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
@@ -513,6 +514,8 @@ struct BodySchedule {
     floor: f32,
     /// How far below `floor` the floor starts, rising to it over the ramp.
     sink: f32,
+    /// A fill's integral gain per step once it is full ([`StepInputs::fill_hold`]).
+    hold: f32,
 }
 
 impl BodySchedule {
@@ -563,6 +566,9 @@ impl BodySchedule {
             pressure: self.pressure * ramped,
             fill_volume,
             fill_bulk,
+            // The integral term holds the final volume only: integrating the lag of a fill
+            // still under way would overshoot it.
+            fill_hold: if ramped >= 1.0 { self.hold } else { 0.0 },
             floor: if self.sink > 0.0 { self.floor - self.sink * (1.0 - ramped) } else { self.floor },
         }
     }
@@ -709,7 +715,9 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         let h = spacing(c.a).max(spacing(c.b));
         // (The paper's constant response keeps the rules it was shipped with: 0.75 h.)
         let reach = match c.response {
-            ResponseSpec::Penalty => (0.75 * h).max(0.65 * grown(c.a)).max(0.65 * grown(c.b)),
+            ResponseSpec::Penalty | ResponseSpec::Surface => {
+                (0.75 * h).max(0.65 * grown(c.a)).max(0.65 * grown(c.b))
+            }
             ResponseSpec::Constant => 0.75 * h,
         };
         let voxel = match c.voxel_size {
@@ -739,22 +747,28 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             Auto::Value(n_per_m) => n_per_m as f32,
             Auto::Auto => 0.5 * lightest / (material_dt * material_dt),
         };
+        let gap = match c.gap {
+            Auto::Value(g) => g as f32,
+            Auto::Auto => 0.0,
+        };
         let response = match c.response {
             ResponseSpec::Constant => Response::Constant,
-            ResponseSpec::Penalty => Response::Penalty {
-                stiffness: contact_k,
-                gap: match c.gap {
-                    Auto::Value(g) => g as f32,
-                    Auto::Auto => 0.0,
-                },
-            },
+            ResponseSpec::Penalty | ResponseSpec::Surface => Response::Penalty { stiffness: contact_k, gap },
         };
+        // The surface contact pushes from as deep as the contact's bound (its voxel size): a
+        // vertex beyond it has failed the contact, and from farther than half a thin body's
+        // thickness its nearest surface point is on the far side.
+        let surface = (c.response == ResponseSpec::Surface).then_some(SurfacePenalty {
+            stiffness: contact_k,
+            gap,
+            reach: voxel.max(2.0 * gap),
+        });
         let magnitude = match (c.magnitude, c.response) {
             (Auto::Value(newtons), _) => (newtons / s) as f32,
             (Auto::Auto, ResponseSpec::Constant) => 4.0 * stiffness[c.b] * spacing(c.b),
             // The penalty's largest force: at a depth of two voxels, twice the contact's bound,
             // so that it never caps a contact that holds.
-            (Auto::Auto, ResponseSpec::Penalty) => contact_k * 2.0 * voxel,
+            (Auto::Auto, ResponseSpec::Penalty | ResponseSpec::Surface) => contact_k * 2.0 * voxel,
         };
         let params = ContactParams {
             magnitude,
@@ -793,7 +807,14 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
             rule: e.to_string(),
         })?;
-        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, response });
+        if let Some(surface) = &surface {
+            surface.validate().map_err(|e| Error::Invalid {
+                what: "contact",
+                value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
+                rule: e.to_string(),
+            })?;
+        }
+        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, response, surface });
     }
     let steps = match (file.time.steps, file.time.duration) {
         (Some(n), _) => n,
@@ -822,6 +843,10 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // Per body: its keyframes (time, offset from the first, rotation), its final pressure or
     // volume and its ramp.
     let mut schedule_specs = Vec::with_capacity(file.bodies.len());
+    // A fill's integral time is twice the bodies' response time, so that the integral term is
+    // slower than the mechanics it steers (a faster one rings); the implicit solve holds a fill
+    // through its bulk term alone.
+    let hold = (f64::from(dt) / (2.0 * crate::world::response_time(&bodies)).max(f64::from(dt))) as f32;
     for (k, b) in file.bodies.iter().enumerate() {
         let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
         let keys = b
@@ -866,6 +891,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             ease,
             floor: b.floor.map_or(f32::MIN, |f| f as f32),
             sink: b.sink as f32,
+            hold: if fill.is_some() && !implicit { hold } else { 0.0 },
         });
     }
     let schedule = std::sync::Arc::new(move |step: u64| {

@@ -3,6 +3,7 @@
 
 use glam::{Mat3, Vec3};
 
+use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::implicit::{Residual, StepStats};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
@@ -16,6 +17,12 @@ pub struct CpuWorld {
     /// The world, whose bodies move as it steps.
     pub world: World,
     collisions: Vec<ParallelCpuCollision>,
+    /// Per contact: its surface contact, where it has one (then its collision is not stepped).
+    surfaces: Vec<Option<SurfaceContact>>,
+    /// Per contact: the surface contact's last forces and stiffness blocks.
+    surface_forces: Vec<SurfaceForces>,
+    /// Per contact: what its surface contact found at the last step.
+    pub surface_stats: Vec<SurfaceStats>,
     /// The last step's contact report of each contact.
     pub reports: Vec<ContactReport>,
     contacts_of: Vec<Vec<(usize, bool)>>,
@@ -44,7 +51,17 @@ impl CpuWorld {
             .iter()
             .map(|c| ParallelCpuCollision::new(c.grid, c.params).and_then(|p| p.with_response(c.response)))
             .collect::<Result<Vec<_>, _>>()?;
+        let surfaces = world
+            .contacts
+            .iter()
+            .map(|c| {
+                c.surface.map(|p| SurfaceContact::new(p, &world.bodies[c.a], &world.bodies[c.b])).transpose()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
         Ok(CpuWorld {
+            surface_forces: vec![SurfaceForces::default(); surfaces.len()],
+            surface_stats: vec![SurfaceStats::default(); surfaces.len()],
+            surfaces,
             reports: vec![ContactReport::default(); collisions.len()],
             contacts_of: world.contacts_of(),
             contact_force: world.bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect(),
@@ -92,8 +109,21 @@ impl CpuWorld {
     pub fn step(&mut self) -> Result<(), Error> {
         let w = &mut self.world;
         for (c, pair) in w.contacts.iter().enumerate() {
-            let (a, b) = (&w.bodies[pair.a].pos, &w.bodies[pair.b].pos);
-            self.collisions[c].step_into(a, b, &mut self.reports[c])?;
+            let (a, b) = (&w.bodies[pair.a], &w.bodies[pair.b]);
+            match &mut self.surfaces[c] {
+                Some(surface) => {
+                    let out = &mut self.surface_forces[c];
+                    self.surface_stats[c] = surface.step(a, b, out);
+                    let r = &mut self.reports[c];
+                    r.force_a.clone_from(&out.force_a);
+                    r.force_b.clone_from(&out.force_b);
+                    r.colliding_b.clone_from(&out.pushed_b);
+                    r.binned_a = a.len() as u32;
+                    r.discarded_a = 0;
+                    r.grid_center = pair.grid.center();
+                }
+                None => self.collisions[c].step_into(&a.pos, &b.pos, &mut self.reports[c])?,
+            }
         }
         let mut inputs = w.inputs(self.step)?;
         let implicit = match w.integrator {
@@ -114,6 +144,7 @@ impl CpuWorld {
                     sum.iter_mut().zip(f).for_each(|(s, f)| *s += *f);
                 }
             }
+            body.hold_fill(&inputs[k]);
             body.forces(&inputs[k], sum, &mut self.force);
             match implicit {
                 None => body.integrate(&inputs[k], &self.force),
@@ -121,6 +152,12 @@ impl CpuWorld {
                     // Each penalty's stiffness along the force it gives each vertex it pushes.
                     let mut contact_k = vec![Mat3::ZERO; body.len()];
                     for &(c, as_a) in &self.contacts_of[k] {
+                        if self.surfaces[c].is_some() {
+                            let out = &self.surface_forces[c];
+                            let blocks = if as_a { &out.stiffness_a } else { &out.stiffness_b };
+                            contact_k.iter_mut().zip(blocks).for_each(|(kc, b)| *kc += *b);
+                            continue;
+                        }
                         let Response::Penalty { stiffness, .. } = w.contacts[c].response else { continue };
                         let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
                         for (kc, f) in contact_k.iter_mut().zip(f) {
@@ -156,6 +193,20 @@ impl CpuWorld {
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         }
         self.step += 1;
+        if std::env::var_os("VOXCOLLIDE_TRACE").is_some() {
+            let speeds: Vec<(usize, f32)> = w
+                .bodies
+                .iter()
+                .map(|b| {
+                    b.vel
+                        .iter()
+                        .enumerate()
+                        .map(|(i, v)| (i, v.length()))
+                        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
+                })
+                .collect();
+            eprintln!("TRACE step {} stats {:?} fastest {:?}", self.step, self.surface_stats, speeds);
+        }
         for (k, body) in w.bodies.iter().enumerate() {
             if let Some((_, what)) = body.blow_up(w.v_max) {
                 return Err(w.blow_up(self.step, k, &what));

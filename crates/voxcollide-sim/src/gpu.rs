@@ -47,7 +47,8 @@ struct GpuSimParams {
     tri_count: u32,
     fill_volume: f32,
     fill_bulk: f32,
-    _pad: [u32; 2],
+    fill_hold: f32,
+    _pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 128);
 
@@ -140,7 +141,8 @@ impl GpuBody {
             tri_count: body.surface.triangles.len() as u32,
             fill_volume: inputs.fill_volume,
             fill_bulk: inputs.fill_bulk,
-            _pad: [0; 2],
+            fill_hold: inputs.fill_hold,
+            _pad: 0,
         }
     }
 }
@@ -199,8 +201,8 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator or
-    /// finite elements.
+    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator,
+    /// finite elements or a surface contact.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
         if let Some(k) = world.bodies.iter().position(|b| b.elements.is_some()) {
@@ -216,6 +218,14 @@ impl GpuWorld {
                 what: "integrator",
                 value: "implicit".into(),
                 rule: "the GPU world steps the explicit integrator only: the implicit one steps on the CPU (CpuWorld)".into(),
+            });
+        }
+        if let Some(c) = world.contacts.iter().position(|c| c.surface.is_some()) {
+            let pair = &world.contacts[c];
+            return Err(Error::Invalid {
+                what: "contact response",
+                value: format!("surface ({} – {})", world.names[pair.a], world.names[pair.b]),
+                rule: "the GPU world steps the voxel model's responses only: a surface contact steps on the CPU (CpuWorld)".into(),
             });
         }
         let device = ctx.device();

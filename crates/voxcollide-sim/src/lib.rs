@@ -9,6 +9,7 @@ pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells, latt
 pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integrator
 pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units
 pub mod catalogue; // implant catalogues (DESIGN §9): the candidates `compare` runs, checked
+pub mod contact; //  contacts measured to the partner's surface, both sides (the default response)
 pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod fem; //      finite elements: stable Neo-Hookean tetrahedra (DESIGN §12)
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
@@ -17,10 +18,11 @@ pub mod implicit; // backward Euler, matrix-free conjugate gradient (DESIGN §12
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
-pub mod scene_file;
-pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
+pub mod scene_file; // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
+pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model
 
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
+pub use contact::{SurfaceContact, SurfacePenalty};
 pub use cpu::{CpuSim, CpuWorld};
 pub use gpu::{GpuSim, GpuWorld};
 pub use implicit::{ImplicitSettings, Residual};

@@ -306,6 +306,7 @@ impl Scene {
                 grid: self.grid,
                 params: self.params,
                 response: Response::Constant,
+                surface: None,
             }],
             self.v_max,
             std::sync::Arc::new(move |step| {
@@ -346,6 +347,7 @@ impl SceneSchedule {
             pressure: 0.0,
             fill_volume: 0.0,
             fill_bulk: 0.0,
+            fill_hold: 0.0,
             floor: f32::MIN,
         };
         let foreign = match self.kind {

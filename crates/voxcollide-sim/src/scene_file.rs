@@ -559,9 +559,13 @@ pub enum SearchSpec {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum ResponseSpec {
-    /// A penalty growing with depth, stiff enough for the step and the bodies (the default):
-    /// the response that holds (docs/semantics.md, "Contacts that hold").
+    /// A penalty growing with depth measured to the partner's surface triangles, on both sides,
+    /// stiff enough for the step and the bodies (the default): the response that holds
+    /// (docs/semantics.md, "Contacts that hold"). CPU only.
     #[default]
+    Surface,
+    /// The voxel model's penalty: growing with depth behind the plane of the three nearest (or
+    /// inside the sphere around the partner), pushing `b` out of `a` only; on the GPU too.
     Penalty,
     /// The paper's constant magnitude, bit for bit.
     Constant,

@@ -11,6 +11,7 @@ use std::sync::Arc;
 use voxcollide::{ContactParams, Error, Response, VoxelGrid};
 
 use crate::body::{MassSpring, StepInputs};
+use crate::contact::SurfacePenalty;
 use crate::implicit::ImplicitSettings;
 
 /// How a world's bodies move from one step to the next (DESIGN §12).
@@ -41,6 +42,10 @@ pub struct ContactPair {
     /// How strongly the pair's contacts push: the paper's constant magnitude, or a penalty
     /// growing with depth (docs/semantics.md, "Contacts that hold").
     pub response: Response,
+    /// `Some`: the pair's forces are measured to each other's surface triangles, on both sides
+    /// ([`crate::contact::SurfaceContact`]), instead of coming from the voxel model's report;
+    /// the grid then gives only the contact's bound (its voxel size). CPU only.
+    pub surface: Option<SurfacePenalty>,
 }
 
 /// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
@@ -111,6 +116,9 @@ impl World {
             }
             pair.params.validate(&pair.grid)?;
             pair.response.validate(&pair.params, &pair.grid)?;
+            if let Some(surface) = &pair.surface {
+                surface.validate()?;
+            }
         }
         if !(v_max.is_finite() && v_max > 0.0) {
             return Err(invalid("v_max", v_max.to_string(), "must be finite and positive".into()));
@@ -175,4 +183,32 @@ impl World {
         }
         of
     }
+}
+
+/// How long the bodies take to respond to a load: twice the time an elastic wave takes to cross
+/// the largest deformable body, `2 · extent / c`, with the lattice's wave speed `c = h · √(k/m)`
+/// (its mean spring length, stiffness and vertex mass), or for a body of finite elements its
+/// P-wave speed `√((λ + 2μ)/ρ)`; in seconds, 0 without a deformable body. A run's settling
+/// window and a fill's integral time follow it.
+#[must_use]
+pub fn response_time(bodies: &[MassSpring]) -> f64 {
+    bodies
+        .iter()
+        .filter(|b| b.mode.contains(&crate::body::Mode::Free) && !b.springs.is_empty())
+        .map(|b| {
+            let h = b.springs.iter().map(|s| f64::from(s.rest)).sum::<f64>() / b.springs.len() as f64;
+            let k = b.springs.iter().map(|s| f64::from(s.k)).sum::<f64>() / b.springs.len() as f64;
+            let m = b.inv_mass.iter().map(|w| 1.0 / f64::from(*w)).sum::<f64>() / b.len() as f64;
+            let (lo, hi) = b
+                .rest_pos
+                .iter()
+                .fold((glam::Vec3::MAX, glam::Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+            let speed = match &b.elements {
+                Some(e) => (f64::from(e.lambda + e.mu) * h * h * h / m).sqrt(),
+                None => h * (k / m).sqrt(),
+            };
+            2.0 * f64::from((hi - lo).max_element()) / speed
+        })
+        .filter(|t| t.is_finite())
+        .fold(0.0, f64::max)
 }

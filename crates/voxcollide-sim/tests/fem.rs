@@ -45,6 +45,7 @@ fn stretch(w: u32, strain: f32, nu: Option<f64>) -> (f32, f32) {
             pressure: 0.0,
             fill_volume: 0.0,
             fill_bulk: 0.0,
+            fill_hold: 0.0,
             floor: f32::MIN,
         }]
     });

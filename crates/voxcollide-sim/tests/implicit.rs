@@ -32,6 +32,7 @@ fn plucked(dt: f32, integrator: Integrator) -> World {
             pressure: 0.0,
             fill_volume: 0.0,
             fill_bulk: 0.0,
+            fill_hold: 0.0,
             floor: f32::MIN,
         }]
     });

@@ -43,6 +43,7 @@ fn world() -> World {
         grid: Initializer::new(0.25).margin(4).build(&shell.pos).unwrap(),
         params,
         response,
+        surface: None,
     };
     let penalty = Response::Penalty { stiffness: 40.0, gap: 0.0 };
     let contacts = vec![contact(1, &left, Response::Constant), contact(2, &right, penalty)];
@@ -55,6 +56,7 @@ fn world() -> World {
             pressure: 0.0,
             fill_volume: 0.0,
             fill_bulk: 0.0,
+            fill_hold: 0.0,
             floor: f32::MIN,
         };
         let ramp = (step as f32 / 100.0).min(1.0);

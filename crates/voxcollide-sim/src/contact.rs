@@ -1,0 +1,475 @@
+//! Contacts measured to the partner's surface, on both sides (`response = "surface"`, the default
+//! of scene files): every surface vertex of each body is pushed out of the other's closed surface
+//! by a penalty that grows with its depth, along the line to the nearest surface point, and the
+//! equal and opposite reaction is shared by that point's triangle in its barycentric weights.
+//!
+//! **Why.** The voxel model's forces ([`voxcollide::Response`]) push `b`'s vertices out of `a`'s
+//! and never `a`'s out of `b`, so a soft shell's vertices pass between the tissue's; and its force
+//! comes from the nearest vertex or the plane through the three nearest, which jumps when the
+//! partner switches, so contacts chatter and an implicit step cannot converge on them. Here the
+//! force on a vertex at signed distance `s` from the partner's surface (negative inside) is
+//! `k·(gap − s)` along the outward direction while `s < gap`: the gradient of the energy
+//! `½·k·(gap − s)²`, continuous wherever the nearest point is (away from the surface's medial
+//! axis), so its stiffness `k·nnᵀ` is what an implicit solve needs (docs/semantics.md, "Contacts
+//! that hold").
+//!
+//! **Inside or outside.** The nearest point of the partner's surface lies on a face, an edge or
+//! a vertex; the sign of `s` is that of `(p − q)·n` with `n` that feature's pseudo-normal: the
+//! face's normal, the sum of an edge's two faces' normals, or a vertex's angle-weighted normal
+//! (Bærentzen and Aanæs 2005), exact for a closed, outward-oriented surface.
+//!
+//! **Finding the nearest triangle.** Each side keeps, per probing vertex, the partner's triangles
+//! within `reach + skin` of it (binned into cells of that size), rebuilt only when the vertices
+//! have moved more than the skin since (a Verlet list): a triangle's distance changes by no more
+//! than its corners move. A vertex deeper than `reach` is not pushed (the run's contact check
+//! reports it): from beyond the middle of a thin body the nearest point is on its far side.
+//!
+//! **Determinism.** Each vertex's nearest triangle is found in parallel (ties to the smaller
+//! index); the forces are then summed in probe order on one thread, so the result is the same on
+//! any number of threads.
+
+use std::collections::HashMap;
+
+use glam::{IVec3, Mat3, Vec3};
+use rayon::prelude::*;
+
+use crate::body::{MassSpring, Mode};
+use crate::mesh::TriangleMesh;
+use voxcollide::error::Error;
+
+/// The parameters of a surface contact.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePenalty {
+    /// Force per unit of depth (the body's units: newtons per metre in a scene's world).
+    pub stiffness: f32,
+    /// How far outside the partner's surface the push begins (0: at the surface).
+    pub gap: f32,
+    /// The deepest a vertex is pushed from, and how far the search for the nearest triangle
+    /// reaches.
+    pub reach: f32,
+}
+
+impl SurfacePenalty {
+    /// Checks the parameters.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a stiffness or reach that is not finite and positive, or a gap
+    /// that is not finite, at least 0 and below the reach.
+    pub fn validate(&self) -> Result<(), Error> {
+        let bad = |what: &'static str, value: f32, rule: &str| {
+            Err(Error::Invalid { what, value: value.to_string(), rule: rule.into() })
+        };
+        if !(self.stiffness.is_finite() && self.stiffness > 0.0) {
+            return bad("surface contact stiffness", self.stiffness, "must be finite and positive");
+        }
+        if !(self.reach.is_finite() && self.reach > 0.0) {
+            return bad("surface contact reach", self.reach, "must be finite and positive");
+        }
+        if !(self.gap.is_finite() && self.gap >= 0.0 && self.gap < self.reach) {
+            return bad("surface contact gap", self.gap, "must be finite, at least 0 and below the reach");
+        }
+        Ok(())
+    }
+}
+
+/// Where on a triangle its nearest point to a vertex lies.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Feature {
+    Face,
+    /// The edge from corner `e` to corner `(e + 1) % 3`.
+    Edge(u8),
+    Vertex(u8),
+}
+
+/// The nearest point of triangle `abc` to `p` (Ericson, *Real-Time Collision Detection*,
+/// §5.1.5): its barycentric weights and the feature it lies on. `None` for a degenerate
+/// triangle (its neighbours cover its edges).
+fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Option<([f32; 3], Feature)> {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return Some(([1.0, 0.0, 0.0], Feature::Vertex(0)));
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return Some(([0.0, 1.0, 0.0], Feature::Vertex(1)));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return Some(([1.0 - v, v, 0.0], Feature::Edge(0)));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return Some(([0.0, 0.0, 1.0], Feature::Vertex(2)));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return Some(([1.0 - w, 0.0, w], Feature::Edge(2)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return Some(([0.0, 1.0 - w, w], Feature::Edge(1)));
+    }
+    let sum = va + vb + vc;
+    if !(sum > 0.0) || !sum.is_finite() {
+        return None;
+    }
+    let (v, w) = (vb / sum, vc / sum);
+    Some(([1.0 - v - w, v, w], Feature::Face))
+}
+
+/// Per triangle, the triangle across each of its edges (edge `e` from corner `e` to `e + 1`);
+/// `u32::MAX` where the edge is not shared by exactly two triangles.
+fn edge_neighbours(mesh: &TriangleMesh) -> Vec<[u32; 3]> {
+    let mut by_edge: HashMap<(u32, u32), Vec<(u32, u8)>> = HashMap::new();
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        for e in 0..3u8 {
+            let (u, v) = (tri[e as usize], tri[(e as usize + 1) % 3]);
+            by_edge.entry((u.min(v), u.max(v))).or_default().push((t as u32, e));
+        }
+    }
+    let mut out = vec![[u32::MAX; 3]; mesh.triangles.len()];
+    for sides in by_edge.values() {
+        if let [(t0, e0), (t1, e1)] = sides[..] {
+            out[t0 as usize][e0 as usize] = t1;
+            out[t1 as usize][e1 as usize] = t0;
+        }
+    }
+    out
+}
+
+/// The unit normal of triangle `t` of `mesh` over `pos` (zero for a degenerate one).
+fn face_normal(pos: &[Vec3], tri: [u32; 3]) -> Vec3 {
+    let [a, b, c] = tri.map(|v| pos[v as usize]);
+    (b - a).cross(c - a).normalize_or_zero()
+}
+
+/// One body's surface vertices probing the other's surface.
+#[derive(Clone, Debug, Default)]
+struct Side {
+    /// The probing body's surface vertices, ascending.
+    probes: Vec<u32>,
+    /// The partner's triangles' edge neighbours.
+    neighbours: Vec<[u32; 3]>,
+    /// Per probe, the partner's triangles near it (CSR).
+    offsets: Vec<u32>,
+    near: Vec<u32>,
+    /// Where the probes and the partner's vertices were when the lists were made.
+    probes_then: Vec<Vec3>,
+    partner_then: Vec<Vec3>,
+    built: bool,
+}
+
+/// What a probe found: the nearest triangle, its weights, the push's direction and its depth
+/// beyond the gap.
+#[derive(Clone, Copy, Debug)]
+struct Hit {
+    triangle: u32,
+    weights: [f32; 3],
+    /// Outward from the partner's surface.
+    normal: Vec3,
+    /// `gap − s`, positive.
+    depth: f32,
+}
+
+impl Side {
+    fn new(probing: &MassSpring, partner: &MassSpring) -> Side {
+        let mut probes: Vec<u32> = probing.surface.triangles.iter().flatten().copied().collect();
+        probes.sort_unstable();
+        probes.dedup();
+        Side { probes, neighbours: edge_neighbours(&partner.surface), ..Side::default() }
+    }
+
+    /// Makes the lists anew when the vertices moved farther than `skin` since they were made.
+    fn refresh(&mut self, probing: &MassSpring, partner: &MassSpring, cutoff: f32, skin: f32) -> bool {
+        if self.built {
+            let moved = |now: &[Vec3], then: &[Vec3]| {
+                now.iter().zip(then).map(|(p, q)| p.distance_squared(*q)).fold(0.0f32, f32::max).sqrt()
+            };
+            let probes_now: Vec<Vec3> = self.probes.iter().map(|&i| probing.pos[i as usize]).collect();
+            if moved(&probes_now, &self.probes_then) + moved(&partner.pos, &self.partner_then) < skin {
+                return false;
+            }
+        }
+        let range = cutoff + skin;
+        let cell_of = |p: Vec3| (p / range).floor().as_ivec3();
+        let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
+        let pos = &partner.pos;
+        for (t, tri) in partner.surface.triangles.iter().enumerate() {
+            let [a, b, c] = tri.map(|v| pos[v as usize]);
+            let (lo, hi) = (a.min(b).min(c) - range, a.max(b).max(c) + range);
+            if !(lo.is_finite() && hi.is_finite()) {
+                continue;
+            }
+            let (l, h) = (cell_of(lo), cell_of(hi));
+            // A triangle larger than the scene's reach by far (a bad input) is not binned.
+            if (h - l).max_element() > 64 {
+                continue;
+            }
+            for z in l.z..=h.z {
+                for y in l.y..=h.y {
+                    for x in l.x..=h.x {
+                        cells.entry(IVec3::new(x, y, z)).or_default().push(t as u32);
+                    }
+                }
+            }
+        }
+        self.offsets.clear();
+        self.near.clear();
+        self.offsets.push(0);
+        for &i in &self.probes {
+            let p = probing.pos[i as usize];
+            if p.is_finite()
+                && let Some(ts) = cells.get(&cell_of(p))
+            {
+                for &t in ts {
+                    let [a, b, c] = partner.surface.triangles[t as usize].map(|v| pos[v as usize]);
+                    let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
+                    let outside = (lo - p).max(p - hi).max(Vec3::ZERO);
+                    if outside.length_squared() <= range * range {
+                        self.near.push(t);
+                    }
+                }
+            }
+            self.offsets.push(self.near.len() as u32);
+        }
+        self.probes_then = self.probes.iter().map(|&i| probing.pos[i as usize]).collect();
+        self.partner_then.clone_from(&partner.pos);
+        self.built = true;
+        true
+    }
+
+    /// Each probe's push, if any.
+    fn hits(&self, probing: &MassSpring, partner: &MassSpring, penalty: &SurfacePenalty) -> Vec<Option<Hit>> {
+        let pos = &partner.pos;
+        let tris = &partner.surface.triangles;
+        (0..self.probes.len())
+            .into_par_iter()
+            .with_min_len(256)
+            .map(|k| {
+                let p = probing.pos[self.probes[k] as usize];
+                let mut best: Option<(f32, u32, [f32; 3], Feature)> = None;
+                for &t in &self.near[self.offsets[k] as usize..self.offsets[k + 1] as usize] {
+                    let corners = tris[t as usize].map(|v| pos[v as usize]);
+                    let Some((w, feature)) = closest_on_triangle(p, corners) else { continue };
+                    let q = w[0] * corners[0] + w[1] * corners[1] + w[2] * corners[2];
+                    let d2 = p.distance_squared(q);
+                    if best.is_none_or(|(b, bt, _, _)| d2 < b || (d2 == b && t < bt)) {
+                        best = Some((d2, t, w, feature));
+                    }
+                }
+                let (d2, t, w, feature) = best?;
+                let tri = tris[t as usize];
+                let pseudo = match feature {
+                    Feature::Face => face_normal(pos, tri),
+                    Feature::Edge(e) => {
+                        let other = self.neighbours[t as usize][e as usize];
+                        let n = face_normal(pos, tri);
+                        if other == u32::MAX { n } else { n + face_normal(pos, tris[other as usize]) }
+                    }
+                    Feature::Vertex(c) => vertex_normal(partner, tri[c as usize]),
+                };
+                let q =
+                    w[0] * pos[tri[0] as usize] + w[1] * pos[tri[1] as usize] + w[2] * pos[tri[2] as usize];
+                let d = p - q;
+                let dist = d2.sqrt();
+                let outside = d.dot(pseudo) >= 0.0;
+                let s = if outside { dist } else { -dist };
+                if s >= penalty.gap || -s > penalty.reach {
+                    return None;
+                }
+                // Along the line to the nearest point (continuous as the vertex moves), or the
+                // pseudo-normal where the vertex is on the surface.
+                let normal = if dist > 1e-6 * penalty.reach {
+                    if outside { d / dist } else { -d / dist }
+                } else {
+                    pseudo.normalize_or_zero()
+                };
+                if normal == Vec3::ZERO {
+                    return None;
+                }
+                Some(Hit { triangle: t, weights: w, normal, depth: penalty.gap - s })
+            })
+            .collect()
+    }
+}
+
+/// Hits deeper than a quarter of the reach beyond the gap are confirmed by the exact inside test
+/// (the generalized winding number, [`crate::geometry::ClosedSurface`]), and dropped where it
+/// says outside: where a shell has folded over itself (a flattened implant springing back, a
+/// crumpled membrane) the nearest feature's pseudo-normal can point inward, and a vertex
+/// outside would be taken as deep inside and thrown. Shallow hits are not checked: their push
+/// is small, and a holding contact's hits are shallow, so the hierarchy is rarely built.
+fn confirm_deep(
+    hits: &mut [Option<Hit>],
+    probes: &[u32],
+    probing: &MassSpring,
+    partner: &MassSpring,
+    penalty: &SurfacePenalty,
+) {
+    let deep = penalty.gap + 0.25 * penalty.reach;
+    if !hits.iter().flatten().any(|h| h.depth > deep) {
+        return;
+    }
+    let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, &partner.surface) else { return };
+    hits.par_iter_mut().zip(probes.par_iter()).for_each(|(hit, &i)| {
+        if hit.is_some_and(|h| h.depth > deep) && !surface.contains(probing.pos[i as usize]) {
+            *hit = None;
+        }
+    });
+}
+
+/// The angle-weighted normal of `partner`'s surface at vertex `v` (over its triangles).
+fn vertex_normal(partner: &MassSpring, v: u32) -> Vec3 {
+    let pos = &partner.pos;
+    let (s, e) = (partner.tri_offsets[v as usize] as usize, partner.tri_offsets[v as usize + 1] as usize);
+    partner.tri_adjacency[s..e]
+        .iter()
+        .map(|&t| {
+            let tri = partner.surface.triangles[t as usize];
+            let c = tri.iter().position(|&u| u == v).unwrap_or(0);
+            let o = pos[v as usize];
+            let (u, w) = (pos[tri[(c + 1) % 3] as usize] - o, pos[tri[(c + 2) % 3] as usize] - o);
+            face_normal(pos, tri) * u.angle_between(w)
+        })
+        .sum()
+}
+
+/// What one step of a surface contact found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SurfaceStats {
+    /// Vertices of `b` pushed out of `a`.
+    pub b_pushed: u32,
+    /// Vertices of `a` pushed out of `b`.
+    pub a_pushed: u32,
+    /// The deepest push beyond the gap, either side.
+    pub deepest: f32,
+    /// Whether the near-triangle lists were made anew this step.
+    pub rebuilt: bool,
+}
+
+/// The forces of one surface contact: on each body's vertices, and each vertex's contact
+/// stiffness (`Σ k·w²·nnᵀ`, the diagonal blocks of the penalty's Gauss–Newton Hessian) for an
+/// implicit solve.
+#[derive(Clone, Debug, Default)]
+pub struct SurfaceForces {
+    /// On `a`'s vertices.
+    pub force_a: Vec<Vec3>,
+    /// On `b`'s vertices.
+    pub force_b: Vec<Vec3>,
+    /// `a`'s vertices' stiffness blocks.
+    pub stiffness_a: Vec<Mat3>,
+    /// `b`'s vertices' stiffness blocks.
+    pub stiffness_b: Vec<Mat3>,
+    /// `b`'s vertices pushed out of `a` this step, ascending.
+    pub pushed_b: Vec<u32>,
+}
+
+/// A surface contact between bodies `a` and `b`: both sides' near-triangle lists.
+#[derive(Clone, Debug)]
+pub struct SurfaceContact {
+    /// Its parameters.
+    pub penalty: SurfacePenalty,
+    /// `b`'s vertices against `a`'s surface, and `a`'s against `b`'s.
+    sides: [Side; 2],
+}
+
+impl SurfaceContact {
+    /// A contact between `a` and `b` as they are now.
+    ///
+    /// # Errors
+    /// Those of [`SurfacePenalty::validate`].
+    pub fn new(penalty: SurfacePenalty, a: &MassSpring, b: &MassSpring) -> Result<SurfaceContact, Error> {
+        penalty.validate()?;
+        Ok(SurfaceContact { penalty, sides: [Side::new(b, a), Side::new(a, b)] })
+    }
+
+    /// One step's forces into `out` (resized to the bodies), and what it found.
+    pub fn step(&mut self, a: &MassSpring, b: &MassSpring, out: &mut SurfaceForces) -> SurfaceStats {
+        let p = self.penalty;
+        let cutoff = p.reach.max(p.gap);
+        let skin = 0.5 * cutoff;
+        let mut stats = SurfaceStats::default();
+        let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, n: usize| {
+            f.clear();
+            f.resize(n, Vec3::ZERO);
+            k.clear();
+            k.resize(n, Mat3::ZERO);
+        };
+        reset(&mut out.force_a, &mut out.stiffness_a, a.len());
+        reset(&mut out.force_b, &mut out.stiffness_b, b.len());
+        out.pushed_b.clear();
+        for (s, side) in self.sides.iter_mut().enumerate() {
+            let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
+            stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
+            let mut hits = side.hits(probing, partner, &p);
+            confirm_deep(&mut hits, &side.probes, probing, partner, &p);
+            let (f_probe, k_probe, f_partner, k_partner) = if s == 0 {
+                (&mut out.force_b, &mut out.stiffness_b, &mut out.force_a, &mut out.stiffness_a)
+            } else {
+                (&mut out.force_a, &mut out.stiffness_a, &mut out.force_b, &mut out.stiffness_b)
+            };
+            for (&i, hit) in side.probes.iter().zip(&hits) {
+                let Some(h) = hit else { continue };
+                let f = p.stiffness * h.depth * h.normal;
+                let nn = Mat3::from_cols(h.normal * h.normal.x, h.normal * h.normal.y, h.normal * h.normal.z);
+                f_probe[i as usize] += f;
+                k_probe[i as usize] += p.stiffness * nn;
+                let tri = partner.surface.triangles[h.triangle as usize];
+                for (v, w) in tri.iter().zip(h.weights) {
+                    f_partner[*v as usize] -= w * f;
+                    k_partner[*v as usize] += (p.stiffness * w * w) * nn;
+                }
+                stats.deepest = stats.deepest.max(h.depth);
+                if s == 0 {
+                    stats.b_pushed += 1;
+                    out.pushed_b.push(i);
+                } else {
+                    stats.a_pushed += 1;
+                }
+            }
+        }
+        // A held vertex feels nothing: it is where its drive puts it.
+        for (body, f, k) in
+            [(a, &mut out.force_a, &mut out.stiffness_a), (b, &mut out.force_b, &mut out.stiffness_b)]
+        {
+            for ((m, f), k) in body.mode.iter().zip(f.iter_mut()).zip(k.iter_mut()) {
+                if *m != Mode::Free {
+                    *f = Vec3::ZERO;
+                    *k = Mat3::ZERO;
+                }
+            }
+        }
+        stats
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_point_features() {
+        let t = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        let (w, f) = closest_on_triangle(Vec3::new(0.2, 0.2, 1.0), t).unwrap();
+        assert_eq!(f, Feature::Face);
+        assert!((w[1] - 0.2).abs() < 1e-6 && (w[2] - 0.2).abs() < 1e-6);
+        assert_eq!(closest_on_triangle(Vec3::new(-1.0, -1.0, 0.0), t).unwrap().1, Feature::Vertex(0));
+        assert_eq!(closest_on_triangle(Vec3::new(0.5, -1.0, 0.0), t).unwrap().1, Feature::Edge(0));
+        assert_eq!(closest_on_triangle(Vec3::new(1.0, 1.0, 0.0), t).unwrap().1, Feature::Edge(1));
+        assert_eq!(closest_on_triangle(Vec3::new(-1.0, 0.5, 0.0), t).unwrap().1, Feature::Edge(2));
+        assert_eq!(
+            closest_on_triangle(Vec3::ZERO, [Vec3::X, Vec3::X, Vec3::X]).map(|x| x.1),
+            Some(Feature::Vertex(0))
+        );
+        assert!(
+            closest_on_triangle(Vec3::Z, [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X])
+                .is_some_and(|(_, f)| f != Feature::Face)
+        );
+    }
+}
