@@ -73,7 +73,7 @@ fn an_inflating_shell_lifts_a_layer() {
     let text = r#"
 units = "mm"
 [time]
-steps = 300
+steps = 1500
 [[body]]
 name = "skin"
 kind = "soft"

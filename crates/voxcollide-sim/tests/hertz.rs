@@ -131,6 +131,7 @@ motion = [{keys}]
 [[contact]]
 a = "ball"
 b = "block"
+response = "penalty"
 magnitude = {magnitude}
 "#,
             w = self.width,

@@ -116,8 +116,9 @@ fn every_key_of_the_contract_is_read() {
     let d = s.contacts[1];
     assert_eq!((d.a, d.b, d.direction, d.search), (2, 0, DirectionSpec::Pairwise, SearchSpec::Neighbours));
     assert_eq!((d.radius, d.voxel_size, d.magnitude), (Auto::Auto, Auto::Auto, Auto::Auto));
-    // ... and the penalty that holds, its stiffness and gap chosen (DESIGN §11).
-    assert_eq!((d.response, d.stiffness, d.gap), (ResponseSpec::Penalty, Auto::Auto, Auto::Auto));
+    // ... and the response that holds, measured to the surfaces on both sides, its stiffness and
+    // gap chosen (DESIGN §11).
+    assert_eq!((d.response, d.stiffness, d.gap), (ResponseSpec::Surface, Auto::Auto, Auto::Auto));
     assert_eq!(s.output, Output { frames: 6, images: false, vtk: true });
 }
 

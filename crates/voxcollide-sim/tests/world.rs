@@ -177,6 +177,7 @@ motion = [{ t = 0.0, position = [0, 0, 8.5] }, { t = 0.02, position = [0, 0, 7],
 [[contact]]
 a = "paddle"
 b = "block"
+response = "penalty"
 "#;
     let world = || {
         let file = voxcollide_sim::scene_file::SceneFile::parse("paddle.toml", text).unwrap();
@@ -248,6 +249,7 @@ inflate = { volume_ml = 6, ramp = 0.01 }
 a = "expander"
 b = "skin"
 direction = "plane-normal"
+response = "penalty"
 "#;
     let world = || {
         let file = voxcollide_sim::scene_file::SceneFile::parse("fill.toml", text).unwrap();
