@@ -1,0 +1,189 @@
+//! Contacts measured to the partner's surface (`response = "surface"`, `SurfaceContact`): both
+//! sides pushed, where the voxel model pushes only one; the force continuous across the
+//! partner's edges and equal to the penalty's depth law; Newton's third law; the same bits on
+//! any number of threads; and the GPU world's refusal by name.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod common;
+
+use voxcollide::glam::{UVec3, Vec3};
+use voxcollide::parallel::ParallelCpuCollision;
+use voxcollide::{Anchor, ContactParams, Direction, Initializer, Response, Search};
+use voxcollide_sim::bodies::{box_lattice, ellipsoid_shell};
+use voxcollide_sim::build::build_world;
+use voxcollide_sim::contact::SurfaceForces;
+use voxcollide_sim::scene_file::SceneFile;
+use voxcollide_sim::*;
+
+const K: f32 = 100.0;
+
+fn material() -> Material {
+    Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 }
+}
+
+/// A 5×5×3 lattice of spacing 6: the box (0, 0, 0)–(24, 24, 12).
+fn block() -> MassSpring {
+    box_lattice(UVec3::new(5, 5, 3), 6.0, Vec3::ZERO, 10.0, material(), |_| Mode::Free).unwrap()
+}
+
+/// A small closed shell of radius `r` around `center`, nothing pinned.
+fn ball(center: Vec3, r: f32) -> MassSpring {
+    ellipsoid_shell(center, Vec3::splat(r), 4, 8, 2.0, 10.0, material()).unwrap()
+}
+
+fn penalty() -> SurfacePenalty {
+    SurfacePenalty { stiffness: K, gap: 0.0, reach: 4.0 }
+}
+
+#[test]
+fn a_shell_between_the_lattice_vertices_is_pushed_out_where_the_voxel_model_sees_nothing() {
+    // The ball's lower half is 1.5 deep in the block's top face, between its vertices: the
+    // nearest block vertex is over 3 away from every ball vertex.
+    let (block, ball) = (block(), ball(Vec3::new(9.0, 9.0, 11.5), 1.0));
+    let nearest = ball
+        .pos
+        .iter()
+        .flat_map(|p| block.pos.iter().map(move |q| p.distance(*q)))
+        .fold(f32::MAX, f32::min);
+    assert!(nearest > 3.0, "{nearest}");
+
+    // The voxel model, ball as A, block probing within 0.75 of a spacing: no contact at all.
+    let grid = Initializer::new(4.0).margin(2).build(&ball.pos).unwrap();
+    let params = ContactParams {
+        magnitude: 1e3,
+        search: Search::Neighbours { radius: 3.0 },
+        direction: Direction::PlaneNormal,
+        anchor: Anchor::FollowA,
+    };
+    let mut voxel = ParallelCpuCollision::new(grid, params)
+        .unwrap()
+        .with_response(Response::Penalty { stiffness: K, gap: 0.0 })
+        .unwrap();
+    let report = voxcollide::Collision::step(&mut voxel, &ball.pos, &block.pos).unwrap();
+    assert!(report.colliding_b.is_empty(), "the voxel model found {:?}", report.colliding_b);
+
+    // The surface contact pushes the ball's sunk vertices up, each by K times its depth, and the
+    // block's top down as much.
+    let mut contact = SurfaceContact::new(penalty(), &ball, &block).unwrap();
+    let mut out = SurfaceForces::default();
+    let stats = contact.step(&ball, &block, &mut out);
+    assert!(stats.a_pushed > 0, "{stats:?}");
+    assert!((stats.deepest - 1.5).abs() < 1e-4, "{stats:?}");
+    for (p, f) in ball.pos.iter().zip(&out.force_a) {
+        let depth = (12.0 - p.z).max(0.0);
+        let want = Vec3::new(0.0, 0.0, K * depth);
+        assert!((*f - want).length() < 1e-3 * K, "ball vertex at {p}: {f} against {want}");
+    }
+    let total: Vec3 = out.force_a.iter().chain(&out.force_b).copied().sum();
+    let gross: f32 = out.force_a.iter().map(|f| f.length()).sum();
+    assert!(gross > 0.0 && total.length() < 1e-5 * gross, "net {total} of {gross}");
+    assert!(out.force_b.iter().all(|f| f.z <= 0.0));
+    // Its stiffness along the push, for the implicit solve.
+    let i = ball.pos.iter().position(|p| p.z < 10.51).unwrap();
+    assert!((out.stiffness_a[i].z_axis.z - K).abs() < 1e-3, "{}", out.stiffness_a[i]);
+}
+
+#[test]
+fn the_push_is_continuous_across_the_partners_edges() {
+    // A probe sliding 1 deep under the block's top face, across its triangles' edges and
+    // vertices: the same push everywhere, straight up (the voxel model's plane of the three
+    // nearest turns as they change).
+    let block = block();
+    let mut depth_seen = Vec::new();
+    for i in 0..=48 {
+        let x = 3.0 + 18.0 * i as f32 / 48.0;
+        let probe = ball(Vec3::new(x, 11.0, 11.5), 0.5);
+        let mut contact = SurfaceContact::new(penalty(), &block, &probe).unwrap();
+        let mut out = SurfaceForces::default();
+        contact.step(&block, &probe, &mut out);
+        let (k, bottom) = probe
+            .pos
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.z.total_cmp(&b.1.z))
+            .unwrap();
+        let f = out.force_b[k];
+        let want = K * (12.0 - bottom.z);
+        assert!(
+            (f - Vec3::new(0.0, 0.0, want)).length() < 1e-4 * want,
+            "at x = {x}: {f} against {want} up"
+        );
+        depth_seen.push(f.z);
+    }
+    assert!(depth_seen.iter().all(|z| (z - depth_seen[0]).abs() < 1e-3));
+}
+
+/// A rigid ball pressed 3 mm into a soft block (a scene file, the default response).
+const PRESS: &str = r#"
+units = "mm"
+[time]
+steps = 400
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [30, 30, 10] }
+spacing = 3
+material = { young_kpa = 10 }
+fixed = [{ below = { z = -4 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 6 }
+spacing = 3
+position = [0, 0, 11]
+motion = [{ t = 0.0, position = [0, 0, 11] }, { t = 0.01, position = [0, 0, 8] }]
+[[contact]]
+a = "ball"
+b = "block"
+"#;
+
+#[test]
+fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {
+    let run = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| {
+            let file = SceneFile::parse("press.toml", PRESS).unwrap();
+            let built = build_world(&file).unwrap();
+            assert!(built.world.contacts[0].surface.is_some(), "the default response is the surface one");
+            let mut cpu = CpuWorld::new(built.world).unwrap();
+            let mut pushed = 0;
+            for _ in 0..400 {
+                cpu.step().unwrap();
+                pushed += cpu.surface_stats[0].a_pushed + cpu.surface_stats[0].b_pushed;
+            }
+            (cpu.world.bodies.iter().map(|b| b.pos.clone()).collect::<Vec<_>>(), pushed)
+        })
+    };
+    let (one, pushed) = run(1);
+    assert!(pushed > 0, "the ball never touched the block");
+    let (two, _) = run(2);
+    for (k, (a, b)) in one.iter().zip(&two).enumerate() {
+        for (i, (p, q)) in a.iter().zip(b).enumerate() {
+            assert_eq!(p.to_array().map(f32::to_bits), q.to_array().map(f32::to_bits), "body {k} vertex {i}");
+        }
+    }
+}
+
+#[test]
+fn the_gpu_world_refuses_a_surface_contact_by_name() {
+    let Some(ctx) = common::gpu() else { return };
+    let built = build_world(&SceneFile::parse("press.toml", PRESS).unwrap()).unwrap();
+    let Err(e) = GpuWorld::new(&ctx, built.world) else { panic!("the GPU world took a surface contact") };
+    let text = e.to_string();
+    assert!(text.contains("surface") && text.contains("ball – block") && text.contains("CpuWorld"), "{text}");
+}
+
+#[test]
+fn bad_surface_parameters_are_refused_by_name() {
+    let (a, b) = (block(), ball(Vec3::new(6.0, 6.0, 9.0), 1.0));
+    for (p, what) in [
+        (SurfacePenalty { stiffness: 0.0, ..penalty() }, "stiffness"),
+        (SurfacePenalty { stiffness: f32::NAN, ..penalty() }, "stiffness"),
+        (SurfacePenalty { reach: -1.0, ..penalty() }, "reach"),
+        (SurfacePenalty { gap: 4.0, ..penalty() }, "gap"),
+        (SurfacePenalty { gap: -0.1, ..penalty() }, "gap"),
+    ] {
+        let Err(e) = SurfaceContact::new(p, &a, &b) else { panic!("{p:?} was taken") };
+        assert!(e.to_string().contains(what), "{e}");
+    }
+}
