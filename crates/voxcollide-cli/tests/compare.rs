@@ -28,7 +28,7 @@ name = "tissue"
 kind = "soft"
 shape = {{ box = [150, 150, 20] }}
 spacing = 10
-position = [0, 0, 40]
+position = [0, 0, 35]
 material = {{ young_kpa = 3.0, density = 1000.0, damping = 0.5 }}
 layers = [{{ region = {{ above = {{ z = 45 }} }}, young_kpa = {skin_kpa} }}]
 fixed = [{{ rim = 1 }}]
@@ -338,12 +338,19 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
     let two = run_on(&d2, &scene(12.0), three, Backend::Cpu, 2).unwrap();
     assert_eq!(one.candidates.len(), 3);
     assert_eq!(one.candidates, two.candidates);
-    // And on the GPU (stepped there even on a software adapter): the same, to the bit.
+    // And on the GPU (stepped there even on a software adapter), with the voxel model's
+    // penalty (the surface response steps on the CPU only): the same as the CPU, to the bit.
     if common::gpu().is_some() {
-        let d3 = dir("on-the-gpu");
-        let gpu = run_on(&d3, &scene(12.0), three, Backend::Gpu, 1).unwrap();
-        assert_eq!(one.candidates, gpu.candidates);
+        let penalty = scene(12.0).replace("direction = \"plane-normal\"", "direction = \"plane-normal\"\nresponse = \"penalty\"");
+        let (d3, d4) = (dir("on-the-gpu"), dir("penalty-on-the-cpu"));
+        let gpu = run_on(&d3, &penalty, three, Backend::Gpu, 1).unwrap();
+        let cpu = run_on(&d4, &penalty, three, Backend::Cpu, 1).unwrap();
+        assert_eq!(cpu.candidates, gpu.candidates);
+        // The surface response is refused there by name.
+        let e = run_on(&d3, &scene(12.0), three, Backend::Gpu, 1).unwrap_err().to_string();
+        assert!(e.contains("response = \"surface\"") && e.contains("--backend auto or cpu"), "{e}");
         std::fs::remove_dir_all(&d3).unwrap();
+        std::fs::remove_dir_all(&d4).unwrap();
     }
     std::fs::remove_dir_all(&d1).unwrap();
     std::fs::remove_dir_all(&d2).unwrap();

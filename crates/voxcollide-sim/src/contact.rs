@@ -1,5 +1,5 @@
 //! Contacts measured to the partner's surface, on both sides (`response = "surface"`, the default
-//! of scene files): every surface vertex of each body is pushed out of the other's closed surface
+//! of scene files): every vertex of each body is pushed out of the other's closed surface
 //! by a penalty that grows with its depth, along the line to the nearest surface point, and the
 //! equal and opposite reaction is shared by that point's triangle in its barycentric weights.
 //!
@@ -149,10 +149,10 @@ fn face_normal(pos: &[Vec3], tri: [u32; 3]) -> Vec3 {
     (b - a).cross(c - a).normalize_or_zero()
 }
 
-/// One body's surface vertices probing the other's surface.
+/// One body's vertices probing the other's surface.
 #[derive(Clone, Debug, Default)]
 struct Side {
-    /// The probing body's surface vertices, ascending.
+    /// The probing body's vertices, ascending.
     probes: Vec<u32>,
     /// The partner's triangles' edge neighbours.
     neighbours: Vec<[u32; 3]>,
@@ -179,9 +179,10 @@ struct Hit {
 
 impl Side {
     fn new(probing: &MassSpring, partner: &MassSpring) -> Side {
-        let mut probes: Vec<u32> = probing.surface.triangles.iter().flatten().copied().collect();
-        probes.sort_unstable();
-        probes.dedup();
+        // Every vertex probes, not only the surface's: where a load pushes the surface's
+        // vertices aside (a ball pressed deep into a lattice), the ones beneath must not come
+        // in between them unseen.
+        let probes = (0..probing.len() as u32).collect();
         Side { probes, neighbours: edge_neighbours(&partner.surface), ..Side::default() }
     }
 
