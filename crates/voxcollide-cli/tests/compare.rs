@@ -30,7 +30,7 @@ shape = {{ box = [150, 150, 20] }}
 spacing = 10
 position = [0, 0, 35]
 material = {{ young_kpa = 3.0, density = 1000.0, damping = 0.5 }}
-layers = [{{ region = {{ above = {{ z = 45 }} }}, young_kpa = {skin_kpa} }}]
+layers = [{{ region = {{ above = {{ z = 40 }} }}, young_kpa = {skin_kpa} }}]
 fixed = [{{ rim = 1 }}]
 
 [[body]]
@@ -295,9 +295,9 @@ fn a_tissue_from_a_mesh_measures_as_the_same_box_built_in() {
         ..CANDIDATES.find("[[candidate]]\nname = \"300 mL low\"").unwrap()];
     let (d1, d2) = (dir("box"), dir("mesh"));
     let built_in = run_on(&d1, &scene(12.0), one, Backend::Cpu, 1).unwrap();
-    std::fs::write(d2.join("tissue.obj"), box_obj([0.0, 0.0, 40.0], [150.0, 150.0, 20.0], 10.0)).unwrap();
+    std::fs::write(d2.join("tissue.obj"), box_obj([0.0, 0.0, 35.0], [150.0, 150.0, 20.0], 10.0)).unwrap();
     let meshed = scene(12.0).replace(
-        "shape = { box = [150, 150, 20] }\nspacing = 10\nposition = [0, 0, 40]",
+        "shape = { box = [150, 150, 20] }\nspacing = 10\nposition = [0, 0, 35]",
         "mesh = \"tissue.obj\"\nspacing = 10",
     );
     assert_ne!(meshed, scene(12.0));
@@ -341,7 +341,8 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
     // And on the GPU (stepped there even on a software adapter), with the voxel model's
     // penalty (the surface response steps on the CPU only): the same as the CPU, to the bit.
     if common::gpu().is_some() {
-        let penalty = scene(12.0).replace("direction = \"plane-normal\"", "direction = \"plane-normal\"\nresponse = \"penalty\"");
+        let penalty = scene(12.0)
+            .replace("direction = \"plane-normal\"", "direction = \"plane-normal\"\nresponse = \"penalty\"");
         let (d3, d4) = (dir("on-the-gpu"), dir("penalty-on-the-cpu"));
         let gpu = run_on(&d3, &penalty, three, Backend::Gpu, 1).unwrap();
         let cpu = run_on(&d4, &penalty, three, Backend::Cpu, 1).unwrap();

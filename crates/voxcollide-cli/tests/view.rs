@@ -421,7 +421,7 @@ fn a_blow_up_ends_a_run_of_frames_with_its_error_on_either_backend() {
     let scene = d.join("unstable.toml");
     std::fs::write(
         &scene,
-        "units = \"mm\"\n[time]\nduration = 10\ndt = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [40, 40, 10] }\nspacing = 5\nmaterial = { young_kpa = 50 }\nfixed = [{ below = { z = -4 } }]\n[[body]]\nname = \"ball\"\nkind = \"rigid\"\nshape = { sphere = 8 }\nspacing = 2\nmotion = [{ t = 0.0, position = [0, 0, 14] }, { t = 1, position = [0, 0, 0] }]\n[[contact]]\na = \"ball\"\nb = \"block\"\n",
+        "units = \"mm\"\n[time]\nduration = 10\ndt = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [40, 40, 10] }\nspacing = 5\nmaterial = { young_kpa = 50 }\nfixed = [{ below = { z = -4 } }]\n[[body]]\nname = \"ball\"\nkind = \"rigid\"\nshape = { sphere = 8 }\nspacing = 2\nmotion = [{ t = 0.0, position = [0, 0, 14] }, { t = 1, position = [0, 0, 0] }]\n[[contact]]\na = \"ball\"\nb = \"block\"\nresponse = \"penalty\"\n",
     )
     .unwrap();
     for backend in ["gpu", "cpu"] {

@@ -424,7 +424,8 @@ impl GpuWorld {
         Ok(Bound { accumulate, volume, forces, integrate })
     }
 
-    /// Reads every body's positions and velocities back into [`world`](Self::world), checks
+    /// Reads every body's positions, velocities and held fill pressure back into
+    /// [`world`](Self::world), checks
     /// for a blow-up, and returns the last step's report of every contact.
     ///
     /// # Errors
@@ -440,7 +441,7 @@ impl GpuWorld {
             let n = u64::from(gpu.n);
             let bytes = voxcollide::gpu::read_buffers(
                 &self.ctx,
-                &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8)],
+                &[(&gpu.pos, 16 * n), (&gpu.vel, 16 * n), (&gpu.status, 8), (&gpu.fill, 16)],
             )?;
             let status: [u32; 2] = bytemuck::pod_read_unaligned(&bytes[2]);
             if status[0] != 0 {
@@ -452,6 +453,10 @@ impl GpuWorld {
             let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(&bytes[1]);
             body.pos = pos.iter().map(|p| p.truncate()).collect();
             body.vel = vel.iter().map(|v| v.truncate()).collect();
+            // The fill's held pressure (the volume pass's `fill[2]`), so that the body's
+            // pressure reads on the CPU as it stands on the device.
+            let fill: [f32; 4] = bytemuck::pod_read_unaligned(&bytes[3]);
+            body.held_pressure = fill[2];
         }
         Ok(reports)
     }

@@ -40,11 +40,8 @@ fn a_shell_between_the_lattice_vertices_is_pushed_out_where_the_voxel_model_sees
     // The ball's lower half is 1.5 deep in the block's top face, between its vertices: the
     // nearest block vertex is over 3 away from every ball vertex.
     let (block, ball) = (block(), ball(Vec3::new(9.0, 9.0, 11.5), 1.0));
-    let nearest = ball
-        .pos
-        .iter()
-        .flat_map(|p| block.pos.iter().map(move |q| p.distance(*q)))
-        .fold(f32::MAX, f32::min);
+    let nearest =
+        ball.pos.iter().flat_map(|p| block.pos.iter().map(move |q| p.distance(*q))).fold(f32::MAX, f32::min);
     assert!(nearest > 3.0, "{nearest}");
 
     // The voxel model, ball as A, block probing within 0.75 of a spacing: no contact at all.
@@ -96,18 +93,10 @@ fn the_push_is_continuous_across_the_partners_edges() {
         let mut contact = SurfaceContact::new(penalty(), &block, &probe).unwrap();
         let mut out = SurfaceForces::default();
         contact.step(&block, &probe, &mut out);
-        let (k, bottom) = probe
-            .pos
-            .iter()
-            .enumerate()
-            .min_by(|a, b| a.1.z.total_cmp(&b.1.z))
-            .unwrap();
+        let (k, bottom) = probe.pos.iter().enumerate().min_by(|a, b| a.1.z.total_cmp(&b.1.z)).unwrap();
         let f = out.force_b[k];
         let want = K * (12.0 - bottom.z);
-        assert!(
-            (f - Vec3::new(0.0, 0.0, want)).length() < 1e-4 * want,
-            "at x = {x}: {f} against {want} up"
-        );
+        assert!((f - Vec3::new(0.0, 0.0, want)).length() < 1e-4 * want, "at x = {x}: {f} against {want} up");
         depth_seen.push(f.z);
     }
     assert!(depth_seen.iter().all(|z| (z - depth_seen[0]).abs() < 1e-3));
