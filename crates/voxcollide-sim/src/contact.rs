@@ -369,6 +369,11 @@ pub struct SurfaceForces {
     pub stiffness_b: Vec<Mat3>,
     /// `b`'s vertices pushed out of `a` this step, ascending.
     pub pushed_b: Vec<u32>,
+    /// Per vertex of `a`: the velocity of `b`'s surface where it pushes it (averaged over its
+    /// pushes, weighted by their stiffness), for the implicit solve's relative damping.
+    pub velocity_a: Vec<Vec3>,
+    /// The same for `b`'s vertices.
+    pub velocity_b: Vec<Vec3>,
 }
 
 /// A surface contact between bodies `a` and `b`: both sides' near-triangle lists.
@@ -396,24 +401,46 @@ impl SurfaceContact {
         let cutoff = p.reach.max(p.gap);
         let skin = 0.5 * cutoff;
         let mut stats = SurfaceStats::default();
-        let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, n: usize| {
-            f.clear();
-            f.resize(n, Vec3::ZERO);
+        let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, v: &mut Vec<Vec3>, n: usize| {
+            for x in [&mut *f, &mut *v] {
+                x.clear();
+                x.resize(n, Vec3::ZERO);
+            }
             k.clear();
             k.resize(n, Mat3::ZERO);
         };
-        reset(&mut out.force_a, &mut out.stiffness_a, a.len());
-        reset(&mut out.force_b, &mut out.stiffness_b, b.len());
+        reset(&mut out.force_a, &mut out.stiffness_a, &mut out.velocity_a, a.len());
+        reset(&mut out.force_b, &mut out.stiffness_b, &mut out.velocity_b, b.len());
+        // The weights of the velocity averages.
+        let (mut weight_a, mut weight_b) = (vec![0.0f32; a.len()], vec![0.0f32; b.len()]);
         out.pushed_b.clear();
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
             stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
             let mut hits = side.hits(probing, partner, &p);
             confirm_deep(&mut hits, &side.probes, probing, partner, &p);
-            let (f_probe, k_probe, f_partner, k_partner) = if s == 0 {
-                (&mut out.force_b, &mut out.stiffness_b, &mut out.force_a, &mut out.stiffness_a)
+            let (f_probe, k_probe, v_probe, w_probe, f_partner, k_partner, v_partner, w_partner) = if s == 0 {
+                (
+                    &mut out.force_b,
+                    &mut out.stiffness_b,
+                    &mut out.velocity_b,
+                    &mut weight_b,
+                    &mut out.force_a,
+                    &mut out.stiffness_a,
+                    &mut out.velocity_a,
+                    &mut weight_a,
+                )
             } else {
-                (&mut out.force_a, &mut out.stiffness_a, &mut out.force_b, &mut out.stiffness_b)
+                (
+                    &mut out.force_a,
+                    &mut out.stiffness_a,
+                    &mut out.velocity_a,
+                    &mut weight_a,
+                    &mut out.force_b,
+                    &mut out.stiffness_b,
+                    &mut out.velocity_b,
+                    &mut weight_b,
+                )
             };
             for (&i, hit) in side.probes.iter().zip(&hits) {
                 let Some(h) = hit else { continue };
@@ -422,9 +449,16 @@ impl SurfaceContact {
                 f_probe[i as usize] += f;
                 k_probe[i as usize] += p.stiffness * nn;
                 let tri = partner.surface.triangles[h.triangle as usize];
+                let surface_vel: Vec3 =
+                    tri.iter().zip(h.weights).map(|(v, w)| w * partner.vel[*v as usize]).sum();
+                v_probe[i as usize] += p.stiffness * surface_vel;
+                w_probe[i as usize] += p.stiffness;
+                let probe_vel = probing.vel[i as usize];
                 for (v, w) in tri.iter().zip(h.weights) {
                     f_partner[*v as usize] -= w * f;
                     k_partner[*v as usize] += (p.stiffness * w * w) * nn;
+                    v_partner[*v as usize] += (p.stiffness * w * w) * probe_vel;
+                    w_partner[*v as usize] += p.stiffness * w * w;
                 }
                 stats.deepest = stats.deepest.max(h.depth);
                 if s == 0 {
@@ -434,6 +468,9 @@ impl SurfaceContact {
                     stats.a_pushed += 1;
                 }
             }
+        }
+        for (v, w) in [(&mut out.velocity_a, &weight_a), (&mut out.velocity_b, &weight_b)] {
+            v.iter_mut().zip(w).filter(|(_, w)| **w > 0.0).for_each(|(v, w)| *v /= *w);
         }
         // A held vertex feels nothing: it is where its drive puts it.
         for (body, f, k) in

@@ -149,28 +149,51 @@ impl CpuWorld {
             match implicit {
                 None => body.integrate(&inputs[k], &self.force),
                 Some(settings) => {
-                    // Each penalty's stiffness along the force it gives each vertex it pushes.
+                    // Each penalty's stiffness along the force it gives each vertex it pushes, and
+                    // the velocity of what pushes it (a surface contact's partner; the voxel
+                    // model's contacts count as still), averaged by stiffness.
                     let mut contact_k = vec![Mat3::ZERO; body.len()];
+                    let mut contact_vel = vec![Vec3::ZERO; body.len()];
                     for &(c, as_a) in &self.contacts_of[k] {
                         if self.surfaces[c].is_some() {
                             let out = &self.surface_forces[c];
-                            let blocks = if as_a { &out.stiffness_a } else { &out.stiffness_b };
-                            contact_k.iter_mut().zip(blocks).for_each(|(kc, b)| *kc += *b);
+                            let (blocks, vel) = if as_a {
+                                (&out.stiffness_a, &out.velocity_a)
+                            } else {
+                                (&out.stiffness_b, &out.velocity_b)
+                            };
+                            for ((kc, cv), (b, v)) in
+                                contact_k.iter_mut().zip(&mut contact_vel).zip(blocks.iter().zip(vel))
+                            {
+                                let (before, add) = (trace(kc), trace(b));
+                                if add > 0.0 {
+                                    *cv = (before * *cv + add * *v) / (before + add);
+                                }
+                                *kc += *b;
+                            }
                             continue;
                         }
                         let Response::Penalty { stiffness, .. } = w.contacts[c].response else { continue };
                         let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
-                        for (kc, f) in contact_k.iter_mut().zip(f) {
+                        for ((kc, cv), f) in contact_k.iter_mut().zip(&mut contact_vel).zip(f) {
                             let len = f.length();
                             if len > 0.0 {
                                 let n = *f / len;
+                                let before = trace(kc);
                                 *kc += stiffness * Mat3::from_cols(n * n.x, n * n.y, n * n.z);
+                                *cv *= before / (before + stiffness);
                             }
                         }
                     }
                     residual = residual.plus(body.residual(&inputs[k], sum));
-                    self.stats[k] =
-                        body.integrate_implicit(&inputs[k], &self.force, sum, &contact_k, &settings);
+                    self.stats[k] = body.integrate_implicit(
+                        &inputs[k],
+                        &self.force,
+                        sum,
+                        &contact_k,
+                        &contact_vel,
+                        &settings,
+                    );
                 }
             }
         }
@@ -214,6 +237,11 @@ impl CpuWorld {
         }
         Ok(())
     }
+}
+
+/// The trace of a contact's stiffness block: its stiffness along its push.
+fn trace(m: &Mat3) -> f32 {
+    m.x_axis.x + m.y_axis.y + m.z_axis.z
 }
 
 /// A paper scene stepping on the CPU: the scene's world of two bodies (tissue, foreign body)

@@ -185,13 +185,17 @@ impl MassSpring {
 
     /// One implicit step (see the [module](self)) with the forces `f` (from
     /// [`MassSpring::forces`], the contact forces included) and, per vertex, the contacts'
-    /// stiffness `contact_k` (`k_c·nnᵀ` summed over the contacts pushing it).
+    /// stiffness `contact_k` (`k_c·nnᵀ` summed over the contacts pushing it) and the velocity
+    /// of what pushes it, `contact_vel` (the partner's surface there; zero for the voxel model's
+    /// contacts): a contact damps, and stops, only the vertex's speed relative to it, so that a
+    /// body lifting another carries it along instead of dragging against it.
     pub fn integrate_implicit(
         &mut self,
         inputs: &StepInputs,
         f: &[Vec3],
         contact: &[Vec3],
         contact_k: &[Mat3],
+        contact_vel: &[Vec3],
         settings: &ImplicitSettings,
     ) -> StepStats {
         let n = self.len();
@@ -283,7 +287,7 @@ impl MassSpring {
         let rhs: Vec<Vec3> = (0..n)
             .map(|i| {
                 if system.free[i] {
-                    h * (f[i] - contact_damping[i] * self.vel[i] - h * kv[i]) - a_fixed[i]
+                    h * (f[i] - contact_damping[i] * (self.vel[i] - contact_vel[i]) - h * kv[i]) - a_fixed[i]
                 } else {
                     Vec3::ZERO
                 }
@@ -306,7 +310,7 @@ impl MassSpring {
                     let push = contact[i].length();
                     if push > 0.0 {
                         let n = contact[i] / push;
-                        let away = self.vel[i].dot(n);
+                        let away = (self.vel[i] - contact_vel[i]).dot(n);
                         if away > 0.0 {
                             self.vel[i] -= away * n;
                         }
