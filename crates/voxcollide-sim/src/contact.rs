@@ -367,8 +367,9 @@ pub struct SurfaceForces {
     pub stiffness_a: Vec<Mat3>,
     /// `b`'s vertices' stiffness blocks.
     pub stiffness_b: Vec<Mat3>,
-    /// `b`'s vertices pushed out of `a` this step, ascending.
-    pub pushed_b: Vec<u32>,
+    /// `b`'s vertices in contact this step, ascending: those pushed out of `a`, and the corners
+    /// of `b`'s triangles that `a`'s vertices push (with a weight above 0).
+    pub touching_b: Vec<u32>,
     /// Per vertex of `a`: the velocity of `b`'s surface where it pushes it (averaged over its
     /// pushes, weighted by their stiffness), for the implicit solve's relative damping.
     pub velocity_a: Vec<Vec3>,
@@ -413,7 +414,7 @@ impl SurfaceContact {
         reset(&mut out.force_b, &mut out.stiffness_b, &mut out.velocity_b, b.len());
         // The weights of the velocity averages.
         let (mut weight_a, mut weight_b) = (vec![0.0f32; a.len()], vec![0.0f32; b.len()]);
-        out.pushed_b.clear();
+        out.touching_b.clear();
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
             stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
@@ -463,12 +464,16 @@ impl SurfaceContact {
                 stats.deepest = stats.deepest.max(h.depth);
                 if s == 0 {
                     stats.b_pushed += 1;
-                    out.pushed_b.push(i);
+                    out.touching_b.push(i);
                 } else {
                     stats.a_pushed += 1;
+                    out.touching_b
+                        .extend(tri.iter().zip(h.weights).filter(|(_, w)| *w > 0.0).map(|(v, _)| *v));
                 }
             }
         }
+        out.touching_b.sort_unstable();
+        out.touching_b.dedup();
         for (v, w) in [(&mut out.velocity_a, &weight_a), (&mut out.velocity_b, &weight_b)] {
             v.iter_mut().zip(w).filter(|(_, w)| **w > 0.0).for_each(|(v, w)| *v /= *w);
         }

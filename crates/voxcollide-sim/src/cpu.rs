@@ -117,7 +117,7 @@ impl CpuWorld {
                     let r = &mut self.reports[c];
                     r.force_a.clone_from(&out.force_a);
                     r.force_b.clone_from(&out.force_b);
-                    r.colliding_b.clone_from(&out.pushed_b);
+                    r.colliding_b.clone_from(&out.touching_b);
                     r.binned_a = a.len() as u32;
                     r.discarded_a = 0;
                     r.grid_center = pair.grid.center();
