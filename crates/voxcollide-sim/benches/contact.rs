@@ -58,7 +58,8 @@ fn bench(c: &mut Criterion) {
         rayon::current_num_threads()
     );
 
-    let mut voxel = ParallelCpuCollision::new(pair.grid, pair.params).unwrap().with_response(pair.response).unwrap();
+    let mut voxel =
+        ParallelCpuCollision::new(pair.grid, pair.params).unwrap().with_response(pair.response).unwrap();
     let mut report = ContactReport::default();
     group.bench_function("voxel_penalty", |bench| {
         bench.iter(|| voxel.step_into(&a.pos, &b.pos, &mut report).unwrap())
@@ -76,7 +77,9 @@ fn bench(c: &mut Criterion) {
     });
 
     // Whole explicit steps of the world, each response (the bodies move as it steps).
-    for (name, w) in [("world_step_surface", world.clone()), ("world_step_voxel_penalty", penalty_world.clone())] {
+    for (name, w) in
+        [("world_step_surface", world.clone()), ("world_step_voxel_penalty", penalty_world.clone())]
+    {
         let mut cpu = CpuWorld::new(w).unwrap();
         group.bench_function(name, |bench| bench.iter(|| cpu.step().unwrap()));
     }

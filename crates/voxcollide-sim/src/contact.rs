@@ -162,6 +162,15 @@ struct Side {
     /// Where the probes and the partner's vertices were when the lists were made.
     probes_then: Vec<Vec3>,
     partner_then: Vec<Vec3>,
+    /// Per probe, the last step's nearest triangle (`u32::MAX`: none).
+    last: Vec<u32>,
+    /// Per probe, how far it and the partner may still move relative to each other before it
+    /// could be pushed (a lower bound of its distance beyond the push's reach, less the motion
+    /// since it was measured); above 0 it is not searched this step.
+    clear: Vec<f32>,
+    /// The probes' and the partner's positions at the last step.
+    probes_prev: Vec<Vec3>,
+    partner_prev: Vec<Vec3>,
     built: bool,
 }
 
@@ -246,57 +255,138 @@ impl Side {
     }
 
     /// Each probe's push, if any.
-    fn hits(&self, probing: &MassSpring, partner: &MassSpring, penalty: &SurfacePenalty) -> Vec<Option<Hit>> {
+    /// Takes the motion since the last step off every probe's clearance: its own move and the
+    /// partner's largest (a point of a triangle moves no farther than its corners).
+    fn age(&mut self, probing: &MassSpring, partner: &MassSpring) {
+        let n = self.probes.len();
+        if self.clear.len() == n && self.probes_prev.len() == n && self.partner_prev.len() == partner.len() {
+            let partner_moved = partner
+                .pos
+                .iter()
+                .zip(&self.partner_prev)
+                .map(|(p, q)| p.distance_squared(*q))
+                .fold(0.0f32, f32::max)
+                .sqrt();
+            for ((c, &i), prev) in self.clear.iter_mut().zip(&self.probes).zip(&self.probes_prev) {
+                *c -= probing.pos[i as usize].distance(*prev) + partner_moved;
+            }
+        } else {
+            self.clear = vec![-1.0; n];
+        }
+        self.probes_prev.clear();
+        self.probes_prev.extend(self.probes.iter().map(|&i| probing.pos[i as usize]));
+        self.partner_prev.clone_from(&partner.pos);
+    }
+
+    /// Each probe's push, if any, its nearest triangle within the cutoff (`u32::MAX`: none),
+    /// which the next step tries first, and its clearance (see `clear`).
+    fn hits(
+        &self,
+        probing: &MassSpring,
+        partner: &MassSpring,
+        penalty: &SurfacePenalty,
+    ) -> Vec<(Option<Hit>, u32, f32)> {
         let pos = &partner.pos;
         let tris = &partner.surface.triangles;
         (0..self.probes.len())
             .into_par_iter()
             .with_min_len(256)
             .map(|k| {
+                let last = self.last.get(k).copied().unwrap_or(u32::MAX);
+                // Farther from any push than the bodies have moved since it was measured.
+                if self.clear[k] > 0.0 {
+                    return (None, last, self.clear[k]);
+                }
                 let p = probing.pos[self.probes[k] as usize];
                 let mut best: Option<(f32, u32, [f32; 3], Feature)> = None;
-                for &t in &self.near[self.offsets[k] as usize..self.offsets[k + 1] as usize] {
+                // A lower bound of the distance to every triangle passed over or measured.
+                let mut lower = f32::INFINITY;
+                // Nothing beyond the cutoff pushes: a triangle whose box is farther than it, or
+                // than the nearest found so far, is passed over before the exact test. The last
+                // step's nearest goes first, so that most boxes are passed over (the answer is
+                // the same without it: the nearest, ties to the smaller index).
+                let cutoff = penalty.reach.max(penalty.gap);
+                let mut bound = cutoff * cutoff;
+                let list = &self.near[self.offsets[k] as usize..self.offsets[k + 1] as usize];
+                let first = Some(last).filter(|t| list.contains(t));
+                for &t in first.iter().chain(list) {
                     let corners = tris[t as usize].map(|v| pos[v as usize]);
+                    let (lo, hi) = (
+                        corners[0].min(corners[1]).min(corners[2]),
+                        corners[0].max(corners[1]).max(corners[2]),
+                    );
+                    let box_d2 = (lo - p).max(p - hi).max(Vec3::ZERO).length_squared();
+                    if box_d2 > bound {
+                        lower = lower.min(box_d2);
+                        continue;
+                    }
                     let Some((w, feature)) = closest_on_triangle(p, corners) else { continue };
                     let q = w[0] * corners[0] + w[1] * corners[1] + w[2] * corners[2];
                     let d2 = p.distance_squared(q);
-                    if best.is_none_or(|(b, bt, _, _)| d2 < b || (d2 == b && t < bt)) {
+                    lower = lower.min(d2);
+                    if d2 <= bound && best.is_none_or(|(b, bt, _, _)| d2 < b || (d2 == b && t < bt)) {
                         best = Some((d2, t, w, feature));
+                        bound = d2;
                     }
                 }
-                let (d2, t, w, feature) = best?;
-                let tri = tris[t as usize];
-                let pseudo = match feature {
-                    Feature::Face => face_normal(pos, tri),
-                    Feature::Edge(e) => {
-                        let other = self.neighbours[t as usize][e as usize];
-                        let n = face_normal(pos, tri);
-                        if other == u32::MAX { n } else { n + face_normal(pos, tris[other as usize]) }
-                    }
-                    Feature::Vertex(c) => vertex_normal(partner, tri[c as usize]),
+                // (Clearances are shaved by a thousandth, so that rounding never skips a push.)
+                let Some((d2, t, w, feature)) = best else {
+                    // Nothing within the cutoff: no push until something comes within it.
+                    let clear = if lower.is_finite() { (lower.sqrt() - cutoff) * 0.999 } else { 0.0 };
+                    return (None, u32::MAX, clear);
                 };
-                let q =
-                    w[0] * pos[tri[0] as usize] + w[1] * pos[tri[1] as usize] + w[2] * pos[tri[2] as usize];
-                let d = p - q;
-                let dist = d2.sqrt();
-                let outside = d.dot(pseudo) >= 0.0;
-                let s = if outside { dist } else { -dist };
-                if s >= penalty.gap || -s > penalty.reach {
-                    return None;
-                }
-                // Along the line to the nearest point (continuous as the vertex moves), or the
-                // pseudo-normal where the vertex is on the surface.
-                let normal = if dist > 1e-6 * penalty.reach {
-                    if outside { d / dist } else { -d / dist }
-                } else {
-                    pseudo.normalize_or_zero()
-                };
-                if normal == Vec3::ZERO {
-                    return None;
-                }
-                Some(Hit { triangle: t, weights: w, normal, depth: penalty.gap - s })
+                let (hit, s) = self.hit(p, partner, penalty, d2, t, w, feature);
+                // Outside beyond the gap: no push until it comes within the gap.
+                let clear = if hit.is_none() && s >= penalty.gap { (s - penalty.gap) * 0.999 } else { 0.0 };
+                (hit, t, clear)
             })
             .collect()
+    }
+
+    /// The push on a probe at `p` whose nearest triangle within the cutoff is `t`, at `d2`
+    /// squared, its nearest point there `w` on `feature`, and its signed distance (negative
+    /// inside).
+    #[allow(clippy::too_many_arguments)]
+    fn hit(
+        &self,
+        p: Vec3,
+        partner: &MassSpring,
+        penalty: &SurfacePenalty,
+        d2: f32,
+        t: u32,
+        w: [f32; 3],
+        feature: Feature,
+    ) -> (Option<Hit>, f32) {
+        let (pos, tris) = (&partner.pos, &partner.surface.triangles);
+        let tri = tris[t as usize];
+        let pseudo = match feature {
+            Feature::Face => face_normal(pos, tri),
+            Feature::Edge(e) => {
+                let other = self.neighbours[t as usize][e as usize];
+                let n = face_normal(pos, tri);
+                if other == u32::MAX { n } else { n + face_normal(pos, tris[other as usize]) }
+            }
+            Feature::Vertex(c) => vertex_normal(partner, tri[c as usize]),
+        };
+        let q = w[0] * pos[tri[0] as usize] + w[1] * pos[tri[1] as usize] + w[2] * pos[tri[2] as usize];
+        let d = p - q;
+        let dist = d2.sqrt();
+        let outside = d.dot(pseudo) >= 0.0;
+        let s = if outside { dist } else { -dist };
+        if s >= penalty.gap || -s > penalty.reach {
+            return (None, s);
+        }
+        // Along the line to the nearest point (continuous as the vertex moves), or the
+        // pseudo-normal where the vertex is on the surface.
+        let normal = if dist > 1e-6 * penalty.reach {
+            if outside { d / dist } else { -d / dist }
+        } else {
+            pseudo.normalize_or_zero()
+        };
+        if normal == Vec3::ZERO {
+            return (None, s);
+        }
+        (Some(Hit { triangle: t, weights: w, normal, depth: penalty.gap - s }), s)
     }
 }
 
@@ -418,7 +508,16 @@ impl SurfaceContact {
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
             stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
-            let mut hits = side.hits(probing, partner, &p);
+            side.age(probing, partner);
+            let found = side.hits(probing, partner, &p);
+            let mut hits = Vec::with_capacity(found.len());
+            (side.last, side.clear) = found
+                .into_iter()
+                .map(|(hit, last, clear)| {
+                    hits.push(hit);
+                    (last, clear)
+                })
+                .unzip();
             confirm_deep(&mut hits, &side.probes, probing, partner, &p);
             let (f_probe, k_probe, v_probe, w_probe, f_partner, k_partner, v_partner, w_partner) = if s == 0 {
                 (
