@@ -171,6 +171,10 @@ struct Side {
     /// The probes' and the partner's positions at the last step.
     probes_prev: Vec<Vec3>,
     partner_prev: Vec<Vec3>,
+    /// Per probe: how far it and the partner moved relative to each other at most since the
+    /// last step, and whether it was inside the partner then.
+    moved: Vec<f32>,
+    inside: Vec<bool>,
     built: bool,
 }
 
@@ -267,11 +271,15 @@ impl Side {
                 .map(|(p, q)| p.distance_squared(*q))
                 .fold(0.0f32, f32::max)
                 .sqrt();
+            self.moved.clear();
             for ((c, &i), prev) in self.clear.iter_mut().zip(&self.probes).zip(&self.probes_prev) {
-                *c -= probing.pos[i as usize].distance(*prev) + partner_moved;
+                let moved = probing.pos[i as usize].distance(*prev) + partner_moved;
+                *c -= moved;
+                self.moved.push(moved);
             }
         } else {
             self.clear = vec![-1.0; n];
+            self.moved = vec![0.0; n];
         }
         self.probes_prev.clear();
         self.probes_prev.extend(self.probes.iter().map(|&i| probing.pos[i as usize]));
@@ -390,29 +398,43 @@ impl Side {
     }
 }
 
-/// Hits deeper than a quarter of the reach beyond the gap are confirmed by the exact inside test
-/// (the generalized winding number, [`crate::geometry::ClosedSurface`]), and dropped where it
-/// says outside: where a shell has folded over itself (a flattened implant springing back, a
-/// crumpled membrane) the nearest feature's pseudo-normal can point inward, and a vertex
-/// outside would be taken as deep inside and thrown. Shallow hits are not checked: their push
-/// is small, and a holding contact's hits are shallow, so the hierarchy is rarely built.
-fn confirm_deep(
+/// Hits that cannot be trusted are confirmed by the exact inside test (the generalized winding
+/// number, [`crate::geometry::ClosedSurface`]), and dropped where it says outside. Where a shell
+/// has folded over itself (a flattened implant springing back, a crumpled membrane), the
+/// nearest feature's pseudo-normal can point inward, and a vertex outside would be taken as
+/// inside and thrown. So a hit is checked when it is deeper than a quarter of the reach, or
+/// when its vertex was outside at the last step and is now deeper inside than it and the
+/// partner have moved since (`moved`): it cannot have crossed the surface, and a vertex that
+/// truly comes in does so gradually. A holding contact's hits pass neither test, so the
+/// hierarchy is rarely built. Returns, per probe, whether it is now inside.
+fn confirm(
     hits: &mut [Option<Hit>],
     probes: &[u32],
+    was_inside: &[bool],
+    moved: &[f32],
     probing: &MassSpring,
     partner: &MassSpring,
     penalty: &SurfacePenalty,
-) {
+) -> Vec<bool> {
     let deep = penalty.gap + 0.25 * penalty.reach;
-    if !hits.iter().flatten().any(|h| h.depth > deep) {
-        return;
-    }
-    let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, &partner.surface) else { return };
-    hits.par_iter_mut().zip(probes.par_iter()).for_each(|(hit, &i)| {
-        if hit.is_some_and(|h| h.depth > deep) && !surface.contains(probing.pos[i as usize]) {
-            *hit = None;
+    let slack = 1e-4 * penalty.reach;
+    let suspect = |k: usize, h: &Hit| {
+        let inside = h.depth - penalty.gap;
+        h.depth > deep
+            || (inside > 0.0
+                && !was_inside.get(k).copied().unwrap_or(false)
+                && inside > moved.get(k).copied().unwrap_or(0.0) * 1.001 + slack)
+    };
+    if hits.iter().enumerate().any(|(k, h)| h.as_ref().is_some_and(|h| suspect(k, h))) {
+        if let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, &partner.surface) {
+            hits.par_iter_mut().zip(probes.par_iter()).enumerate().for_each(|(k, (hit, &i))| {
+                if hit.as_ref().is_some_and(|h| suspect(k, h)) && !surface.contains(probing.pos[i as usize]) {
+                    *hit = None;
+                }
+            });
         }
-    });
+    }
+    hits.iter().map(|h| h.as_ref().is_some_and(|h| h.depth > penalty.gap)).collect()
 }
 
 /// The angle-weighted normal of `partner`'s surface at vertex `v` (over its triangles).
@@ -518,7 +540,7 @@ impl SurfaceContact {
                     (last, clear)
                 })
                 .unzip();
-            confirm_deep(&mut hits, &side.probes, probing, partner, &p);
+            side.inside = confirm(&mut hits, &side.probes, &side.inside, &side.moved, probing, partner, &p);
             let (f_probe, k_probe, v_probe, w_probe, f_partner, k_partner, v_partner, w_partner) = if s == 0 {
                 (
                     &mut out.force_b,
