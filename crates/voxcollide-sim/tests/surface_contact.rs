@@ -176,3 +176,34 @@ fn bad_surface_parameters_are_refused_by_name() {
         assert!(e.to_string().contains(what), "{e}");
     }
 }
+
+#[test]
+fn a_vertex_outside_a_folded_shell_is_not_taken_for_inside() {
+    // A shell with one triangle turned inside out (as where a flattened implant folds over
+    // itself): just above that triangle its pseudo-normal says "inside". The vertex did not
+    // cross the surface to get there, so the exact inside test is asked, and says outside.
+    let mut shell = ball(Vec3::new(0.0, 0.0, 0.0), 4.0);
+    let top = shell.surface.triangles.iter().position(|t| t.contains(&0)).unwrap();
+    shell.surface.triangles[top].swap(1, 2);
+    let [a, b, c] = shell.surface.triangles[top].map(|v| shell.pos[v as usize]);
+    let centre = (a + b + c) / 3.0;
+    let outward = centre.normalize();
+    // (Not so close that the turned triangle alone makes the winding number pass ½.)
+    let probe = ball(centre + 1.2 * outward, 0.2);
+    // A reach of 8: every false depth here is under a quarter of it, the depth beyond which a
+    // hit is always confirmed.
+    let reach8 = SurfacePenalty { reach: 8.0, ..penalty() };
+    let mut contact = SurfaceContact::new(reach8, &shell, &probe).unwrap();
+    let mut out = SurfaceForces::default();
+    let stats = contact.step(&shell, &probe, &mut out);
+    assert_eq!(stats.b_pushed, 0, "{stats:?}");
+    assert!(out.force_b.iter().all(|f| *f == Vec3::ZERO));
+    // The same probe truly inside, 0.6 below the (intact) surface elsewhere, is pushed out.
+    let side = shell.surface.triangles.iter().position(|t| !t.contains(&0)).unwrap();
+    let [a, b, c] = shell.surface.triangles[side].map(|v| shell.pos[v as usize]);
+    let centre = (a + b + c) / 3.0;
+    let inside = ball(centre - 0.6 * centre.normalize(), 0.1);
+    let mut contact = SurfaceContact::new(reach8, &shell, &inside).unwrap();
+    let stats = contact.step(&shell, &inside, &mut out);
+    assert!(stats.b_pushed > 0, "{stats:?}");
+}
