@@ -205,8 +205,8 @@ impl Side {
             let moved = |now: &[Vec3], then: &[Vec3]| {
                 now.iter().zip(then).map(|(p, q)| p.distance_squared(*q)).fold(0.0f32, f32::max).sqrt()
             };
-            let probes_now: Vec<Vec3> = self.probes.iter().map(|&i| probing.pos[i as usize]).collect();
-            if moved(&probes_now, &self.probes_then) + moved(&partner.pos, &self.partner_then) < skin {
+            // (Every vertex probes, in order: the probes' positions are the body's.)
+            if moved(&probing.pos, &self.probes_then) + moved(&partner.pos, &self.partner_then) < skin {
                 return false;
             }
         }

@@ -216,20 +216,6 @@ impl CpuWorld {
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         }
         self.step += 1;
-        if std::env::var_os("VOXCOLLIDE_TRACE").is_some() {
-            let speeds: Vec<(usize, f32)> = w
-                .bodies
-                .iter()
-                .map(|b| {
-                    b.vel
-                        .iter()
-                        .enumerate()
-                        .map(|(i, v)| (i, v.length()))
-                        .fold((0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
-                })
-                .collect();
-            eprintln!("TRACE step {} stats {:?} fastest {:?}", self.step, self.surface_stats, speeds);
-        }
         for (k, body) in w.bodies.iter().enumerate() {
             if let Some((_, what)) = body.blow_up(w.v_max) {
                 return Err(w.blow_up(self.step, k, &what));
