@@ -40,6 +40,9 @@ use crate::world::{ContactPair, Integrator, World};
 pub const IMPLICIT_STEPS: f64 = 200.0;
 /// … at most this many seconds (and never below the explicit bound).
 pub const IMPLICIT_DT: f32 = 5e-3;
+/// Under the implicit integrator, a contact's automatic stiffness is at most this many times
+/// the springs of the softer of its two bodies.
+pub const IMPLICIT_CONTACT: f32 = 100.0;
 /// The implicit integrator's fill is this many times stiffer in bulk than the explicit
 /// bound allows.
 pub const IMPLICIT_BULK: f32 = 100.0;
@@ -740,11 +743,25 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             })
             .fold(f32::MAX, f32::min);
         let lightest = if lightest == f32::MAX { 1.0 / bodies[c.b].inv_mass[0] } else { lightest };
-        // (Under the implicit integrator the contact's stiffness enters the solve, so it keeps
-        // the explicit bound's: a property of the bodies, not of the step.)
+        // Under the implicit integrator the contact's stiffness enters the solve, so it keeps
+        // the explicit bound's (a property of the bodies, not of the step), but at most
+        // IMPLICIT_CONTACT times the softer body's springs: the bound follows the stiffer body
+        // (a 3,000 kPa shell's bound is a thousand times a 1 kPa tissue's springs), and a
+        // contact far stiffer than what it pushes only makes the solve ill-conditioned and its
+        // residual at rest noise (a hundredth of a millimetre of depth is then a force no
+        // spring of the tissue can balance). A hundred times the softer springs still keeps the
+        // depth under load within a hundredth of its spacing times its strain.
         let material_dt = if implicit { stable.min(dt) } else { dt };
+        let softer = [c.a, c.b]
+            .iter()
+            .filter(|&&k| bodies[k].mode.contains(&Mode::Free))
+            .map(|&k| stiffness[k])
+            .fold(f32::MAX, f32::min);
         let contact_k = match c.stiffness {
             Auto::Value(n_per_m) => n_per_m as f32,
+            Auto::Auto if implicit && softer < f32::MAX => {
+                (0.5 * lightest / (material_dt * material_dt)).min(IMPLICIT_CONTACT * softer)
+            }
             Auto::Auto => 0.5 * lightest / (material_dt * material_dt),
         };
         let gap = match c.gap {

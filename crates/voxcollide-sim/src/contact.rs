@@ -482,11 +482,25 @@ pub struct SurfaceForces {
     /// `b`'s vertices in contact this step, ascending: those pushed out of `a`, and the corners
     /// of `b`'s triangles that `a`'s vertices push (with a weight above 0).
     pub touching_b: Vec<u32>,
-    /// Per vertex of `a`: the velocity of `b`'s surface where it pushes it (averaged over its
-    /// pushes, weighted by their stiffness), for the implicit solve's relative damping.
-    pub velocity_a: Vec<Vec3>,
-    /// The same for `b`'s vertices.
-    pub velocity_b: Vec<Vec3>,
+    /// Every push, in the order its force was summed: what an implicit solve needs to couple
+    /// the two bodies (each push is a spring of the contact's stiffness between the vertex and
+    /// its nearest point on the partner's surface, along `normal`).
+    pub pushes: Vec<Push>,
+}
+
+/// One vertex pushed out of the partner's surface.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Push {
+    /// Whether the pushed vertex is `a`'s (the triangle then `b`'s), or `b`'s.
+    pub of_a: bool,
+    /// The pushed vertex.
+    pub vertex: u32,
+    /// The partner's triangle holding the nearest point, and that point's barycentric weights.
+    pub triangle: [u32; 3],
+    /// The nearest point's barycentric weights on `triangle`.
+    pub weights: [f32; 3],
+    /// The push's direction (unit, outward from the partner's surface).
+    pub normal: Vec3,
 }
 
 /// A surface contact between bodies `a` and `b`: both sides' near-triangle lists.
@@ -514,19 +528,16 @@ impl SurfaceContact {
         let cutoff = p.reach.max(p.gap);
         let skin = 0.5 * cutoff;
         let mut stats = SurfaceStats::default();
-        let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, v: &mut Vec<Vec3>, n: usize| {
-            for x in [&mut *f, &mut *v] {
-                x.clear();
-                x.resize(n, Vec3::ZERO);
-            }
+        let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, n: usize| {
+            f.clear();
+            f.resize(n, Vec3::ZERO);
             k.clear();
             k.resize(n, Mat3::ZERO);
         };
-        reset(&mut out.force_a, &mut out.stiffness_a, &mut out.velocity_a, a.len());
-        reset(&mut out.force_b, &mut out.stiffness_b, &mut out.velocity_b, b.len());
-        // The weights of the velocity averages.
-        let (mut weight_a, mut weight_b) = (vec![0.0f32; a.len()], vec![0.0f32; b.len()]);
+        reset(&mut out.force_a, &mut out.stiffness_a, a.len());
+        reset(&mut out.force_b, &mut out.stiffness_b, b.len());
         out.touching_b.clear();
+        out.pushes.clear();
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
             stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
@@ -541,28 +552,10 @@ impl SurfaceContact {
                 })
                 .unzip();
             side.inside = confirm(&mut hits, &side.probes, &side.inside, &side.moved, probing, partner, &p);
-            let (f_probe, k_probe, v_probe, w_probe, f_partner, k_partner, v_partner, w_partner) = if s == 0 {
-                (
-                    &mut out.force_b,
-                    &mut out.stiffness_b,
-                    &mut out.velocity_b,
-                    &mut weight_b,
-                    &mut out.force_a,
-                    &mut out.stiffness_a,
-                    &mut out.velocity_a,
-                    &mut weight_a,
-                )
+            let (f_probe, k_probe, f_partner, k_partner) = if s == 0 {
+                (&mut out.force_b, &mut out.stiffness_b, &mut out.force_a, &mut out.stiffness_a)
             } else {
-                (
-                    &mut out.force_a,
-                    &mut out.stiffness_a,
-                    &mut out.velocity_a,
-                    &mut weight_a,
-                    &mut out.force_b,
-                    &mut out.stiffness_b,
-                    &mut out.velocity_b,
-                    &mut weight_b,
-                )
+                (&mut out.force_a, &mut out.stiffness_a, &mut out.force_b, &mut out.stiffness_b)
             };
             for (&i, hit) in side.probes.iter().zip(&hits) {
                 let Some(h) = hit else { continue };
@@ -571,16 +564,10 @@ impl SurfaceContact {
                 f_probe[i as usize] += f;
                 k_probe[i as usize] += p.stiffness * nn;
                 let tri = partner.surface.triangles[h.triangle as usize];
-                let surface_vel: Vec3 =
-                    tri.iter().zip(h.weights).map(|(v, w)| w * partner.vel[*v as usize]).sum();
-                v_probe[i as usize] += p.stiffness * surface_vel;
-                w_probe[i as usize] += p.stiffness;
-                let probe_vel = probing.vel[i as usize];
+                out.pushes.push(Push { of_a: s == 1, vertex: i, triangle: tri, weights: h.weights, normal: h.normal });
                 for (v, w) in tri.iter().zip(h.weights) {
                     f_partner[*v as usize] -= w * f;
                     k_partner[*v as usize] += (p.stiffness * w * w) * nn;
-                    v_partner[*v as usize] += (p.stiffness * w * w) * probe_vel;
-                    w_partner[*v as usize] += p.stiffness * w * w;
                 }
                 stats.deepest = stats.deepest.max(h.depth);
                 if s == 0 {
@@ -595,9 +582,6 @@ impl SurfaceContact {
         }
         out.touching_b.sort_unstable();
         out.touching_b.dedup();
-        for (v, w) in [(&mut out.velocity_a, &weight_a), (&mut out.velocity_b, &weight_b)] {
-            v.iter_mut().zip(w).filter(|(_, w)| **w > 0.0).for_each(|(v, w)| *v /= *w);
-        }
         // A held vertex feels nothing: it is where its drive puts it.
         for (body, f, k) in
             [(a, &mut out.force_a, &mut out.stiffness_a), (b, &mut out.force_b, &mut out.stiffness_b)]

@@ -4,7 +4,7 @@
 use glam::{Mat3, Vec3};
 
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
-use crate::implicit::{Residual, StepStats};
+use crate::implicit::{BodyStep, Coupling, Residual, StepStats, integrate_implicit_together};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
 use voxcollide::error::Error;
@@ -27,7 +27,8 @@ pub struct CpuWorld {
     pub reports: Vec<ContactReport>,
     contacts_of: Vec<Vec<(usize, bool)>>,
     contact_force: Vec<Vec<Vec3>>,
-    force: Vec<Vec3>,
+    /// Per body: its forces this step.
+    forces: Vec<Vec<Vec3>>,
     step: u64,
     /// Simulated seconds so far.
     pub time: f64,
@@ -65,7 +66,7 @@ impl CpuWorld {
             reports: vec![ContactReport::default(); collisions.len()],
             contacts_of: world.contacts_of(),
             contact_force: world.bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect(),
-            force: Vec::new(),
+            forces: Vec::new(),
             stats: vec![StepStats::default(); world.bodies.len()],
             collisions,
             world,
@@ -134,6 +135,10 @@ impl CpuWorld {
             inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
         }
         let mut residual = Residual::default();
+        // Implicit: per body, the voxel model's contact stiffness and what it pushes against.
+        let mut voxel_k: Vec<Vec<Mat3>> = Vec::new();
+        let mut voxel_vel: Vec<Vec<Vec3>> = Vec::new();
+        self.forces.resize_with(w.bodies.len(), Vec::new);
         for (k, body) in w.bodies.iter_mut().enumerate() {
             let sum = &mut self.contact_force[k];
             for (n, &(c, as_a)) in self.contacts_of[k].iter().enumerate() {
@@ -145,72 +150,86 @@ impl CpuWorld {
                 }
             }
             body.hold_fill(&inputs[k]);
-            body.forces(&inputs[k], sum, &mut self.force);
-            match implicit {
-                None => body.integrate(&inputs[k], &self.force),
-                Some(settings) => {
-                    // Each penalty's stiffness along the force it gives each vertex it pushes, and
-                    // the velocity of what pushes it (a surface contact's partner; the voxel
-                    // model's contacts count as still), averaged by stiffness.
-                    let mut contact_k = vec![Mat3::ZERO; body.len()];
-                    let mut contact_vel = vec![Vec3::ZERO; body.len()];
-                    for &(c, as_a) in &self.contacts_of[k] {
-                        if self.surfaces[c].is_some() {
-                            let out = &self.surface_forces[c];
-                            let (blocks, vel) = if as_a {
-                                (&out.stiffness_a, &out.velocity_a)
-                            } else {
-                                (&out.stiffness_b, &out.velocity_b)
-                            };
-                            for ((kc, cv), (b, v)) in
-                                contact_k.iter_mut().zip(&mut contact_vel).zip(blocks.iter().zip(vel))
-                            {
-                                let (before, add) = (trace(kc), trace(b));
-                                if add > 0.0 {
-                                    *cv = (before * *cv + add * *v) / (before + add);
-                                }
-                                *kc += *b;
-                            }
-                            continue;
-                        }
-                        let Response::Penalty { stiffness, .. } = w.contacts[c].response else { continue };
-                        let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
-                        for ((kc, cv), f) in contact_k.iter_mut().zip(&mut contact_vel).zip(f) {
-                            let len = f.length();
-                            if len > 0.0 {
-                                let n = *f / len;
-                                let before = trace(kc);
-                                *kc += stiffness * Mat3::from_cols(n * n.x, n * n.y, n * n.z);
-                                *cv *= before / (before + stiffness);
-                            }
-                        }
+            let force = &mut self.forces[k];
+            body.forces(&inputs[k], sum, force);
+            if implicit.is_none() {
+                body.integrate(&inputs[k], force);
+                continue;
+            }
+            // Each voxel-model penalty's stiffness along the force it gives each vertex it
+            // pushes (it pushes from a surface standing still). A surface contact's pushes
+            // couple the two bodies in the solve instead.
+            let mut contact_k = vec![Mat3::ZERO; body.len()];
+            for &(c, as_a) in &self.contacts_of[k] {
+                if self.surfaces[c].is_some() {
+                    continue;
+                }
+                let Response::Penalty { stiffness, .. } = w.contacts[c].response else { continue };
+                let f = if as_a { &self.reports[c].force_a } else { &self.reports[c].force_b };
+                for (kc, f) in contact_k.iter_mut().zip(f) {
+                    let len = f.length();
+                    if len > 0.0 {
+                        let n = *f / len;
+                        *kc += stiffness * Mat3::from_cols(n * n.x, n * n.y, n * n.z);
                     }
-                    residual = residual.plus(body.residual(&inputs[k], sum));
-                    self.stats[k] = body.integrate_implicit(
-                        &inputs[k],
-                        &self.force,
-                        sum,
-                        &contact_k,
-                        &contact_vel,
-                        &settings,
-                    );
                 }
             }
+            voxel_vel.push(vec![Vec3::ZERO; body.len()]);
+            voxel_k.push(contact_k);
+            residual = residual.plus(body.residual(&inputs[k], sum));
+        }
+        if let Some(settings) = implicit {
+            let mut couplings = Vec::new();
+            for (c, pair) in w.contacts.iter().enumerate() {
+                let Some(surface) = &self.surfaces[c] else { continue };
+                let stiffness = surface.penalty.stiffness;
+                couplings.extend(self.surface_forces[c].pushes.iter().map(|p| {
+                    let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
+                    Coupling {
+                        body: body as u32,
+                        vertex: p.vertex,
+                        partner: partner as u32,
+                        triangle: p.triangle,
+                        weights: p.weights,
+                        normal: p.normal,
+                        stiffness,
+                    }
+                }));
+            }
+            let steps: Vec<BodyStep> = (0..w.bodies.len())
+                .map(|k| BodyStep {
+                    inputs: &inputs[k],
+                    forces: &self.forces[k],
+                    contact: &self.contact_force[k],
+                    contact_k: &voxel_k[k],
+                    contact_vel: &voxel_vel[k],
+                })
+                .collect();
+            self.stats = integrate_implicit_together(&mut w.bodies, &steps, &couplings, &settings);
         }
         if let Some(settings) = implicit {
             let peak_gross = self.residual.peak_gross.max(residual.gross);
             let before = self.residual.net;
             self.residual = Residual { peak_gross, ..residual };
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-            // Switched evolution relaxation: the step grows as the residual falls and shrinks
-            // as it rises (a contact chattering), halving where a solve fell short or a vertex
-            // was held to the largest move.
+            // The step grows by a fifth each step while the residual falls (or by as much as it
+            // fell, when more), and shrinks as it rises (a contact chattering), halving where a
+            // solve fell short or a vertex was held to the largest move. (Switched evolution
+            // relaxation alone, growing only as fast as the residual falls, crawls where the
+            // slowest mode is far slower than the step: a soft layer's bending under a stiff
+            // shell.)
             let calm = self
                 .stats
                 .iter()
                 .all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
             let ratio = if residual.net > 0.0 { (before / residual.net) as f32 } else { 1.5 };
-            let grown = if calm { self.dt_scale * ratio.clamp(0.5, 1.5) } else { self.dt_scale * 0.5 };
+            let grown = if !calm {
+                self.dt_scale * 0.5
+            } else if ratio >= 1.0 {
+                self.dt_scale * ratio.clamp(1.2, 1.5)
+            } else {
+                self.dt_scale * ratio.max(0.5)
+            };
             self.dt_scale = grown.clamp(1.0, self.accelerate_to);
         } else {
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
@@ -223,11 +242,6 @@ impl CpuWorld {
         }
         Ok(())
     }
-}
-
-/// The trace of a contact's stiffness block: its stiffness along its push.
-fn trace(m: &Mat3) -> f32 {
-    m.x_axis.x + m.y_axis.y + m.z_axis.z
 }
 
 /// A paper scene stepping on the CPU: the scene's world of two bodies (tissue, foreign body)
