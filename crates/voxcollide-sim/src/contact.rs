@@ -47,6 +47,10 @@ pub struct SurfacePenalty {
     /// The deepest a vertex is pushed from, and how far the search for the nearest triangle
     /// reaches.
     pub reach: f32,
+    /// How far outside the gap a vertex is still listed in [`SurfaceForces::pushes`], with no
+    /// force (0: not at all): an implicit solve then sees the contact's stiffness before the
+    /// vertex arrives, so that a large step does not carry it deep in and out again.
+    pub margin: f32,
 }
 
 impl SurfacePenalty {
@@ -67,6 +71,9 @@ impl SurfacePenalty {
         }
         if !(self.gap.is_finite() && self.gap >= 0.0 && self.gap < self.reach) {
             return bad("surface contact gap", self.gap, "must be finite, at least 0 and below the reach");
+        }
+        if !(self.margin.is_finite() && self.margin >= 0.0) {
+            return bad("surface contact margin", self.margin, "must be finite and at least 0");
         }
         Ok(())
     }
@@ -313,7 +320,7 @@ impl Side {
                 // than the nearest found so far, is passed over before the exact test. The last
                 // step's nearest goes first, so that most boxes are passed over (the answer is
                 // the same without it: the nearest, ties to the smaller index).
-                let cutoff = penalty.reach.max(penalty.gap);
+                let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
                 let mut bound = cutoff * cutoff;
                 let list = &self.near[self.offsets[k] as usize..self.offsets[k + 1] as usize];
                 let first = Some(last).filter(|t| list.contains(t));
@@ -344,8 +351,9 @@ impl Side {
                     return (None, u32::MAX, clear);
                 };
                 let (hit, s) = self.hit(p, partner, penalty, d2, t, w, feature);
-                // Outside beyond the gap: no push until it comes within the gap.
-                let clear = if hit.is_none() && s >= penalty.gap { (s - penalty.gap) * 0.999 } else { 0.0 };
+                // Outside beyond the gap (and the margin): no push until it comes within it.
+                let near = penalty.gap + penalty.margin;
+                let clear = if hit.is_none() && s >= near { (s - near) * 0.999 } else { 0.0 };
                 (hit, t, clear)
             })
             .collect()
@@ -381,7 +389,7 @@ impl Side {
         let dist = d2.sqrt();
         let outside = d.dot(pseudo) >= 0.0;
         let s = if outside { dist } else { -dist };
-        if s >= penalty.gap || -s > penalty.reach {
+        if s >= penalty.gap + penalty.margin || -s > penalty.reach {
             return (None, s);
         }
         // Along the line to the nearest point (continuous as the vertex moves), or the
@@ -482,9 +490,10 @@ pub struct SurfaceForces {
     /// `b`'s vertices in contact this step, ascending: those pushed out of `a`, and the corners
     /// of `b`'s triangles that `a`'s vertices push (with a weight above 0).
     pub touching_b: Vec<u32>,
-    /// Every push, in the order its force was summed: what an implicit solve needs to couple
-    /// the two bodies (each push is a spring of the contact's stiffness between the vertex and
-    /// its nearest point on the partner's surface, along `normal`).
+    /// Every push, in the order its force was summed, and every vertex within the margin: what
+    /// an implicit solve needs to couple the two bodies (each is a spring of the contact's
+    /// stiffness between the vertex and its nearest point on the partner's surface, along
+    /// `normal`).
     pub pushes: Vec<Push>,
 }
 
@@ -501,6 +510,9 @@ pub struct Push {
     pub weights: [f32; 3],
     /// The push's direction (unit, outward from the partner's surface).
     pub normal: Vec3,
+    /// `gap − s` for the vertex's signed distance `s` from the partner's surface: positive where
+    /// it is pushed, at most 0 within the margin (no force).
+    pub depth: f32,
 }
 
 /// A surface contact between bodies `a` and `b`: both sides' near-triangle lists.
@@ -525,7 +537,7 @@ impl SurfaceContact {
     /// One step's forces into `out` (resized to the bodies), and what it found.
     pub fn step(&mut self, a: &MassSpring, b: &MassSpring, out: &mut SurfaceForces) -> SurfaceStats {
         let p = self.penalty;
-        let cutoff = p.reach.max(p.gap);
+        let cutoff = p.reach.max(p.gap + p.margin);
         let skin = 0.5 * cutoff;
         let mut stats = SurfaceStats::default();
         let reset = |f: &mut Vec<Vec3>, k: &mut Vec<Mat3>, n: usize| {
@@ -559,12 +571,17 @@ impl SurfaceContact {
             };
             for (&i, hit) in side.probes.iter().zip(&hits) {
                 let Some(h) = hit else { continue };
+                let tri = partner.surface.triangles[h.triangle as usize];
+                let push = Push { of_a: s == 1, vertex: i, triangle: tri, weights: h.weights, normal: h.normal, depth: h.depth };
+                out.pushes.push(push);
+                if h.depth <= 0.0 {
+                    // Within the margin, outside the gap: listed, no force.
+                    continue;
+                }
                 let f = p.stiffness * h.depth * h.normal;
                 let nn = Mat3::from_cols(h.normal * h.normal.x, h.normal * h.normal.y, h.normal * h.normal.z);
                 f_probe[i as usize] += f;
                 k_probe[i as usize] += p.stiffness * nn;
-                let tri = partner.surface.triangles[h.triangle as usize];
-                out.pushes.push(Push { of_a: s == 1, vertex: i, triangle: tri, weights: h.weights, normal: h.normal });
                 for (v, w) in tri.iter().zip(h.weights) {
                     f_partner[*v as usize] -= w * f;
                     k_partner[*v as usize] += (p.stiffness * w * w) * nn;

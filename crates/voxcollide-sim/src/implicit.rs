@@ -381,6 +381,9 @@ pub struct Coupling {
     pub normal: Vec3,
     /// The push's stiffness (force per unit depth).
     pub stiffness: f32,
+    /// Whether the vertex is pushed (else it is only within the contact's margin: the solve sees
+    /// the stiffness it would meet, and no impulse is given).
+    pub touching: bool,
 }
 
 impl Coupling {
@@ -591,7 +594,7 @@ pub fn integrate_implicit_together(
     // its point on the partner's surface separate along the push, an impulse between them
     // (in their reduced mass, momentum kept) leaves them none of that speed. In order, on one
     // thread.
-    for c in couplings {
+    for c in couplings.iter().filter(|c| c.touching) {
         let (b, q, v) = (c.body as usize, c.partner as usize, c.vertex as usize);
         let inverse = |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
         let w_v = inverse(b, v);

@@ -32,7 +32,7 @@ fn ball(center: Vec3, r: f32) -> MassSpring {
 }
 
 fn penalty() -> SurfacePenalty {
-    SurfacePenalty { stiffness: K, gap: 0.0, reach: 4.0 }
+    SurfacePenalty { stiffness: K, gap: 0.0, reach: 4.0, margin: 0.0 }
 }
 
 #[test]
@@ -171,6 +171,8 @@ fn bad_surface_parameters_are_refused_by_name() {
         (SurfacePenalty { reach: -1.0, ..penalty() }, "reach"),
         (SurfacePenalty { gap: 4.0, ..penalty() }, "gap"),
         (SurfacePenalty { gap: -0.1, ..penalty() }, "gap"),
+        (SurfacePenalty { margin: -1.0, ..penalty() }, "margin"),
+        (SurfacePenalty { margin: f32::INFINITY, ..penalty() }, "margin"),
     ] {
         let Err(e) = SurfaceContact::new(p, &a, &b) else { panic!("{p:?} was taken") };
         assert!(e.to_string().contains(what), "{e}");
@@ -229,7 +231,7 @@ fn moving_ball_on_block() -> World {
         grid,
         params,
         response: Response::Penalty { stiffness, gap: 0.0 },
-        surface: Some(SurfacePenalty { stiffness, gap: 0.0, reach: 4.0 }),
+        surface: Some(SurfacePenalty { stiffness, gap: 0.0, reach: 4.0, margin: 1.0 }),
     };
     let schedule = std::sync::Arc::new(|_| {
         vec![
