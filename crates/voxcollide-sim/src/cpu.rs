@@ -193,7 +193,7 @@ impl CpuWorld {
                         weights: p.weights,
                         normal: p.normal,
                         stiffness,
-                        touching: p.depth > 0.0,
+                        depth: p.depth,
                     }
                 }));
             }

@@ -381,12 +381,35 @@ pub struct Coupling {
     pub normal: Vec3,
     /// The push's stiffness (force per unit depth).
     pub stiffness: f32,
-    /// Whether the vertex is pushed (else it is only within the contact's margin: the solve sees
-    /// the stiffness it would meet, and no impulse is given).
-    pub touching: bool,
+    /// `gap − s` at the start of the step: positive where the vertex is pushed (its force is
+    /// in [`BodyStep::forces`]), at most 0 where it is only within the contact's margin. A pair
+    /// is in the solve where the solve ends it within the gap, with the force
+    /// `k·(gap − s − Δs)` it meets there: one within the margin joins where the solve carries it
+    /// in, one pushed now leaves where the solve carries it away (found by solving again, at
+    /// most four times; after the first solve pairs only join, so that the set cannot cycle).
+    pub depth: f32,
 }
 
 impl Coupling {
+    /// Whether the vertex is pushed now.
+    fn touching(&self) -> bool {
+        self.depth > 0.0
+    }
+
+    /// Adds a force `f` on the vertex, and its reaction on the triangle's corners, to `out`'s
+    /// free rows.
+    fn exert(&self, f: Vec3, out: &mut [Vec<Vec3>], free: &[Vec<bool>]) {
+        let (b, q) = (self.body as usize, self.partner as usize);
+        if free[b][self.vertex as usize] {
+            out[b][self.vertex as usize] += f;
+        }
+        for (c, w) in self.triangle.iter().zip(self.weights) {
+            if free[q][*c as usize] {
+                out[q][*c as usize] -= w * f;
+            }
+        }
+    }
+
     /// `n·(u_vertex − Σ wᵢ·u_cornerᵢ)`: the relative motion of `u` along the push.
     fn relative(&self, u: &[Vec<Vec3>]) -> f32 {
         let (b, q) = (self.body as usize, self.partner as usize);
@@ -417,6 +440,8 @@ struct Joint<'a> {
     bodies: &'a [MassSpring],
     systems: Vec<System>,
     couplings: &'a [Coupling],
+    /// Per coupling: whether it is in the system (the touching ones always).
+    active: Vec<bool>,
     /// Per coupling: its critical damping `2√(k·m)` (`m` the reduced mass of the vertex and the
     /// triangle's point).
     damping: Vec<f32>,
@@ -432,7 +457,7 @@ impl Joint<'_> {
         }
         // In order, on one thread: the same sums on any number of threads.
         let h = self.h;
-        for (c, d) in self.couplings.iter().zip(&self.damping) {
+        for ((c, d), _) in self.couplings.iter().zip(&self.damping).zip(&self.active).filter(|(_, a)| **a) {
             let s = if stiff_only { c.stiffness } else { h * h * c.stiffness + h * d };
             c.add(s, u, out, &self.free, stiff_only);
         }
@@ -507,46 +532,88 @@ pub fn integrate_implicit_together(
         })
         .collect();
     let vel: Vec<Vec<Vec3>> = bodies.iter().map(|b| b.vel.clone()).collect();
-    let joint = Joint { bodies: &*bodies, systems, couplings, damping, free, h };
-    let zeros = || -> Vec<Vec<Vec3>> { joint.bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect() };
-    // b = h·(f − C_c·v_rel + h·K·v) − A·Δv_prescribed, on the free vertices.
-    let mut kv = zeros();
-    joint.apply(&vel, &mut kv, true);
-    let mut a_fixed = zeros();
-    if prescribed.iter().flatten().any(|p| *p != Vec3::ZERO) {
-        joint.apply(&prescribed, &mut a_fixed, false);
-    }
-    let mut rhs: Vec<Vec<Vec3>> = (0..bodies.len())
-        .map(|k| {
-            let (body, s, system) = (&joint.bodies[k], &steps[k], &joint.systems[k]);
-            (0..body.len())
-                .map(|i| {
-                    if system.free[i] {
-                        h * (s.forces[i]
-                            - system.contact_damping[i] * (body.vel[i] - s.contact_vel[i])
-                            - h * kv[k][i])
-                            - a_fixed[k][i]
-                    } else {
-                        Vec3::ZERO
+    let active = couplings.iter().map(Coupling::touching).collect();
+    let mut joint = Joint { bodies: &*bodies, systems, couplings, active, damping, free, h };
+    let zeros = || -> Vec<Vec<Vec3>> { bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect() };
+    let any_held = prescribed.iter().flatten().any(|p| *p != Vec3::ZERO);
+    // b = h·(f − C_c·v_rel + h·K·v) − A·Δv_prescribed, on the free vertices, over the couplings
+    // in the system (an arriving vertex's `k·(gap − s)` included: a pull until it arrives).
+    let rhs_of = |joint: &Joint| -> Vec<Vec<Vec3>> {
+        let mut kv = zeros();
+        joint.apply(&vel, &mut kv, true);
+        let mut a_fixed = zeros();
+        if any_held {
+            joint.apply(&prescribed, &mut a_fixed, false);
+        }
+        let mut rhs: Vec<Vec<Vec3>> = (0..joint.bodies.len())
+            .map(|k| {
+                let (body, s, system) = (&joint.bodies[k], &steps[k], &joint.systems[k]);
+                (0..body.len())
+                    .map(|i| {
+                        if system.free[i] {
+                            h * (s.forces[i]
+                                - system.contact_damping[i] * (body.vel[i] - s.contact_vel[i])
+                                - h * kv[k][i])
+                                - a_fixed[k][i]
+                        } else {
+                            Vec3::ZERO
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        // The couplings' damping of the relative velocity, and the arriving ones' force.
+        let mut extra = zeros();
+        for ((c, d), active) in joint.couplings.iter().zip(&joint.damping).zip(&joint.active) {
+            match (*active, c.touching()) {
+                (true, touching) => {
+                    c.add(-*d, &vel, &mut extra, &joint.free, false);
+                    if !touching {
+                        c.exert((c.stiffness * c.depth) * c.normal, &mut extra, &joint.free);
                     }
-                })
-                .collect()
-        })
-        .collect();
-    // The couplings' damping of the relative velocity.
-    let mut damp = zeros();
-    for (c, d) in couplings.iter().zip(&joint.damping) {
-        c.add(*d, &vel, &mut damp, &joint.free, false);
-    }
-    rhs.iter_mut().zip(&damp).for_each(|(r, d)| r.iter_mut().zip(d).for_each(|(r, d)| *r -= h * *d));
-    let (dv, iterations, relative_residual) = conjugate_gradient(&joint, &rhs, settings);
+                }
+                // Pushed now, but leaving within the step: its push is taken out of the forces.
+                (false, true) => c.exert(-(c.stiffness * c.depth) * c.normal, &mut extra, &joint.free),
+                (false, false) => {}
+            }
+        }
+        rhs.iter_mut().zip(&extra).for_each(|(r, e)| r.iter_mut().zip(e).for_each(|(r, e)| *r += h * *e));
+        rhs
+    };
+    let velocity_after = |joint: &Joint, dv: &[Vec<Vec3>]| -> Vec<Vec<Vec3>> {
+        (0..joint.bodies.len())
+            .map(|k| {
+                let (body, free) = (&joint.bodies[k], &joint.free[k]);
+                (0..body.len()).map(|i| body.vel[i] + if free[i] { dv[k][i] } else { prescribed[k][i] }).collect()
+            })
+            .collect()
+    };
+    let (mut iterations, mut rounds) = (0, 0);
+    let (dv, relative_residual) = loop {
+        rounds += 1;
+        let (dv, its, relative) = conjugate_gradient(&joint, &rhs_of(&joint), settings);
+        iterations += its;
+        // The pairs this solve ends within the gap are in it, and no others: a vertex within the
+        // margin that it carries past the gap joins it, and one pushed now that it carries
+        // away leaves it (a penalty spring linearised both ways would pull it back). Solved
+        // again until none changes, at most four times.
+        let after = velocity_after(&joint, &dv);
+        let mut changed = false;
+        for (c, a) in couplings.iter().zip(joint.active.iter_mut()) {
+            let arrives = h * c.relative(&after) < c.depth;
+            // After the first solve pairs only join, so that the set cannot cycle (a pair at
+            // the edge, left by one solve and carried in by the next, stays in).
+            if arrives != *a && (rounds == 1 || arrives) {
+                changed = true;
+                *a = arrives;
+            }
+        }
+        if !changed || rounds == 4 {
+            break (dv, relative);
+        }
+    };
     // The update, scaled where a vertex would move farther than `max_move`.
-    let new_vel: Vec<Vec<Vec3>> = (0..bodies.len())
-        .map(|k| {
-            let (body, free) = (&joint.bodies[k], &joint.free[k]);
-            (0..body.len()).map(|i| body.vel[i] + if free[i] { dv[k][i] } else { prescribed[k][i] }).collect()
-        })
-        .collect();
+    let new_vel = velocity_after(&joint, &dv);
     let mut farthest = 0.0f32;
     for (v, free) in new_vel.iter().zip(&joint.free) {
         for (v, _) in v.iter().zip(free).filter(|(_, f)| **f) {
@@ -554,7 +621,7 @@ pub fn integrate_implicit_together(
         }
     }
     let scaled = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
-    drop(joint);
+    let active = joint.active;
     for (k, body) in bodies.iter_mut().enumerate() {
         let inputs = steps[k].inputs;
         for i in 0..body.len() {
@@ -594,7 +661,7 @@ pub fn integrate_implicit_together(
     // its point on the partner's surface separate along the push, an impulse between them
     // (in their reduced mass, momentum kept) leaves them none of that speed. In order, on one
     // thread.
-    for c in couplings.iter().filter(|c| c.touching) {
+    for (c, _) in couplings.iter().zip(&active).filter(|(c, a)| c.touching() && **a) {
         let (b, q, v) = (c.body as usize, c.partner as usize, c.vertex as usize);
         let inverse = |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
         let w_v = inverse(b, v);
