@@ -572,7 +572,14 @@ impl SurfaceContact {
             for (&i, hit) in side.probes.iter().zip(&hits) {
                 let Some(h) = hit else { continue };
                 let tri = partner.surface.triangles[h.triangle as usize];
-                let push = Push { of_a: s == 1, vertex: i, triangle: tri, weights: h.weights, normal: h.normal, depth: h.depth };
+                let push = Push {
+                    of_a: s == 1,
+                    vertex: i,
+                    triangle: tri,
+                    weights: h.weights,
+                    normal: h.normal,
+                    depth: h.depth,
+                };
                 out.pushes.push(push);
                 if h.depth <= 0.0 {
                     // Within the margin, outside the gap: listed, no force.

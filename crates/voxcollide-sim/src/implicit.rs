@@ -467,7 +467,9 @@ impl Joint<'_> {
         self.systems
             .iter()
             .zip(r)
-            .map(|(s, r)| r.par_iter().zip(&s.precondition).with_min_len(CHUNK).map(|(r, p)| *p * *r).collect())
+            .map(|(s, r)| {
+                r.par_iter().zip(&s.precondition).with_min_len(CHUNK).map(|(r, p)| *p * *r).collect()
+            })
             .collect()
     }
 }
@@ -505,8 +507,11 @@ pub fn integrate_implicit_together(
             2.0 * (c.stiffness * reduced).sqrt()
         })
         .collect();
-    let mut extra: Vec<Vec<Mat3>> =
-        if couplings.is_empty() { vec![Vec::new(); bodies.len()] } else { bodies.iter().map(|b| vec![Mat3::ZERO; b.len()]).collect() };
+    let mut extra: Vec<Vec<Mat3>> = if couplings.is_empty() {
+        vec![Vec::new(); bodies.len()]
+    } else {
+        bodies.iter().map(|b| vec![Mat3::ZERO; b.len()]).collect()
+    };
     for (c, d) in couplings.iter().zip(&damping) {
         let nn = (h * h * c.stiffness + h * d) * outer(c.normal);
         extra[c.body as usize][c.vertex as usize] += nn;
@@ -526,7 +531,9 @@ pub fn integrate_implicit_together(
                 .map(|i| match body.mode[i] {
                     Mode::Free => Vec3::ZERO,
                     Mode::Pinned => -body.vel[i],
-                    Mode::Driven => (driven_target(s.inputs, body.rest_pos[i]) - body.pos[i]) / h - body.vel[i],
+                    Mode::Driven => {
+                        (driven_target(s.inputs, body.rest_pos[i]) - body.pos[i]) / h - body.vel[i]
+                    }
                 })
                 .collect()
         })
@@ -584,7 +591,9 @@ pub fn integrate_implicit_together(
         (0..joint.bodies.len())
             .map(|k| {
                 let (body, free) = (&joint.bodies[k], &joint.free[k]);
-                (0..body.len()).map(|i| body.vel[i] + if free[i] { dv[k][i] } else { prescribed[k][i] }).collect()
+                (0..body.len())
+                    .map(|i| body.vel[i] + if free[i] { dv[k][i] } else { prescribed[k][i] })
+                    .collect()
             })
             .collect()
     };
@@ -663,7 +672,8 @@ pub fn integrate_implicit_together(
     // thread.
     for (c, _) in couplings.iter().zip(&active).filter(|(c, a)| c.touching() && **a) {
         let (b, q, v) = (c.body as usize, c.partner as usize, c.vertex as usize);
-        let inverse = |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
+        let inverse =
+            |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
         let w_v = inverse(b, v);
         let w_t = c.triangle.map(|t| inverse(q, t as usize));
         let mut away = c.normal.dot(bodies[b].vel[v]);
@@ -686,7 +696,11 @@ pub fn integrate_implicit_together(
 
 /// Solves `A·x = b` on the free vertices of every body by preconditioned conjugate gradient;
 /// returns `x`, the iterations and the relative residual reached.
-fn conjugate_gradient(joint: &Joint, b: &[Vec<Vec3>], settings: &ImplicitSettings) -> (Vec<Vec<Vec3>>, u32, f32) {
+fn conjugate_gradient(
+    joint: &Joint,
+    b: &[Vec<Vec3>],
+    settings: &ImplicitSettings,
+) -> (Vec<Vec<Vec3>>, u32, f32) {
     let mut x: Vec<Vec<Vec3>> = b.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect();
     let norm_b = dot_all(b, b).sqrt();
     if norm_b == 0.0 {

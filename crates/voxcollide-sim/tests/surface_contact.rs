@@ -215,7 +215,8 @@ fn a_vertex_outside_a_folded_shell_is_not_taken_for_inside() {
 /// period over 2π (the bodies' springs as stiff as the contact).
 fn moving_ball_on_block() -> World {
     let block = box_lattice(UVec3::new(5, 5, 3), 6.0, Vec3::ZERO, 1e4, material(), |_| Mode::Free).unwrap();
-    let mut ball = ellipsoid_shell(Vec3::new(12.0, 12.0, 15.9), Vec3::splat(4.0), 4, 8, 2.0, 1e4, material()).unwrap();
+    let mut ball =
+        ellipsoid_shell(Vec3::new(12.0, 12.0, 15.9), Vec3::splat(4.0), 4, 8, 2.0, 1e4, material()).unwrap();
     ball.vel.iter_mut().for_each(|v| *v = Vec3::new(0.0, 0.0, -1.0));
     let grid = Initializer::new(4.0).margin(2).build(&ball.pos).unwrap();
     let params = ContactParams {
