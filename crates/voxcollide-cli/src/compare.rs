@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use base64::Engine;
 use glam::Vec3;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use voxcollide::{ContactReport, Error};
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
@@ -48,7 +48,8 @@ pub struct CompareConfig {
 }
 
 /// One candidate's result, as in `compare.json` (DESIGN §9's keys first).
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct CandidateResult {
     /// The candidate's name.
     pub name: String,
@@ -115,7 +116,8 @@ pub struct CandidateResult {
 }
 
 /// A candidate's metrics at one frame of its run.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Sample {
     /// Simulated time, in seconds.
     pub time: f64,
@@ -131,7 +133,8 @@ pub struct Sample {
 }
 
 /// What `compare` measured, as written to `compare.json`.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Comparison {
     /// The scene file.
     pub scene: String,

@@ -124,6 +124,10 @@ struct MatrixArgs {
     /// Where to run.
     #[arg(long, value_enum, default_value = "cpu")]
     backend: BackendArg,
+    /// Reuse the groups an earlier run with the same settings finished in `--out` (judged
+    /// again), and run only the rest: the whole matrix can be run in pieces.
+    #[arg(long)]
+    resume: bool,
 }
 
 /// `--integrator`.
@@ -446,7 +450,7 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
 }
 
 fn matrix(args: &MatrixArgs) -> ExitCode {
-    use voxcollide_cli::matrix::{Axes, group_dir, groups, run_group, table};
+    use voxcollide_cli::matrix::{Axes, group_dir, groups, resumed, run_group, table};
     use voxcollide_sim::scene_file::IntegratorSpec;
     let axes = Axes {
         gaps: args.gaps.clone(),
@@ -467,14 +471,22 @@ fn matrix(args: &MatrixArgs) -> ExitCode {
             g.spacing,
             g.tissue
         );
+        let integrator = match args.integrator {
+            IntegratorArg::Explicit => IntegratorSpec::Explicit,
+            IntegratorArg::Implicit => IntegratorSpec::Implicit,
+        };
+        if args.resume
+            && let Some(c) = resumed(g, &axes.volumes, args.max_steps, integrator, &group_dir(&args.out, g))
+        {
+            eprintln!("  finished by an earlier run: its results judged again");
+            cells.extend(c);
+            continue;
+        }
         match run_group(
             g,
             &axes.volumes,
             args.max_steps,
-            match args.integrator {
-                IntegratorArg::Explicit => IntegratorSpec::Explicit,
-                IntegratorArg::Implicit => IntegratorSpec::Implicit,
-            },
+            integrator,
             &group_dir(&args.out, g),
             backend_of(args.backend),
             &mut |_| {},

@@ -193,6 +193,30 @@ pub fn run_group(
     Ok(cells)
 }
 
+/// The cells of a group that an earlier `matrix` already ran in `out`, judged again: `None`
+/// unless `out` holds the very scene and catalogue this group would be written as (the same
+/// axes, step cap and integrator) and that run's `compare.json` with a result for every volume.
+/// A matrix of hours can so be run in pieces (`voxcollide matrix --resume`): an interrupted
+/// group, or one whose scene differs, runs again.
+#[must_use]
+pub fn resumed(
+    group: &Group,
+    volumes: &[f64],
+    max_steps: u64,
+    integrator: IntegratorSpec,
+    out: &Path,
+) -> Option<Vec<Cell>> {
+    let same = |name: &str, text: String| std::fs::read_to_string(out.join(name)).is_ok_and(|t| t == text);
+    if !same("scene.toml", scene_text(group, max_steps, integrator))
+        || !same("candidates.toml", catalogue_text(volumes))
+    {
+        return None;
+    }
+    let json = std::fs::read_to_string(out.join("run").join("compare.json")).ok()?;
+    let comparison: crate::compare::Comparison = serde_json::from_str(&json).ok()?;
+    (comparison.candidates.len() == volumes.len()).then(|| judge(group, volumes, comparison.candidates))
+}
+
 /// The cells of a group's results: each passes when its contacts held and its volume is within
 /// 2 % of its own, and the group's lifts rise with the volume.
 #[must_use]
@@ -293,4 +317,47 @@ pub fn groups(axes: &Axes) -> Vec<Group> {
 #[must_use]
 pub fn group_dir(out: &Path, g: &Group) -> PathBuf {
     out.join(format!("gap{}_shell{}_h{}_e{}", g.gap, g.shell, g.spacing, g.tissue))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::compare::Comparison;
+
+    fn result(volume: f64, lift: f32) -> CandidateResult {
+        CandidateResult { volume_ml: volume, apex_lift: lift, held: true, ..CandidateResult::default() }
+    }
+
+    #[test]
+    fn a_finished_group_is_judged_again_and_a_different_or_unfinished_one_runs() {
+        let dir = std::env::temp_dir().join(format!("voxcollide-matrix-resume-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let g = Group { gap: 10.0, shell: 500.0, spacing: 6.0, tissue: 3.0 };
+        let volumes = [200.0, 400.0];
+        let implicit = IntegratorSpec::Implicit;
+        assert!(resumed(&g, &volumes, 3000, implicit, &dir).is_none(), "nothing ran yet");
+        std::fs::create_dir_all(dir.join("run")).unwrap();
+        std::fs::write(dir.join("scene.toml"), scene_text(&g, 3000, implicit)).unwrap();
+        std::fs::write(dir.join("candidates.toml"), catalogue_text(&volumes)).unwrap();
+        assert!(resumed(&g, &volumes, 3000, implicit, &dir).is_none(), "interrupted: no compare.json");
+        // The second lifts less than the first: judged again, it fails.
+        let comparison = Comparison {
+            candidates: vec![result(200.0, 12.0), result(399.0, 11.0)],
+            ..Comparison::default()
+        };
+        std::fs::write(dir.join("run/compare.json"), serde_json::to_string(&comparison).unwrap()).unwrap();
+        let cells = resumed(&g, &volumes, 3000, implicit, &dir).expect("finished");
+        assert_eq!(cells.len(), 2);
+        assert!(cells[0].failure.is_none(), "{:?}", cells[0].failure);
+        assert!(
+            cells[1].failure.as_deref().is_some_and(|f| f.contains("not above")),
+            "{:?}",
+            cells[1].failure
+        );
+        // Another step cap or integrator is another scene: it runs again.
+        assert!(resumed(&g, &volumes, 6000, implicit, &dir).is_none());
+        assert!(resumed(&g, &volumes, 3000, IntegratorSpec::Explicit, &dir).is_none());
+        assert!(resumed(&g, &[200.0, 800.0], 3000, implicit, &dir).is_none());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
