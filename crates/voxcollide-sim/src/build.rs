@@ -253,13 +253,6 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
             "layers of another modulus are springs' for now: a \"neo-hookean\" body has one material",
         ));
     }
-    if neo_hookean && file.time.integrator == IntegratorSpec::Implicit {
-        return Err(file.body_error(
-            index,
-            "material.model",
-            "\"neo-hookean\" runs under the explicit integrator for now: [time] integrator = \"implicit\" has no element Hessian yet",
-        ));
-    }
     // A mesh's own tetrahedra, for the elements.
     let mut mesh_tets: Option<Vec<[u32; 4]>> = None;
     let (mut body, kspring) = match spec.kind {

@@ -16,7 +16,9 @@
 //! lets a fill be as incompressible as a liquid), and each contact's penalty stiffness along
 //! its force: for a surface contact's push, `−k_c·JᵀJ` with `J = nᵀ[1, −w₀, −w₁, −w₂]` over the
 //! pushed vertex and the three corners of the partner's triangle it is pushed from (a
-//! [`Coupling`]); for the voxel model's, `−k_c·nnᵀ` on the pushed vertex alone. `D` holds the
+//! [`Coupling`]); for the voxel model's, `−k_c·nnᵀ` on the pushed vertex alone; and for a body
+//! of finite elements each tetrahedron's stiffness, projected to be positive semi-definite
+//! ([`crate::fem::Tangent`]), its products gathered per vertex. `D` holds the
 //! vertex damping, each spring's damping along it and each push's critical damping of the
 //! relative speed along it.
 //!
@@ -40,6 +42,7 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
+use crate::fem::{Tangent, corner_of};
 use voxcollide::math::cross;
 
 /// Vertices per parallel task; also the chunk of every dot product's fixed-order sum.
@@ -135,6 +138,9 @@ struct System {
     fill_k: f32,
     /// Per vertex: whether it is free (the others' `Δv` is prescribed).
     free: Vec<bool>,
+    /// Per tetrahedron of a body of finite elements: its material's projected stiffness
+    /// (empty for springs).
+    tangents: Vec<Tangent>,
     /// Per vertex: the block-Jacobi preconditioner's inverse block.
     precondition: Vec<Mat3>,
     h: f32,
@@ -146,6 +152,15 @@ impl System {
         let fill = if self.fill_k > 0.0 { self.fill_k * dot(&self.fill_g, u) as f32 } else { 0.0 };
         let h2 = if stiff_only { 1.0 } else { self.h * self.h };
         debug_assert!(self.h > 0.0);
+        // The elements' `−K·u`, per tetrahedron, gathered per vertex below.
+        let elements: Vec<Mat3> = match &body.elements {
+            Some(e) if !self.tangents.is_empty() => (0..e.tets.len())
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map(|k| e.stiffness_product(&self.tangents[k], k, e.tets[k].map(|v| u[v as usize])))
+                .collect(),
+            _ => Vec::new(),
+        };
         out.clear();
         out.par_extend((0..body.len()).into_par_iter().with_min_len(CHUNK).map(|i| {
             if !stiff_only && !self.free[i] {
@@ -158,6 +173,13 @@ impl System {
                 r += blocks[s as usize] * (ui - u[j as usize]);
             }
             r += if stiff_only { self.contact[i] * ui } else { self.contact_block[i] * ui };
+            if let Some(e) = body.elements.as_ref().filter(|_| !elements.is_empty()) {
+                let mut sum = Vec3::ZERO;
+                for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
+                    sum += corner_of(&elements[k as usize], c as usize);
+                }
+                r += h2 * sum;
+            }
             if self.fill_k > 0.0 {
                 r += (h2 * fill) * self.fill_g[i];
             }
@@ -262,6 +284,15 @@ impl MassSpring {
             .collect();
         let contact_block: Vec<Mat3> =
             contact_k.iter().zip(&contact_damping).map(|(kc, c)| h * h * *kc + h * *c).collect();
+        // The elements' stiffness at the start of the step, and its diagonal blocks.
+        let tangents = self.elements.as_ref().map_or_else(Vec::new, |e| e.tangents(&self.pos));
+        let element_blocks: Vec<[Mat3; 4]> = self.elements.as_ref().map_or_else(Vec::new, |e| {
+            (0..e.tets.len())
+                .into_par_iter()
+                .with_min_len(CHUNK)
+                .map(|k| e.diagonal_blocks(&tangents[k], k))
+                .collect()
+        });
         let precondition: Vec<Mat3> = (0..n)
             .into_par_iter()
             .with_min_len(CHUNK)
@@ -275,6 +306,11 @@ impl MassSpring {
                 }
                 if fill_k > 0.0 {
                     b += (h * h * fill_k) * outer(fill_g[i]);
+                }
+                if let Some(e) = self.elements.as_ref() {
+                    for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
+                        b += (h * h) * element_blocks[k as usize][c as usize];
+                    }
                 }
                 let inv = b.inverse();
                 if inv.is_finite() { inv } else { Mat3::from_diagonal(Vec3::splat(1.0 / diagonal[i])) }
@@ -290,6 +326,7 @@ impl MassSpring {
             fill_g,
             fill_k,
             free,
+            tangents,
             precondition,
             h,
         }
@@ -322,6 +359,13 @@ impl MassSpring {
                     );
                     f += t;
                     g += t.length();
+                }
+                if let Some(e) = &self.elements {
+                    for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
+                        let t = e.corner_force(&self.pos, k as usize, c as usize);
+                        f += t;
+                        g += t.length();
+                    }
                 }
                 if pressure != 0.0 {
                     for &t in
