@@ -19,6 +19,7 @@ pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
 pub mod scene_file; // scene files (DESIGN §8): TOML read and checked, errors with file, line, key
+pub mod validation; // the elements against closed forms: a cantilever, a large stretch
 pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model
 
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
