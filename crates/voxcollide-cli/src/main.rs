@@ -482,15 +482,20 @@ fn matrix(args: &MatrixArgs) -> ExitCode {
             cells.extend(c);
             continue;
         }
-        match run_group(
+        let bars = CandidateBars::new();
+        let (mut running, mut finished) = (std::collections::HashMap::new(), 0u64);
+        let result = run_group(
             g,
             &axes.volumes,
             args.max_steps,
             integrator,
             &group_dir(&args.out, g),
             backend_of(args.backend),
+            &mut |p| bars.show(&mut running, &mut finished, p),
             &mut |_| {},
-        ) {
+        );
+        bars.finish(&running);
+        match result {
             Ok(c) => cells.extend(c),
             Err(e) => {
                 eprintln!("error: {e}");
@@ -572,6 +577,75 @@ fn view(args: &ViewArgs) -> ExitCode {
     }
 }
 
+/// A comparison's progress on a terminal: a bar for the whole and one per running candidate
+/// (several at once with `--jobs`); hidden, its notes go to standard error line by line.
+struct CandidateBars {
+    multi: indicatif::MultiProgress,
+    whole: ProgressBar,
+}
+
+impl CandidateBars {
+    fn style(template: &str) -> ProgressStyle {
+        ProgressStyle::with_template(template)
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> ")
+    }
+
+    fn new() -> CandidateBars {
+        let multi = indicatif::MultiProgress::new();
+        let whole = multi.add(ProgressBar::new(0));
+        whole.set_style(Self::style("{prefix:>12} [{bar:30}] {pos}/{len} candidates  {elapsed}"));
+        whole.set_prefix("all");
+        CandidateBars { multi, whole }
+    }
+
+    /// Shows `p`: `running` holds the bars of the candidates running, `finished` counts those
+    /// done.
+    fn show(
+        &self,
+        running: &mut std::collections::HashMap<usize, ProgressBar>,
+        finished: &mut u64,
+        p: voxcollide_cli::compare::Progress<'_>,
+    ) {
+        self.whole.set_length(p.count as u64);
+        let bar = running.entry(p.index).or_insert_with(|| {
+            let bar = self.multi.add(ProgressBar::new(1));
+            bar.set_style(Self::style("{prefix:>12} [{bar:30}] {pos}/{len} steps  {per_sec}  {msg}"));
+            bar.set_prefix(format!("{}/{}", p.index + 1, p.count));
+            bar.set_message(p.name.to_string());
+            bar
+        });
+        bar.set_length(p.planned.max(p.done));
+        bar.set_position(p.done);
+        if p.finished {
+            if let Some(bar) = running.remove(&p.index) {
+                bar.finish_and_clear();
+                self.multi.remove(&bar);
+            }
+            *finished += 1;
+            self.whole.set_position(*finished);
+            if self.whole.is_hidden() {
+                eprintln!("  {}/{} {}: {} steps", p.index + 1, p.count, p.name, p.done);
+            }
+        }
+    }
+
+    fn println(&self, line: &str) {
+        if self.whole.is_hidden() {
+            eprintln!("{line}");
+        } else {
+            self.multi.println(line).ok();
+        }
+    }
+
+    fn finish(&self, running: &std::collections::HashMap<usize, ProgressBar>) {
+        self.whole.finish_and_clear();
+        for bar in running.values() {
+            bar.finish_and_clear();
+        }
+    }
+}
+
 fn compare(args: &CompareArgs) -> ExitCode {
     let config = voxcollide_cli::compare::CompareConfig {
         scene: args.scene.clone(),
@@ -582,52 +656,15 @@ fn compare(args: &CompareArgs) -> ExitCode {
         image: args.image,
         jobs: args.jobs,
     };
-    let bars = indicatif::MultiProgress::new();
-    let style = |template: &str| {
-        ProgressStyle::with_template(template)
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> ")
-    };
-    let whole = bars.add(ProgressBar::new(0));
-    whole.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} candidates  {elapsed}"));
-    whole.set_prefix("all");
-    // A bar per candidate while it runs (several at once with --jobs).
-    let mut running: std::collections::HashMap<usize, ProgressBar> = std::collections::HashMap::new();
+    let bars = CandidateBars::new();
+    let mut running = std::collections::HashMap::new();
     let mut finished = 0u64;
     let result = voxcollide_cli::compare::compare(
         &config,
-        &mut |p| {
-            whole.set_length(p.count as u64);
-            let bar = running.entry(p.index).or_insert_with(|| {
-                let bar = bars.add(ProgressBar::new(1));
-                bar.set_style(style("{prefix:>12} [{bar:30}] {pos}/{len} steps  {per_sec}  {msg}"));
-                bar.set_prefix(format!("{}/{}", p.index + 1, p.count));
-                bar.set_message(p.name.to_string());
-                bar
-            });
-            bar.set_length(p.planned.max(p.done));
-            bar.set_position(p.done);
-            if p.finished {
-                if let Some(bar) = running.remove(&p.index) {
-                    bar.finish_and_clear();
-                    bars.remove(&bar);
-                }
-                finished += 1;
-                whole.set_position(finished);
-            }
-        },
-        &mut |line| {
-            if whole.is_hidden() {
-                eprintln!("{line}");
-            } else {
-                bars.println(line).ok();
-            }
-        },
+        &mut |p| bars.show(&mut running, &mut finished, p),
+        &mut |line| bars.println(line),
     );
-    whole.finish_and_clear();
-    for bar in running.values() {
-        bar.finish_and_clear();
-    }
+    bars.finish(&running);
     match result {
         Ok(c) => {
             let w = c.candidates.iter().map(|r| r.name.chars().count()).max().unwrap_or(0).max(9);

@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::compare::{CandidateResult, CompareConfig, compare};
+use crate::compare::{CandidateResult, CompareConfig, Progress, compare};
 use crate::scenario::Backend;
 use voxcollide::Error;
 use voxcollide_sim::scene_file::IntegratorSpec;
@@ -149,7 +149,7 @@ pub fn catalogue_text(volumes: &[f64]) -> String {
 }
 
 /// Runs `group` over `volumes` in `out` (its own folder), on `backend`: each volume's cell,
-/// judged. A group that cannot be built is refused, every cell naming why.
+/// judged, with `compare`'s `progress` and `note`. A group that cannot be built is refused, every cell naming why.
 ///
 /// # Errors
 /// File errors writing the scene; a failed run is a failed cell, not an error.
@@ -160,6 +160,7 @@ pub fn run_group(
     integrator: IntegratorSpec,
     out: &Path,
     backend: Backend,
+    progress: &mut dyn FnMut(Progress<'_>),
     note: &mut dyn FnMut(&str),
 ) -> Result<Vec<Cell>, Error> {
     let io =
@@ -178,7 +179,7 @@ pub fn run_group(
         image: (320, 200),
         jobs: 0,
     };
-    let cells = match compare(&config, &mut |_| {}, note) {
+    let cells = match compare(&config, progress, note) {
         Err(e) => volumes
             .iter()
             .map(|&volume| Cell {
@@ -197,7 +198,8 @@ pub fn run_group(
 /// unless `out` holds the very scene and catalogue this group would be written as (the same
 /// axes, step cap and integrator) and that run's `compare.json` with a result for every volume.
 /// A matrix of hours can so be run in pieces (`voxcollide matrix --resume`): an interrupted
-/// group, or one whose scene differs, runs again.
+/// group, or one whose scene differs, runs again. Whether the program changed in between is
+/// not known here: after a change, run without resuming.
 #[must_use]
 pub fn resumed(
     group: &Group,

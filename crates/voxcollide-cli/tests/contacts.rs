@@ -173,6 +173,7 @@ fn a_sample_of_the_contact_matrix_passes() {
                 &d.join(format!("gap{}_tissue{}", g.gap, g.tissue)),
                 Backend::Cpu,
                 &mut |_| {},
+                &mut |_| {},
             )
             .unwrap(),
         );
@@ -191,8 +192,17 @@ fn the_matrixs_stiffest_corner_holds_under_the_implicit_integrator() {
     // stalled at 93 % and 36 %; solved together (docs/integrator.md), they hold.
     let d = dir("matrix-implicit");
     let g = Group { gap: 10.0, shell: 3000.0, spacing: 4.0, tissue: 1.0 };
-    let cells = run_group(&g, &[200.0, 800.0], 3000, IntegratorSpec::Implicit, &d, Backend::Cpu, &mut |_| {})
-        .unwrap();
+    let cells = run_group(
+        &g,
+        &[200.0, 800.0],
+        3000,
+        IntegratorSpec::Implicit,
+        &d,
+        Backend::Cpu,
+        &mut |_| {},
+        &mut |_| {},
+    )
+    .unwrap();
     let t = table(&cells);
     eprintln!("{t}");
     for c in &cells {
