@@ -153,6 +153,7 @@ pub fn catalogue_text(volumes: &[f64]) -> String {
 ///
 /// # Errors
 /// File errors writing the scene; a failed run is a failed cell, not an error.
+#[allow(clippy::too_many_arguments)] // compare's settings and its two callbacks, each its own
 pub fn run_group(
     group: &Group,
     volumes: &[f64],

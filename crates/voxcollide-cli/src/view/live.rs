@@ -19,7 +19,8 @@ use winit::keyboard::{Key, ModifiersState, NamedKey};
 use winit::window::{Window, WindowId};
 
 use super::blit::Blit;
-use super::controls::{Action, Colouring, HELP, Orbit, Pacing};
+use super::controls::{Action, Colouring, HELP, Orbit};
+use super::stepper::{Snapshot, Stepper};
 use super::{ViewConfig, ViewReport};
 use crate::render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
@@ -27,11 +28,9 @@ use crate::render::{
 use crate::scenario::Backend;
 use crate::scene_run::{Run, contact_forces, meshes, shown_and_moved};
 
-/// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. A
-/// frame's stepping gets what drawing leaves of it, within the bounds below.
+/// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. The
+/// simulation steps on its own thread meanwhile (`super::stepper`).
 const FRAME_TARGET: f64 = 1.0 / 40.0;
-/// The least and the most a frame may spend stepping, seconds.
-const STEP_BUDGET: (f64, f64) = (0.002, 0.030);
 /// The farthest a dragged body moves in one step, as a share of the scene's size: far below
 /// the speed a blow-up is taken at (a tenth of the scene a step).
 const DRAG_PER_STEP: f32 = 0.002;
@@ -219,8 +218,10 @@ struct Live {
     units: String,
     /// The world at its first step (with draggable drives), for a reset.
     first: World,
-    /// Taken out while a frame uses it, and put back.
-    sim: Option<Run>,
+    /// The simulation, stepping on its own thread.
+    stepper: Stepper,
+    /// The state last drawn (what a press picks from, and what is drawn again while stopped).
+    shown: Option<Snapshot>,
     backend: &'static str,
     soft: Vec<bool>,
     /// Bodies with driven vertices: what a drag can move.
@@ -237,7 +238,6 @@ struct Live {
     step_once: bool,
     colouring: Colouring,
     force_scale: f32,
-    pacing: Pacing,
     steps_per_frame: Option<u64>,
     pointer: (f32, f32),
     left: bool,
@@ -254,7 +254,12 @@ struct Live {
     fps: f64,
     sps: f64,
     stepped_since: (Instant, u64),
+    /// Simulated seconds per wall second lately, and where that was last measured from.
+    realtime: f64,
+    timed_since: (Instant, f64),
     steps: u64,
+    /// Simulated seconds since the start or the last reset.
+    time: f64,
     /// A blow-up's message, shown until a reset.
     broken: Option<Error>,
     /// Something else the heads-up line should say (a size it cannot draw).
@@ -276,7 +281,6 @@ struct Live {
     /// Seconds a frame's measuring and drawing took lately (a running mean).
     draw_time: f64,
     screenshot: Option<std::path::PathBuf>,
-    dt: f64,
 }
 
 impl Live {
@@ -371,7 +375,11 @@ impl Live {
             per_step: DRAG_PER_STEP * scene_size,
         }));
         let first = draggable(built.world.clone(), &drags);
-        let sim = Some(Run::new(on_gpu.then_some(&ctx), first.clone())?);
+        let stepper = Stepper::start(
+            Run::new(on_gpu.then_some(&ctx), first.clone())?,
+            f64::from(built.dt),
+            config.steps_per_frame.is_some(),
+        )?;
         let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
         let eye = framing_eye(&points, FIRST_VIEW, Vec3::Z, width as f32 / height as f32)
             .unwrap_or(centre - FIRST_VIEW.normalize() * 3.0 * scene_size);
@@ -391,7 +399,8 @@ impl Live {
             soft: file.bodies.iter().map(|b| b.kind == BodyKind::Soft).collect(),
             movable: world.bodies.iter().map(|b| b.mode.contains(&Mode::Driven)).collect(),
             first,
-            sim,
+            stepper,
+            shown: None,
             backend,
             drags,
             dragged: 0.0,
@@ -403,7 +412,6 @@ impl Live {
             step_once: false,
             colouring: config.colouring,
             force_scale: 0.0,
-            pacing: Pacing::new(f64::from(built.dt), STEP_BUDGET.0),
             draw_time: 0.0,
             steps_per_frame: config.steps_per_frame,
             pointer: (0.0, 0.0),
@@ -421,7 +429,10 @@ impl Live {
             fps: 0.0,
             sps: 0.0,
             stepped_since: (now, 0),
+            realtime: 0.0,
+            timed_since: (now, 0.0),
             steps: 0,
+            time: 0.0,
             broken: None,
             notice: None,
             last_picture: Vec::new(),
@@ -434,7 +445,6 @@ impl Live {
             displacement_centre: vec![[0.0; 3]; world.bodies.len()],
             picture: Vec::new(),
             screenshot: config.screenshot.clone(),
-            dt: f64::from(built.dt),
             ctx,
         })
     }
@@ -470,9 +480,13 @@ impl Live {
 
     fn act(&mut self, action: Action) {
         match action {
-            Action::TogglePause => self.paused = !self.paused,
+            Action::TogglePause => {
+                self.paused = !self.paused;
+                self.stepper.set_paused(self.paused);
+            }
             Action::Step => {
                 self.paused = true;
+                self.stepper.set_paused(true);
                 self.step_once = true;
             }
             Action::Reset => {
@@ -483,10 +497,11 @@ impl Live {
                 let on_gpu = self.backend == "gpu";
                 match Run::new(on_gpu.then_some(&self.ctx), self.first.clone()) {
                     Ok(sim) => {
-                        self.sim = Some(sim);
+                        self.stepper.reset(sim);
                         self.steps = 0;
+                        self.time = 0.0;
+                        self.timed_since = (Instant::now(), 0.0);
                         self.broken = None;
-                        self.pacing.owed = 0.0;
                         self.force_scale = 0.0;
                     }
                     Err(e) => self.broken = Some(e),
@@ -532,7 +547,7 @@ impl Live {
     fn pick(&mut self) -> Option<Grab> {
         let (w, h) = (self.surface_config.width, self.surface_config.height);
         let (x, y) = self.pointer;
-        let world = self.sim.as_mut()?.frame().ok()?.0;
+        let world = &self.shown.as_ref()?.world;
         let mut best: Option<(f32, usize, f32)> = None;
         for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
             for (p, m) in b.pos.iter().zip(&b.mode) {
@@ -566,15 +581,10 @@ impl Live {
                 }
             }
         }
-        let Some(mut sim) = self.sim.take() else { return Ok(false) };
-        let done = self.frame_with(&mut sim);
-        if self.sim.is_none() {
-            self.sim = Some(sim); // (a reset during the frame put a new one)
-        }
-        done
+        self.frame_with()
     }
 
-    fn frame_with(&mut self, sim: &mut Run) -> Result<bool, Error> {
+    fn frame_with(&mut self) -> Result<bool, Error> {
         let now = Instant::now();
         self.started.get_or_insert(now);
         let elapsed = self.last_frame.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
@@ -583,42 +593,38 @@ impl Live {
             self.fps = if self.fps > 0.0 { 0.9 * self.fps + 0.1 / elapsed } else { 1.0 / elapsed };
         }
 
-        // Steps: real time within the budget, or the fixed count.
-        let (n, behind) = match (self.broken.is_some(), self.paused, self.steps_per_frame) {
-            (true, _, _) => (0, false),
-            (false, true, _) => (u64::from(std::mem::take(&mut self.step_once)), false),
-            (false, false, Some(n)) => (n, false),
-            (false, false, None) => self.pacing.steps(elapsed),
-        };
-        self.behind = behind;
-        self.behind_frames += u64::from(behind);
-        let t = Instant::now();
-        let mut stepped = 0;
-        for _ in 0..n {
-            if let Err(e) = sim.step() {
-                self.broken = Some(e);
-                break;
-            }
-            stepped += 1;
-        }
-        self.steps += stepped;
-        self.steps_total += stepped;
-        // A stopped run is not read again: on the GPU the read-back is where a blow-up shows.
-        let shown = match self.broken.is_some() {
-            true => None,
-            false => match sim.frame() {
-                Ok(now) => Some(now),
-                Err(e) => {
-                    self.broken = Some(e);
-                    None
+        // Steps: the thread's, in real time; or the fixed count, waited for; or one while
+        // paused.
+        if self.broken.is_none() {
+            match (self.paused, self.steps_per_frame) {
+                (true, _) => {
+                    if std::mem::take(&mut self.step_once) {
+                        self.stepper.step_once();
+                    }
                 }
-            },
-        };
-        self.pacing.took(stepped, t.elapsed().as_secs_f64());
+                (false, Some(n)) => self.stepper.step_and_wait(n),
+                (false, None) => {}
+            }
+        }
+        let (steps_total, behind, broken) = self.stepper.status();
+        if broken.is_some() {
+            self.broken = broken;
+        }
+        self.behind = behind && !self.paused;
+        self.behind_frames += u64::from(self.behind);
+        self.steps_total = steps_total;
+        if let Some(latest) = self.stepper.take_latest() {
+            self.steps = latest.steps;
+            self.time = latest.time;
+            self.shown = Some(latest);
+        }
+        let shown = if self.broken.is_some() { None } else { self.shown.take() };
         let since = now.duration_since(self.stepped_since.0).as_secs_f64();
         if since >= 0.5 {
             self.sps = (self.steps_total.saturating_sub(self.stepped_since.1)) as f64 / since;
             self.stepped_since = (now, self.steps_total);
+            self.realtime = (self.time - self.timed_since.1).max(0.0) / since;
+            self.timed_since = (now, self.time);
         }
         // A run of --frames ends with the error; an interactive one shows it until a reset.
         if let (Some(e), Some(_)) = (&self.broken, self.frames_wanted) {
@@ -626,13 +632,14 @@ impl Live {
         }
         let drawing = Instant::now();
         match shown {
-            Some((world, reports)) => {
-                self.measure(world, &reports);
+            Some(snapshot) => {
+                self.measure(&snapshot.world, &snapshot.reports);
                 if self.frames == 0 {
-                    self.locate_instruments(world);
+                    self.locate_instruments(&snapshot.world);
                 }
-                let picture = self.picture_of(world, &reports)?;
-                self.show(picture)?;
+                let picture = self.picture_of(&snapshot.world, &snapshot.reports);
+                self.shown = Some(snapshot);
+                self.show(picture?)?;
             }
             // Stopped: the last frame again, with the message.
             None => {
@@ -646,7 +653,6 @@ impl Live {
         }
         let took = drawing.elapsed().as_secs_f64();
         self.draw_time = if self.draw_time > 0.0 { 0.8 * self.draw_time + 0.2 * took } else { took };
-        self.pacing.budget = (FRAME_TARGET - self.draw_time).clamp(STEP_BUDGET.0, STEP_BUDGET.1);
         self.frames += 1;
         self.ended = Some(Instant::now());
         let done = self.frames_wanted.is_some_and(|n| self.frames >= n);
@@ -770,10 +776,9 @@ impl Live {
     /// The heads-up lines.
     fn hud(&self) -> Vec<String> {
         let u = &self.units;
-        let time = self.steps as f64 * self.dt;
         let mut first = format!(
-            "{:.0} steps/s  {:.1} frames/s  contacts {}  max penetration {:.3} {u}  t = {:.3} s",
-            self.sps, self.fps, self.contacts, self.penetration, time
+            "{:.0} steps/s  {:.2}x real time  {:.1} frames/s  contacts {}  max penetration {:.3} {u}  t = {:.3} s",
+            self.sps, self.realtime, self.fps, self.contacts, self.penetration, self.time
         );
         if self.paused {
             first += "  [paused]";
@@ -782,8 +787,7 @@ impl Live {
         if let Some(message) = &self.broken {
             lines.push(format!("stopped: {message} (r resets)"));
         } else if self.behind {
-            let realtime = self.sps * self.dt;
-            lines.push(format!("behind real time: {realtime:.2}x"));
+            lines.push(format!("behind real time: {:.2}x", self.realtime));
         }
         if self.grab.is_some() {
             lines.push(format!("dragging {:.3} {u}", self.dragged));
@@ -816,7 +820,7 @@ impl Live {
             frames_per_second: if seconds > 0.0 { self.frames as f64 / seconds } else { 0.0 },
             steps: self.steps_total,
             steps_per_second: if seconds > 0.0 { self.steps_total as f64 / seconds } else { 0.0 },
-            simulated_time: self.steps as f64 * self.dt,
+            simulated_time: self.time,
             behind_frames: self.behind_frames,
             max_displacement: self
                 .first

@@ -3,8 +3,9 @@
 //! step and reset, a colouring to cycle with its legend, a heads-up line, and instruments to
 //! drag with the mouse while the tissue responds (the paper's virtual operation).
 //!
-//! The simulation steps as many times a frame as real time allows within a budget, and the
-//! heads-up line says when it falls behind. `--frames N --screenshot PATH` draws N frames,
+//! The simulation steps on its own thread in real time while the window draws the latest
+//! state it published (`stepper`); the heads-up line shows the real-time factor and says when
+//! it falls behind. `--frames N --screenshot PATH` draws N frames,
 //! writes the last as PNG and exits; `--drag` scripts a drag; `--steps-per-frame` makes a run
 //! repeatable (a fixed number of steps a frame instead of real time). Each frame is drawn by
 //! [`Renderer`](crate::render::Renderer) offscreen, its legend and heads-up line added on the
@@ -13,6 +14,7 @@
 mod blit;
 mod controls;
 mod live;
+mod stepper;
 
 use std::path::{Path, PathBuf};
 
@@ -81,7 +83,7 @@ pub struct ViewReport {
     pub steps_per_second: f64,
     /// Simulated seconds at the end.
     pub simulated_time: f64,
-    /// Frames that could not keep real time within their stepping budget.
+    /// Frames drawn while the stepping fell behind real time.
     pub behind_frames: u64,
     /// Per body at the end: its name and its largest vertex displacement (scene units).
     pub max_displacement: Vec<(String, f32)>,
