@@ -1,0 +1,94 @@
+//! The implicit integrator's step (issue 21, item 5): a block of about 20,000 vertices pressed
+//! at its top, as springs and as Neo-Hookean tetrahedra, on one thread and on every core. The
+//! step's trajectory is the same on any number of threads (tests/implicit.rs), so the two
+//! figures time the same work.
+//!
+//!     cargo bench -p voxcollide-sim --bench implicit
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use voxcollide::glam::{Mat3, UVec3, Vec3};
+use voxcollide_sim::bodies::box_lattice;
+use voxcollide_sim::fem::{Elements, lattice_tets};
+use voxcollide_sim::{CpuWorld, ImplicitSettings, Integrator, Material, Mode, StepInputs, World};
+
+/// A block 27 × 27 × 27 vertices (19,683), its base pinned and its top pressed down by 5 % over
+/// the first 20 steps; `elements`: Neo-Hookean at ν = 0.45, else the paper's springs.
+fn block(elements: bool) -> CpuWorld {
+    let n = 27;
+    let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.1, damping: 0.1 };
+    let mut body = box_lattice(UVec3::splat(n), 1.0, Vec3::ZERO, 0.4, material, |v| {
+        if v.z == 0 {
+            Mode::Pinned
+        } else if v.z == n - 1 {
+            Mode::Driven
+        } else {
+            Mode::Free
+        }
+    })
+    .unwrap();
+    if elements {
+        body.elements =
+            Some(Elements::new(&body.rest_pos, &lattice_tets(&body.rest_pos, 1.0), 1.0, 0.45).unwrap());
+        body.springs.iter_mut().for_each(|s| s.k = 0.0);
+    }
+    let dt = 10.0 * body.stable_dt(0.1);
+    let press = -0.05 * (n - 1) as f32;
+    let schedule = Arc::new(move |step: u64| {
+        vec![StepInputs {
+            dt,
+            rest_scale: 1.0,
+            drive: Vec3::new(0.0, 0.0, press * (step as f32 / 20.0).min(1.0)),
+            turn: Mat3::IDENTITY,
+            pressure: 0.0,
+            fill_volume: 0.0,
+            fill_bulk: 0.0,
+            fill_hold: 0.0,
+            floor: f32::MIN,
+        }]
+    });
+    let world = World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)
+        .unwrap()
+        .with_integrator(Integrator::Implicit(ImplicitSettings::default()));
+    let mut w = CpuWorld::new(world).unwrap();
+    // Into the press, where the solve has work every step.
+    for _ in 0..10 {
+        w.step().unwrap();
+    }
+    w
+}
+
+fn bench(c: &mut Criterion) {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let mut group = c.benchmark_group("implicit_step_20k");
+    group.sample_size(10).measurement_time(Duration::from_secs(15));
+    for (name, elements) in [("springs", false), ("neo_hookean", true)] {
+        for threads in [1, cores].into_iter().collect::<std::collections::BTreeSet<_>>() {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let mut w = pool.install(|| block(elements));
+            eprintln!("{name}, {threads} thread(s): {} CG iterations a step", w.stats[0].iterations);
+            // Each timed step starts from the same state, so that both thread counts time the
+            // same solve.
+            let (pos, vel) = (w.world.bodies[0].pos.clone(), w.world.bodies[0].vel.clone());
+            group.bench_function(format!("{name}_{threads}_threads"), |b| {
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    for _ in 0..iters {
+                        w.world.bodies[0].pos.clone_from(&pos);
+                        w.world.bodies[0].vel.clone_from(&vel);
+                        let start = std::time::Instant::now();
+                        pool.install(|| w.step().unwrap());
+                        total += start.elapsed();
+                    }
+                    total
+                });
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);
