@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use voxcollide::glam::{Mat3, UVec3, Vec3};
+use voxcollide::glam::{UVec3, Vec3};
 use voxcollide_sim::bodies::box_lattice;
 use voxcollide_sim::fem::{Elements, lattice_tets};
 use voxcollide_sim::{CpuWorld, ImplicitSettings, Integrator, Material, Mode, StepInputs, World};
@@ -38,15 +38,8 @@ fn block(elements: bool) -> CpuWorld {
     let press = -0.05 * (n - 1) as f32;
     let schedule = Arc::new(move |step: u64| {
         vec![StepInputs {
-            dt,
-            rest_scale: 1.0,
             drive: Vec3::new(0.0, 0.0, press * (step as f32 / 20.0).min(1.0)),
-            turn: Mat3::IDENTITY,
-            pressure: 0.0,
-            fill_volume: 0.0,
-            fill_bulk: 0.0,
-            fill_hold: 0.0,
-            floor: f32::MIN,
+            ..StepInputs::at_rest(dt)
         }]
     });
     let world = World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)

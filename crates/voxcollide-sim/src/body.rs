@@ -184,6 +184,25 @@ pub struct StepInputs {
     pub floor: f32,
 }
 
+impl StepInputs {
+    /// Steps of `dt` with nothing scheduled: no drive or turn, rest lengths as built, no
+    /// pressure or fill, and no floor.
+    #[must_use]
+    pub fn at_rest(dt: f32) -> StepInputs {
+        StepInputs {
+            dt,
+            rest_scale: 1.0,
+            drive: Vec3::ZERO,
+            turn: Mat3::IDENTITY,
+            pressure: 0.0,
+            fill_volume: 0.0,
+            fill_bulk: 0.0,
+            fill_hold: 0.0,
+            floor: f32::MIN,
+        }
+    }
+}
+
 impl MassSpring {
     /// A body at rest at `positions`.
     ///

@@ -496,19 +496,19 @@ struct Joint<'a> {
     /// triangle's point).
     damping: Vec<f32>,
     free: Vec<Vec<bool>>,
-    /// Per body and vertex: whether it rests on its body's floor, pushed into it: its vertical
+    /// Per body: the vertices resting on its floor, pushed into it: their vertical
     /// velocity is held at 0 within the solve (the solve's `Δv` is filtered, Baraff and Witkin
     /// 1998), not only projected after it.
-    on_floor: Vec<Vec<bool>>,
+    on_floor: Vec<Vec<u32>>,
     h: f32,
 }
 
 impl Joint<'_> {
     /// Zeroes the vertical rows of the vertices resting on the floor.
     fn filter(&self, u: &mut [Vec<Vec3>]) {
-        for (u, held) in u.iter_mut().zip(&self.on_floor).filter(|(_, h)| h.contains(&true)) {
-            for (u, _) in u.iter_mut().zip(held).filter(|(_, h)| **h) {
-                u.z = 0.0;
+        for (u, held) in u.iter_mut().zip(&self.on_floor) {
+            for &i in held {
+                u[i as usize].z = 0.0;
             }
         }
     }
@@ -583,22 +583,17 @@ pub fn integrate_implicit_together(
         }
     }
     // The vertices resting on their floor and pushed into it: still vertically, in the solve.
-    let on_floor: Vec<Vec<bool>> = bodies
-        .iter_mut()
-        .zip(steps)
-        .map(|(body, s)| {
-            (0..body.len())
-                .map(|i| {
-                    let held =
-                        body.mode[i] == Mode::Free && body.pos[i].z <= s.inputs.floor && s.forces[i].z < 0.0;
-                    if held {
-                        body.vel[i].z = 0.0;
-                    }
-                    held
-                })
-                .collect()
-        })
-        .collect();
+    let mut on_floor: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
+    for (body, s) in bodies.iter_mut().zip(steps) {
+        let held: Vec<u32> = (0..body.len())
+            .filter(|&i| body.mode[i] == Mode::Free && body.pos[i].z <= s.inputs.floor && s.forces[i].z < 0.0)
+            .map(|i| i as u32)
+            .collect();
+        for &i in &held {
+            body.vel[i as usize].z = 0.0;
+        }
+        on_floor.push(held);
+    }
     let systems: Vec<System> =
         bodies.iter().zip(steps).zip(&extra).map(|((b, s), e)| b.system(s.inputs, s.contact_k, e)).collect();
     let free: Vec<Vec<bool>> = systems.iter().map(|s| s.free.clone()).collect();

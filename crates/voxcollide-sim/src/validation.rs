@@ -66,17 +66,7 @@ fn solve_static(
     let schedule = Arc::new(move |step: u64| {
         let ramp = ((step + 1) as f32 / ramp_steps as f32).min(1.0);
         let (drive, turn) = drive(ramp);
-        vec![StepInputs {
-            dt,
-            rest_scale: 1.0,
-            drive,
-            turn,
-            pressure: 0.0,
-            fill_volume: 0.0,
-            fill_bulk: 0.0,
-            fill_hold: 0.0,
-            floor: f32::MIN,
-        }]
+        vec![StepInputs { drive, turn, ..StepInputs::at_rest(dt) }]
     });
     let world = World::new(vec!["body".into()], vec![body], Vec::new(), f32::MAX, schedule)?
         .with_integrator(Integrator::Implicit(SETTINGS));
