@@ -6,7 +6,8 @@
 //! CSV defaults to out/hertz.csv and SVG to docs/hertz.svg, under the workspace root. The
 //! plot is an SVG whose text the viewer draws, so no font file is needed. `--set` changes the set-up
 //! (thickness, width, spacing, radius, ball_spacing, damping, magnitude (N or auto), ramp,
-//! hold, window, depths (fractions of T, comma-separated), stiffening); `--history` writes
+//! hold, window, depths (fractions of T, comma-separated), stiffening, model (springs or
+//! neo-hookean), poisson, young_kpa); `--history` writes
 //! the force against time.
 
 #[path = "../tests/hertz.rs"]
@@ -15,7 +16,7 @@ mod hertz;
 use std::error::Error;
 use std::path::{Path, PathBuf};
 
-use hertz::{Curve, LATTICE_POISSON, Setup, bonded_layer, measure, summary, table};
+use hertz::{Curve, Setup, bonded_layer, measure, summary, table};
 use plotters::prelude::*;
 
 fn main() -> Result<(), Box<dyn Error>> {
@@ -66,6 +67,9 @@ fn set(setup: &mut Setup, kv: &str) -> Result<(), Box<dyn Error>> {
         "window" => setup.window = f()?,
         "depths" => setup.depths = v.split(',').map(str::parse).collect::<Result<_, _>>()?,
         "stiffening" => setup.stiffening = Some(v.parse()?),
+        "model" => setup.model = v.to_string(),
+        "poisson" => setup.poisson = f()?,
+        "young_kpa" => setup.young_kpa = f()?,
         _ => return Err(format!("--set: unknown key {k}").into()),
     }
     Ok(())
@@ -103,8 +107,9 @@ fn samples_csv(curve: &Curve) -> String {
 fn plot(curve: &Curve, path: &Path) -> Result<(), Box<dyn Error>> {
     let s = &curve.setup;
     let envelope = s.radius + curve.contact_radius;
-    let hertz_mn = |d: f64| 1e3 * hertz::hertz(s.young_kpa, LATTICE_POISSON, envelope, d);
-    let layer_mn = |d: f64| hertz_mn(d) * bonded_layer(LATTICE_POISSON, envelope, d, s.thickness);
+    let nu = s.effective_poisson();
+    let hertz_mn = |d: f64| 1e3 * hertz::hertz(s.young_kpa, nu, envelope, d);
+    let layer_mn = |d: f64| hertz_mn(d) * bonded_layer(nu, envelope, d, s.thickness);
     let d_max = 1.1 * curve.samples.iter().map(|p| p.depth).fold(0.0, f64::max);
     let f_max = 1.3 * hertz_mn(d_max);
     let xs: Vec<f64> = (0..=200).map(|i| d_max * f64::from(i) / 200.0).collect();
@@ -118,8 +123,17 @@ fn plot(curve: &Curve, path: &Path) -> Result<(), Box<dyn Error>> {
         let mut chart = ChartBuilder::on(&top)
             .caption(
                 format!(
-                    "Rigid sphere R = {} mm into a {} × {} × {} mm block, E = {} kPa (lattice ν = 1/4)",
-                    s.radius, s.width, s.width, s.thickness, s.young_kpa
+                    "Rigid sphere R = {} mm into a {} × {} × {} mm block, E = {} kPa ({})",
+                    s.radius,
+                    s.width,
+                    s.width,
+                    s.thickness,
+                    s.young_kpa,
+                    if s.model == "springs" {
+                        "lattice ν = 1/4".to_string()
+                    } else {
+                        format!("{}, ν = {}", s.model, s.poisson)
+                    }
                 ),
                 ("sans-serif", 21),
             )
