@@ -13,6 +13,12 @@
 //! axis), so its stiffness `k·nnᵀ` is what an implicit solve needs (docs/semantics.md, "Contacts
 //! that hold").
 //!
+//! **A lattice that carries a surface** (one made from a closed surface, [`Embedding`]) shows
+//! the contact that surface, not its own boundary (which lies up to a spacing inside it): the
+//! carried surface's vertices are points numbered after the lattice's, each its cell's corners
+//! in trilinear weights (a [`Stencil`]), and every force on such a point, or on a triangle
+//! of that surface, is shared by those corners in those weights.
+//!
 //! **Inside or outside.** The nearest point of the partner's surface lies on a face, an edge or
 //! a vertex; the sign of `s` is that of `(p − q)·n` with `n` that feature's pseudo-normal: the
 //! face's normal, the sum of an edge's two faces' normals, or a vertex's angle-weighted normal
@@ -28,12 +34,13 @@
 //! index); the forces are then summed in probe order on one thread, so the result is the same on
 //! any number of threads.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 
 use glam::{IVec3, Mat3, Vec3};
 use rayon::prelude::*;
 
-use crate::body::{MassSpring, Mode};
+use crate::body::{Embedding, MassSpring, Mode};
 use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
 
@@ -76,6 +83,117 @@ impl SurfacePenalty {
             return bad("surface contact margin", self.margin, "must be finite and at least 0");
         }
         Ok(())
+    }
+}
+
+/// The most body vertices one point of a surface contact stands for: a lattice's eight cell
+/// corners, where the point is on the surface the lattice carries ([`Embedding`]).
+pub const POINT_VERTICES: usize = 8;
+
+/// A point of a body as weights of its vertices, `(vertex, weight)`; the unused entries are
+/// `(u32::MAX, 0.0)` and come last. A vertex of the body is itself, with weight 1.
+pub type Stencil<const N: usize> = [(u32, f32); N];
+
+/// The entries of a stencil in use.
+pub fn entries<const N: usize>(s: &Stencil<N>) -> impl Iterator<Item = (u32, f32)> + '_ {
+    s.iter().copied().take_while(|(v, _)| *v != u32::MAX)
+}
+
+/// The surface a body shows a contact, fixed over a run: its own (`None`), or, for a lattice
+/// that carries the surface it was made from ([`Embedding`]), that surface. Its points are
+/// numbered after the body's vertices, `len + k` for the carried surface's vertex `k`.
+#[derive(Clone, Debug)]
+struct Shown {
+    /// The carried surface's triangles over the numbering above.
+    mesh: TriangleMesh,
+    /// Per point (the body's vertices first, with none), the triangles at it (CSR).
+    tri_offsets: Vec<u32>,
+    tri_adjacency: Vec<u32>,
+}
+
+impl Shown {
+    fn of(body: &MassSpring) -> Option<Shown> {
+        let e = body.embedded.as_ref()?;
+        let n = body.len() as u32;
+        let mesh = TriangleMesh { triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect() };
+        let points = body.len() + e.rest.len();
+        let mut tri_offsets = vec![0u32; points + 1];
+        for t in &mesh.triangles {
+            for &v in t {
+                tri_offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..points {
+            tri_offsets[i + 1] += tri_offsets[i];
+        }
+        let mut fill = tri_offsets.clone();
+        let mut tri_adjacency = vec![0u32; mesh.triangles.len() * 3];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for &v in tri {
+                tri_adjacency[fill[v as usize] as usize] = t as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        Some(Shown { mesh, tri_offsets, tri_adjacency })
+    }
+}
+
+/// A body as one step of a surface contact sees it: its points (its vertices, then the points
+/// of the surface it carries, if any) and the surface it shows.
+struct View<'a> {
+    pos: Cow<'a, [Vec3]>,
+    mesh: &'a TriangleMesh,
+    tri_offsets: &'a [u32],
+    tri_adjacency: &'a [u32],
+    /// The body's vertex count: points from here on are the carried surface's.
+    vertices: usize,
+    embedding: Option<&'a Embedding>,
+}
+
+impl<'a> View<'a> {
+    fn new(body: &'a MassSpring, shown: Option<&'a Shown>) -> View<'a> {
+        match (shown, &body.embedded) {
+            (Some(s), Some(e)) => {
+                let mut pos = body.pos.clone();
+                pos.extend(e.positions(&body.pos, &body.rest_pos));
+                View {
+                    pos: Cow::Owned(pos),
+                    mesh: &s.mesh,
+                    tri_offsets: &s.tri_offsets,
+                    tri_adjacency: &s.tri_adjacency,
+                    vertices: body.len(),
+                    embedding: Some(e),
+                }
+            }
+            _ => View {
+                pos: Cow::Borrowed(&body.pos),
+                mesh: &body.surface,
+                tri_offsets: &body.tri_offsets,
+                tri_adjacency: &body.tri_adjacency,
+                vertices: body.len(),
+                embedding: None,
+            },
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.pos.len()
+    }
+
+    /// Point `i` as the body's vertices and their weights.
+    fn stencil(&self, i: u32) -> Stencil<POINT_VERTICES> {
+        let mut out = [(u32::MAX, 0.0); POINT_VERTICES];
+        match self.embedding {
+            Some(e) if i as usize >= self.vertices => {
+                let k = i as usize - self.vertices;
+                let used = e.corners[k].iter().zip(&e.weights[k]).filter(|(c, _)| **c != u32::MAX);
+                for (o, (c, w)) in out.iter_mut().zip(used) {
+                    *o = (*c, *w);
+                }
+            }
+            _ => out[0] = (i, 1.0),
+        }
+        out
     }
 }
 
@@ -198,16 +316,16 @@ struct Hit {
 }
 
 impl Side {
-    fn new(probing: &MassSpring, partner: &MassSpring) -> Side {
-        // Every vertex probes, not only the surface's: where a load pushes the surface's
+    fn new(probing: &View, partner: &View) -> Side {
+        // Every point probes, not only the surface's: where a load pushes the surface's
         // vertices aside (a ball pressed deep into a lattice), the ones beneath must not come
         // in between them unseen.
         let probes = (0..probing.len() as u32).collect();
-        Side { probes, neighbours: edge_neighbours(&partner.surface), ..Side::default() }
+        Side { probes, neighbours: edge_neighbours(partner.mesh), ..Side::default() }
     }
 
     /// Makes the lists anew when the vertices moved farther than `skin` since they were made.
-    fn refresh(&mut self, probing: &MassSpring, partner: &MassSpring, cutoff: f32, skin: f32) -> bool {
+    fn refresh(&mut self, probing: &View, partner: &View, cutoff: f32, skin: f32) -> bool {
         if self.built {
             let moved = |now: &[Vec3], then: &[Vec3]| {
                 now.iter().zip(then).map(|(p, q)| p.distance_squared(*q)).fold(0.0f32, f32::max).sqrt()
@@ -221,7 +339,7 @@ impl Side {
         let cell_of = |p: Vec3| (p / range).floor().as_ivec3();
         let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
         let pos = &partner.pos;
-        for (t, tri) in partner.surface.triangles.iter().enumerate() {
+        for (t, tri) in partner.mesh.triangles.iter().enumerate() {
             let [a, b, c] = tri.map(|v| pos[v as usize]);
             let (lo, hi) = (a.min(b).min(c) - range, a.max(b).max(c) + range);
             if !(lo.is_finite() && hi.is_finite()) {
@@ -249,7 +367,7 @@ impl Side {
                 && let Some(ts) = cells.get(&cell_of(p))
             {
                 for &t in ts {
-                    let [a, b, c] = partner.surface.triangles[t as usize].map(|v| pos[v as usize]);
+                    let [a, b, c] = partner.mesh.triangles[t as usize].map(|v| pos[v as usize]);
                     let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
                     let outside = (lo - p).max(p - hi).max(Vec3::ZERO);
                     if outside.length_squared() <= range * range {
@@ -260,7 +378,8 @@ impl Side {
             self.offsets.push(self.near.len() as u32);
         }
         self.probes_then = self.probes.iter().map(|&i| probing.pos[i as usize]).collect();
-        self.partner_then.clone_from(&partner.pos);
+        self.partner_then.clear();
+        self.partner_then.extend_from_slice(&partner.pos);
         self.built = true;
         true
     }
@@ -268,7 +387,7 @@ impl Side {
     /// Each probe's push, if any.
     /// Takes the motion since the last step off every probe's clearance: its own move and the
     /// partner's largest (a point of a triangle moves no farther than its corners).
-    fn age(&mut self, probing: &MassSpring, partner: &MassSpring) {
+    fn age(&mut self, probing: &View, partner: &View) {
         let n = self.probes.len();
         if self.clear.len() == n && self.probes_prev.len() == n && self.partner_prev.len() == partner.len() {
             let partner_moved = partner
@@ -290,19 +409,15 @@ impl Side {
         }
         self.probes_prev.clear();
         self.probes_prev.extend(self.probes.iter().map(|&i| probing.pos[i as usize]));
-        self.partner_prev.clone_from(&partner.pos);
+        self.partner_prev.clear();
+        self.partner_prev.extend_from_slice(&partner.pos);
     }
 
     /// Each probe's push, if any, its nearest triangle within the cutoff (`u32::MAX`: none),
     /// which the next step tries first, and its clearance (see `clear`).
-    fn hits(
-        &self,
-        probing: &MassSpring,
-        partner: &MassSpring,
-        penalty: &SurfacePenalty,
-    ) -> Vec<(Option<Hit>, u32, f32)> {
+    fn hits(&self, probing: &View, partner: &View, penalty: &SurfacePenalty) -> Vec<(Option<Hit>, u32, f32)> {
         let pos = &partner.pos;
-        let tris = &partner.surface.triangles;
+        let tris = &partner.mesh.triangles;
         (0..self.probes.len())
             .into_par_iter()
             .with_min_len(256)
@@ -366,14 +481,14 @@ impl Side {
     fn hit(
         &self,
         p: Vec3,
-        partner: &MassSpring,
+        partner: &View,
         penalty: &SurfacePenalty,
         d2: f32,
         t: u32,
         w: [f32; 3],
         feature: Feature,
     ) -> (Option<Hit>, f32) {
-        let (pos, tris) = (&partner.pos, &partner.surface.triangles);
+        let (pos, tris) = (&partner.pos, &partner.mesh.triangles);
         let tri = tris[t as usize];
         let pseudo = match feature {
             Feature::Face => face_normal(pos, tri),
@@ -420,8 +535,8 @@ fn confirm(
     probes: &[u32],
     was_inside: &[bool],
     moved: &[f32],
-    probing: &MassSpring,
-    partner: &MassSpring,
+    probing: &View,
+    partner: &View,
     penalty: &SurfacePenalty,
 ) -> Vec<bool> {
     let deep = penalty.gap + 0.25 * penalty.reach;
@@ -434,7 +549,7 @@ fn confirm(
                 && inside > moved.get(k).copied().unwrap_or(0.0) * 1.001 + slack)
     };
     if hits.iter().enumerate().any(|(k, h)| h.as_ref().is_some_and(|h| suspect(k, h))) {
-        if let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, &partner.surface) {
+        if let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, partner.mesh) {
             hits.par_iter_mut().zip(probes.par_iter()).enumerate().for_each(|(k, (hit, &i))| {
                 if hit.as_ref().is_some_and(|h| suspect(k, h)) && !surface.contains(probing.pos[i as usize]) {
                     *hit = None;
@@ -446,13 +561,13 @@ fn confirm(
 }
 
 /// The angle-weighted normal of `partner`'s surface at vertex `v` (over its triangles).
-fn vertex_normal(partner: &MassSpring, v: u32) -> Vec3 {
+fn vertex_normal(partner: &View, v: u32) -> Vec3 {
     let pos = &partner.pos;
     let (s, e) = (partner.tri_offsets[v as usize] as usize, partner.tri_offsets[v as usize + 1] as usize);
     partner.tri_adjacency[s..e]
         .iter()
         .map(|&t| {
-            let tri = partner.surface.triangles[t as usize];
+            let tri = partner.mesh.triangles[t as usize];
             let c = tri.iter().position(|&u| u == v).unwrap_or(0);
             let o = pos[v as usize];
             let (u, w) = (pos[tri[(c + 1) % 3] as usize] - o, pos[tri[(c + 2) % 3] as usize] - o);
@@ -497,17 +612,19 @@ pub struct SurfaceForces {
     pub pushes: Vec<Push>,
 }
 
-/// One vertex pushed out of the partner's surface.
+/// One point pushed out of the partner's surface.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Push {
-    /// Whether the pushed vertex is `a`'s (the triangle then `b`'s), or `b`'s.
+    /// Whether the pushed point is `a`'s (the triangle then `b`'s), or `b`'s.
     pub of_a: bool,
-    /// The pushed vertex.
+    /// The pushed point: a vertex of its body, or (numbered after them) a vertex of the surface
+    /// its lattice carries.
     pub vertex: u32,
-    /// The partner's triangle holding the nearest point, and that point's barycentric weights.
-    pub triangle: [u32; 3],
-    /// The nearest point's barycentric weights on `triangle`.
-    pub weights: [f32; 3],
+    /// The pushed point as its body's vertices and weights.
+    pub point: Stencil<POINT_VERTICES>,
+    /// The partner's nearest point as the partner's vertices and weights: the triangle's
+    /// corners' stencils, each scaled by its barycentric weight, in corner order.
+    pub from: Stencil<{ 3 * POINT_VERTICES }>,
     /// The push's direction (unit, outward from the partner's surface).
     pub normal: Vec3,
     /// `gap − s` for the vertex's signed distance `s` from the partner's surface: positive where
@@ -522,6 +639,8 @@ pub struct SurfaceContact {
     pub penalty: SurfacePenalty,
     /// `b`'s vertices against `a`'s surface, and `a`'s against `b`'s.
     sides: [Side; 2],
+    /// The surfaces `a` and `b` show the contact, where not their own.
+    shown: [Option<Shown>; 2],
 }
 
 impl SurfaceContact {
@@ -531,7 +650,10 @@ impl SurfaceContact {
     /// Those of [`SurfacePenalty::validate`].
     pub fn new(penalty: SurfacePenalty, a: &MassSpring, b: &MassSpring) -> Result<SurfaceContact, Error> {
         penalty.validate()?;
-        Ok(SurfaceContact { penalty, sides: [Side::new(b, a), Side::new(a, b)] })
+        let shown = [Shown::of(a), Shown::of(b)];
+        let (va, vb) = (View::new(a, shown[0].as_ref()), View::new(b, shown[1].as_ref()));
+        let sides = [Side::new(&vb, &va), Side::new(&va, &vb)];
+        Ok(SurfaceContact { penalty, sides, shown })
     }
 
     /// One step's forces into `out` (resized to the bodies), and what it found.
@@ -550,8 +672,9 @@ impl SurfaceContact {
         reset(&mut out.force_b, &mut out.stiffness_b, b.len());
         out.touching_b.clear();
         out.pushes.clear();
+        let views = [View::new(a, self.shown[0].as_ref()), View::new(b, self.shown[1].as_ref())];
         for (s, side) in self.sides.iter_mut().enumerate() {
-            let (probing, partner) = if s == 0 { (b, a) } else { (a, b) };
+            let (probing, partner) = if s == 0 { (&views[1], &views[0]) } else { (&views[0], &views[1]) };
             stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
             side.age(probing, partner);
             let found = side.hits(probing, partner, &p);
@@ -571,15 +694,18 @@ impl SurfaceContact {
             };
             for (&i, hit) in side.probes.iter().zip(&hits) {
                 let Some(h) = hit else { continue };
-                let tri = partner.surface.triangles[h.triangle as usize];
-                let push = Push {
-                    of_a: s == 1,
-                    vertex: i,
-                    triangle: tri,
-                    weights: h.weights,
-                    normal: h.normal,
-                    depth: h.depth,
-                };
+                let tri = partner.mesh.triangles[h.triangle as usize];
+                // The nearest point's stencil: each corner's, scaled by its weight.
+                let mut from = [(u32::MAX, 0.0); 3 * POINT_VERTICES];
+                let mut n = 0;
+                for (c, w) in tri.iter().zip(h.weights) {
+                    for (v, u) in entries(&partner.stencil(*c)) {
+                        from[n] = (v, w * u);
+                        n += 1;
+                    }
+                }
+                let point = probing.stencil(i);
+                let push = Push { of_a: s == 1, vertex: i, point, from, normal: h.normal, depth: h.depth };
                 out.pushes.push(push);
                 if h.depth <= 0.0 {
                     // Within the margin, outside the gap: listed, no force.
@@ -587,20 +713,21 @@ impl SurfaceContact {
                 }
                 let f = p.stiffness * h.depth * h.normal;
                 let nn = Mat3::from_cols(h.normal * h.normal.x, h.normal * h.normal.y, h.normal * h.normal.z);
-                f_probe[i as usize] += f;
-                k_probe[i as usize] += p.stiffness * nn;
-                for (v, w) in tri.iter().zip(h.weights) {
-                    f_partner[*v as usize] -= w * f;
-                    k_partner[*v as usize] += (p.stiffness * w * w) * nn;
+                for (v, u) in entries(&point) {
+                    f_probe[v as usize] += u * f;
+                    k_probe[v as usize] += (p.stiffness * u * u) * nn;
+                }
+                for (v, w) in entries(&from) {
+                    f_partner[v as usize] -= w * f;
+                    k_partner[v as usize] += (p.stiffness * w * w) * nn;
                 }
                 stats.deepest = stats.deepest.max(h.depth);
                 if s == 0 {
                     stats.b_pushed += 1;
-                    out.touching_b.push(i);
+                    out.touching_b.extend(entries(&point).filter(|(_, u)| *u > 0.0).map(|(v, _)| v));
                 } else {
                     stats.a_pushed += 1;
-                    out.touching_b
-                        .extend(tri.iter().zip(h.weights).filter(|(_, w)| *w > 0.0).map(|(v, _)| *v));
+                    out.touching_b.extend(entries(&from).filter(|(_, w)| *w > 0.0).map(|(v, _)| v));
                 }
             }
         }

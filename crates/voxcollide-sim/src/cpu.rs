@@ -187,10 +187,9 @@ impl CpuWorld {
                     let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
                     Coupling {
                         body: body as u32,
-                        vertex: p.vertex,
+                        point: p.point,
                         partner: partner as u32,
-                        triangle: p.triangle,
-                        weights: p.weights,
+                        from: p.from,
                         normal: p.normal,
                         stiffness,
                         depth: p.depth,

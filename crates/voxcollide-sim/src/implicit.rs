@@ -42,6 +42,7 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
+use crate::contact::{POINT_VERTICES, Stencil, entries};
 use crate::fem::{Tangent, corner_of};
 use voxcollide::math::cross;
 
@@ -417,16 +418,16 @@ pub struct BodyStep<'a> {
 /// pushing another carries it within the step instead of pressing into where it was.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Coupling {
-    /// The pushed vertex's body.
+    /// The pushed point's body.
     pub body: u32,
-    /// The pushed vertex.
-    pub vertex: u32,
+    /// The pushed point, as its body's vertices and weights (a vertex: itself, weight 1; a
+    /// point of the surface a lattice carries: its cell's corners).
+    pub point: Stencil<POINT_VERTICES>,
     /// The body whose surface pushes it.
     pub partner: u32,
-    /// That surface's triangle holding the nearest point.
-    pub triangle: [u32; 3],
-    /// The nearest point's barycentric weights.
-    pub weights: [f32; 3],
+    /// The nearest point of that surface, as the partner's vertices and weights (a triangle's
+    /// corners in its barycentric weights, each corner's own stencil scaled by its weight).
+    pub from: Stencil<{ 3 * POINT_VERTICES }>,
     /// The push's direction (unit).
     pub normal: Vec3,
     /// The push's stiffness (force per unit depth).
@@ -446,26 +447,31 @@ impl Coupling {
         self.depth > 0.0
     }
 
-    /// Adds a force `f` on the vertex, and its reaction on the triangle's corners, to `out`'s
-    /// free rows.
+    /// Adds a force `f` on the point, and its reaction on the partner's point, to `out`'s free
+    /// rows.
     fn exert(&self, f: Vec3, out: &mut [Vec<Vec3>], free: &[Vec<bool>]) {
         let (b, q) = (self.body as usize, self.partner as usize);
-        if free[b][self.vertex as usize] {
-            out[b][self.vertex as usize] += f;
+        for (v, u) in entries(&self.point) {
+            if free[b][v as usize] {
+                out[b][v as usize] += u * f;
+            }
         }
-        for (c, w) in self.triangle.iter().zip(self.weights) {
-            if free[q][*c as usize] {
-                out[q][*c as usize] -= w * f;
+        for (c, w) in entries(&self.from) {
+            if free[q][c as usize] {
+                out[q][c as usize] -= w * f;
             }
         }
     }
 
-    /// `n·(u_vertex − Σ wᵢ·u_cornerᵢ)`: the relative motion of `u` along the push.
+    /// `n·(Σ uⱼ·u_pointⱼ − Σ wᵢ·u_partnerᵢ)`: the relative motion of `u` along the push.
     fn relative(&self, u: &[Vec<Vec3>]) -> f32 {
         let (b, q) = (self.body as usize, self.partner as usize);
-        let mut d = u[b][self.vertex as usize];
-        for (c, w) in self.triangle.iter().zip(self.weights) {
-            d -= w * u[q][*c as usize];
+        let mut d = Vec3::ZERO;
+        for (v, w) in entries(&self.point) {
+            d += w * u[b][v as usize];
+        }
+        for (c, w) in entries(&self.from) {
+            d -= w * u[q][c as usize];
         }
         self.normal.dot(d)
     }
@@ -474,12 +480,14 @@ impl Coupling {
     fn add(&self, s: f32, u: &[Vec<Vec3>], out: &mut [Vec<Vec3>], free: &[Vec<bool>], all: bool) {
         let f = (s * self.relative(u)) * self.normal;
         let (b, q) = (self.body as usize, self.partner as usize);
-        if all || free[b][self.vertex as usize] {
-            out[b][self.vertex as usize] += f;
+        for (v, w) in entries(&self.point) {
+            if all || free[b][v as usize] {
+                out[b][v as usize] += w * f;
+            }
         }
-        for (c, w) in self.triangle.iter().zip(self.weights) {
-            if all || free[q][*c as usize] {
-                out[q][*c as usize] -= w * f;
+        for (c, w) in entries(&self.from) {
+            if all || free[q][c as usize] {
+                out[q][c as usize] -= w * f;
             }
         }
     }
@@ -564,8 +572,8 @@ pub fn integrate_implicit_together(
     let damping: Vec<f32> = couplings
         .iter()
         .map(|c| {
-            let m = mass(c.body, c.vertex);
-            let point: f32 = c.triangle.iter().zip(c.weights).map(|(v, w)| w * mass(c.partner, *v)).sum();
+            let m: f32 = entries(&c.point).map(|(v, w)| w * mass(c.body, v)).sum();
+            let point: f32 = entries(&c.from).map(|(v, w)| w * mass(c.partner, v)).sum();
             let reduced = if point > 0.0 { m * point / (m + point) } else { m };
             2.0 * (c.stiffness * reduced).sqrt()
         })
@@ -577,9 +585,11 @@ pub fn integrate_implicit_together(
     };
     for (c, d) in couplings.iter().zip(&damping) {
         let nn = (h * h * c.stiffness + h * d) * outer(c.normal);
-        extra[c.body as usize][c.vertex as usize] += nn;
-        for (v, w) in c.triangle.iter().zip(c.weights) {
-            extra[c.partner as usize][*v as usize] += (w * w) * nn;
+        for (v, w) in entries(&c.point) {
+            extra[c.body as usize][v as usize] += (w * w) * nn;
+        }
+        for (v, w) in entries(&c.from) {
+            extra[c.partner as usize][v as usize] += (w * w) * nn;
         }
     }
     // The vertices resting on their floor and pushed into it: still vertically, in the solve.
@@ -746,24 +756,34 @@ pub fn integrate_implicit_together(
     // (in their reduced mass, momentum kept) leaves them none of that speed. In order, on one
     // thread.
     for (c, _) in couplings.iter().zip(&active).filter(|(c, a)| c.touching() && **a) {
-        let (b, q, v) = (c.body as usize, c.partner as usize, c.vertex as usize);
+        let (b, q) = (c.body as usize, c.partner as usize);
         let inverse =
             |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
-        let w_v = inverse(b, v);
-        let w_t = c.triangle.map(|t| inverse(q, t as usize));
-        let mut away = c.normal.dot(bodies[b].vel[v]);
-        let mut compliance = w_v;
-        for ((t, w), w_t) in c.triangle.iter().zip(c.weights).zip(w_t) {
-            away -= w * c.normal.dot(bodies[q].vel[*t as usize]);
-            compliance += w * w * w_t;
+        let (mut away, mut compliance) = (0.0, 0.0);
+        for (v, w) in entries(&c.point) {
+            away += w * c.normal.dot(bodies[b].vel[v as usize]);
+            compliance += w * w * inverse(b, v as usize);
+        }
+        for (t, w) in entries(&c.from) {
+            away -= w * c.normal.dot(bodies[q].vel[t as usize]);
+            compliance += w * w * inverse(q, t as usize);
         }
         if away <= 0.0 || compliance <= 0.0 {
             continue;
         }
         let impulse = (away / compliance) * c.normal;
-        bodies[b].vel[v] -= w_v * impulse;
-        for ((t, w), w_t) in c.triangle.iter().zip(c.weights).zip(w_t) {
-            bodies[q].vel[*t as usize] += (w * w_t) * impulse;
+        let mut kicks = [Vec3::ZERO; 4 * POINT_VERTICES];
+        for ((v, w), kick) in entries(&c.point).zip(kicks.iter_mut()) {
+            *kick = -(w * inverse(b, v as usize)) * impulse;
+        }
+        for ((t, w), kick) in entries(&c.from).zip(kicks[POINT_VERTICES..].iter_mut()) {
+            *kick = (w * inverse(q, t as usize)) * impulse;
+        }
+        for ((v, _), kick) in entries(&c.point).zip(&kicks) {
+            bodies[b].vel[v as usize] += *kick;
+        }
+        for ((t, _), kick) in entries(&c.from).zip(&kicks[POINT_VERTICES..]) {
+            bodies[q].vel[t as usize] += *kick;
         }
     }
     vec![StepStats { iterations, relative_residual, scaled }; bodies.len()]

@@ -9,7 +9,7 @@ mod common;
 use voxcollide::glam::{UVec3, Vec3};
 use voxcollide::parallel::ParallelCpuCollision;
 use voxcollide::{Anchor, ContactParams, Direction, Initializer, Response, Search};
-use voxcollide_sim::bodies::{box_lattice, ellipsoid_shell};
+use voxcollide_sim::bodies::{box_lattice, ellipsoid_shell, lattice_in_surface};
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::contact::SurfaceForces;
 use voxcollide_sim::scene_file::SceneFile;
@@ -278,4 +278,45 @@ fn under_the_implicit_integrator_a_body_pushing_another_carries_it_within_the_st
         cpu.step().unwrap();
         assert!(cpu.surface_stats[0].deepest < 0.2, "{:?}", cpu.surface_stats[0]);
     }
+}
+
+#[test]
+fn a_lattice_made_from_a_surface_meets_a_contact_at_that_surface_and_its_cells_carry_the_reaction() {
+    // A lattice of spacing 5 in an ellipsoid 12 tall carries the ellipsoid (what is shown and
+    // measured); its own vertices stop more than a millimetre below the top.
+    let skin = ellipsoid_shell(Vec3::ZERO, Vec3::new(20.0, 20.0, 12.0), 12, 24, f32::MIN, 10.0, material()).unwrap();
+    let (dome, _) = lattice_in_surface(&skin.pos, &skin.surface, 5.0, 10.0, material(), |_| Mode::Free).unwrap();
+    let carried = dome.embedded.as_ref().expect("a lattice made from a surface carries it");
+    let top = carried.rest.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    let own_top = dome.pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+    assert!(top - own_top > 1.0, "carried top {top}, lattice top {own_top}");
+    // A small ball sunk 0.5 into the carried surface's top, clear of the lattice's vertices and
+    // of its own surface.
+    let probe = ball(Vec3::new(0.0, 0.0, top + 0.5), 1.0);
+    assert!(probe.pos.iter().all(|p| p.z > own_top + 0.2));
+    let mut contact = SurfaceContact::new(penalty(), &probe, &dome).unwrap();
+    let mut out = SurfaceForces::default();
+    let stats = contact.step(&probe, &dome, &mut out);
+    assert!(stats.a_pushed > 0, "the carried surface did not push: {stats:?}");
+    assert!(stats.deepest > 0.3 && stats.deepest < 0.6, "{stats:?}");
+    // Up on the ball, down on the dome's cells, equal and opposite.
+    let up: f32 = out.force_a.iter().map(|f| f.z).sum();
+    let down: f32 = out.force_b.iter().map(|f| f.z).sum();
+    assert!(up > 0.0 && (up + down).abs() < 1e-4 * up, "{up} up, {down} down");
+    let total: Vec3 = out.force_a.iter().chain(&out.force_b).copied().sum();
+    assert!(total.length() < 1e-4 * up, "net {total}");
+    // The reaction lands on the lattice's top vertices under the ball, nowhere else.
+    for (p, f) in dome.pos.iter().zip(&out.force_b) {
+        if *f != Vec3::ZERO {
+            assert!(p.z > own_top - 5.01 && p.x.abs() < 10.01 && p.y.abs() < 10.01, "{p}: {f}");
+        }
+    }
+    // Each push is listed with its stencils, for the implicit solve: the ball's vertex itself,
+    // the carried surface's point as up to eight cell corners whose weights sum to 1.
+    let push = out.pushes.iter().find(|p| p.of_a && p.depth > 0.0).unwrap();
+    assert_eq!(push.point[0].1, 1.0);
+    assert!(push.point[1..].iter().all(|e| e.0 == u32::MAX));
+    let weight: f32 = voxcollide_sim::contact::entries(&push.from).map(|(_, w)| w).sum();
+    assert!((weight - 1.0).abs() < 1e-5, "{weight}");
+    assert!(voxcollide_sim::contact::entries(&push.from).all(|(v, _)| (v as usize) < dome.len()));
 }

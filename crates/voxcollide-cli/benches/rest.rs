@@ -1,0 +1,139 @@
+//! Time to rest (issue 21, item 5): how long the command takes, wall clock on the CPU, to bring
+//! the scenes in `benches/rest/` to rest, under each integrator:
+//!
+//! - `press`: a 9 mm ball driven 12 mm into a soft dome, a lattice of 3,926 vertices made
+//!   from a closed surface (`voxcollide run benches/rest/press.toml`);
+//! - `compare`: three implants (200, 300 and 400 mL on a 140 mm base, 500 kPa shells) under a
+//!   30 mm layer of 3 kPa tissue at a 6 mm spacing, each filled and settled
+//!   (`voxcollide compare benches/rest/compare.toml --candidates benches/rest/candidates.toml`).
+//!
+//! ```text
+//! cargo bench -p voxcollide-cli --bench rest -- [--runs N] [--only press|compare] [--explicit-compare]
+//! ```
+//!
+//! Each case runs `--runs` times (default 3) through the built `voxcollide` binary with
+//! `--backend cpu`; the table gives the median and the range of the wall times, with the steps,
+//! and whether the run came to rest and its contacts held (a run that did not is no answer,
+//! however quick). The compare case under the explicit integrator takes minutes, so it runs
+//! only with `--explicit-compare`. Threads: rayon's, all cores unless `RAYON_NUM_THREADS` says.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Instant;
+
+/// One case: a scene file, how it is run, under which integrator.
+struct Case {
+    name: &'static str,
+    scene: &'static str,
+    compare: bool,
+    integrator: &'static str,
+}
+
+/// What one run gave.
+struct Outcome {
+    seconds: f64,
+    steps: u64,
+    settled: bool,
+    held: bool,
+}
+
+fn main() {
+    let mut runs = 3usize;
+    let (mut only, mut explicit_compare) = (None, false);
+    let mut args = std::env::args().skip(1);
+    while let Some(arg) = args.next() {
+        match arg.as_str() {
+            "--runs" => runs = args.next().and_then(|v| v.parse().ok()).expect("--runs needs a count"),
+            "--only" => only = args.next(),
+            "--explicit-compare" => explicit_compare = true,
+            // cargo bench passes `--bench`; criterion's own flags mean nothing here.
+            _ => {}
+        }
+    }
+    let here = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/rest");
+    let threads = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|n| *n > 0)
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, usize::from));
+    let mut cases = Vec::new();
+    for integrator in ["implicit", "explicit"] {
+        cases.push(Case { name: "press", scene: "press.toml", compare: false, integrator });
+        if integrator == "implicit" || explicit_compare {
+            cases.push(Case { name: "compare", scene: "compare.toml", compare: true, integrator });
+        }
+    }
+    cases.retain(|c| only.as_deref().is_none_or(|o| o == c.name));
+    let work = std::env::temp_dir().join(format!("voxcollide-rest-{}", std::process::id()));
+    println!("time to rest, {runs} runs a case, CPU backend, {threads} threads\n");
+    println!("| case | integrator | median s | range s | steps | at rest | held |");
+    println!("| --- | --- | ---: | ---: | ---: | --- | --- |");
+    for case in &cases {
+        let outcomes: Vec<Outcome> = (0..runs).map(|k| run(&here, &work.join(format!("{}-{k}", case.name)), case)).collect();
+        let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
+        seconds.sort_by(f64::total_cmp);
+        let last = &outcomes[outcomes.len() - 1];
+        println!(
+            "| {} | {} | {:.2} | {:.2}–{:.2} | {} | {} | {} |",
+            case.name,
+            case.integrator,
+            seconds[seconds.len() / 2],
+            seconds[0],
+            seconds[seconds.len() - 1],
+            last.steps,
+            if outcomes.iter().all(|o| o.settled) { "yes" } else { "NO" },
+            if outcomes.iter().all(|o| o.held) { "yes" } else { "NO" },
+        );
+    }
+    let _ = std::fs::remove_dir_all(&work);
+}
+
+/// Runs `case` once in `dir`; panics (naming the case) where the command fails.
+fn run(here: &Path, dir: &Path, case: &Case) -> Outcome {
+    let _ = std::fs::remove_dir_all(dir);
+    std::fs::create_dir_all(dir).expect("a scratch folder");
+    let text = std::fs::read_to_string(here.join(case.scene)).expect("the bench's scene");
+    let scene = dir.join(case.scene);
+    std::fs::write(&scene, text.replace("integrator = \"implicit\"", &format!("integrator = \"{}\"", case.integrator)))
+        .expect("the scene written");
+    let out = dir.join("out");
+    let mut command = Command::new(env!("CARGO_BIN_EXE_voxcollide"));
+    if case.compare {
+        command.args(["compare", "--body", "implant", "--candidates"]).arg(here.join("candidates.toml"));
+    } else {
+        command.arg("run");
+    }
+    command.arg(&scene).args(["--backend", "cpu", "--out"]).arg(&out);
+    let start = Instant::now();
+    let output = command.output().expect("the voxcollide binary runs");
+    let seconds = start.elapsed().as_secs_f64();
+    assert!(
+        output.status.success(),
+        "{} ({}) failed:\n{}\n{}",
+        case.name,
+        case.integrator,
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let read = |p: PathBuf| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(&p).expect("the run's JSON")).expect("valid JSON")
+    };
+    if case.compare {
+        let c = read(out.join("compare.json"));
+        let candidates = c["candidates"].as_array().expect("candidates");
+        Outcome {
+            seconds,
+            steps: candidates.iter().map(|c| c["steps"].as_u64().unwrap_or(0)).sum(),
+            settled: candidates.iter().all(|c| c["settled"] == true),
+            held: candidates.iter().all(|c| c["held"] == true),
+        }
+    } else {
+        let s = read(out.join("summary.json"));
+        Outcome {
+            seconds,
+            steps: s["steps"].as_u64().unwrap_or(0),
+            settled: s["settled"] == true,
+            held: s["held"] == true,
+        }
+    }
+}
