@@ -4,7 +4,7 @@
 use glam::{Mat3, Vec3};
 
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
-use crate::implicit::{BodyStep, Coupling, Residual, StepStats, integrate_implicit_together};
+use crate::implicit::{BodyStep, Coupling, ImplicitSettings, Residual, StepStats, integrate_implicit_together};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
 use voxcollide::error::Error;
@@ -129,6 +129,10 @@ impl CpuWorld {
         let mut inputs = w.inputs(self.step)?;
         let implicit = match w.integrator {
             Integrator::Explicit => None,
+            // Settling: each solve as far as the step towards rest needs.
+            Integrator::Implicit(s) if self.accelerate_to > 1.0 => {
+                Some(ImplicitSettings { tolerance: s.settle_tolerance, ..s })
+            }
             Integrator::Implicit(settings) => Some(settings),
         };
         if implicit.is_some() {

@@ -54,6 +54,9 @@ const CHUNK: usize = 2048;
 pub struct ImplicitSettings {
     /// The conjugate gradient stops when the residual is this fraction of the right-hand side.
     pub tolerance: f32,
+    /// The same once the schedule is over and the step may grow towards rest
+    /// ([`crate::CpuWorld::accelerate`]).
+    pub settle_tolerance: f32,
     /// The conjugate gradient's iteration cap.
     pub max_iterations: u32,
     /// The farthest a vertex may move in one step (file units); `f32::INFINITY` for no limit.
@@ -61,8 +64,16 @@ pub struct ImplicitSettings {
 }
 
 impl Default for ImplicitSettings {
+    /// 1e-4 of the right-hand side while the schedule runs, 1e-2 while settling, at most 400
+    /// iterations. Each step is one Newton step of a nonlinear problem linearised at its start;
+    /// towards rest, solving it finer buys nothing the next step does not redo (an inexact
+    /// Newton method's forcing term): a 200 mL implant under a 30 mm layer at a 6 mm spacing
+    /// came to rest in 767, 764 and 784 steps at 1e-4, 1e-3 and 1e-2 throughout, in 84, 60 and
+    /// 44 s, lifting the layer 20.121, 20.113 and 20.115 mm. While loads change, the motion
+    /// is the answer's path, and a contact must hold along it: at 1e-2 throughout, a 3,000 kPa
+    /// shell filling to 800 mL under 1 kPa tissue went 4.2 mm into it (bound 4 mm).
     fn default() -> ImplicitSettings {
-        ImplicitSettings { tolerance: 1e-4, max_iterations: 400, max_move: f32::INFINITY }
+        ImplicitSettings { tolerance: 1e-4, settle_tolerance: 1e-2, max_iterations: 400, max_move: f32::INFINITY }
     }
 }
 

@@ -69,7 +69,9 @@ fn a_step_fifty_times_the_explicit_bound_is_stable_and_comes_to_rest() {
         "residual {first} → {}",
         implicit.residual.relative()
     );
-    assert!(implicit.stats[0].iterations > 0 && implicit.stats[0].relative_residual <= 1e-4);
+    // Each solve reached its tolerance (the schedule's: nothing asked it to settle).
+    let tolerance = ImplicitSettings::default().tolerance;
+    assert!(implicit.stats[0].iterations > 0 && implicit.stats[0].relative_residual <= tolerance);
 }
 
 #[test]

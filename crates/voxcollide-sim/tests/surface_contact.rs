@@ -252,7 +252,7 @@ fn moving_ball_on_block() -> World {
     });
     World::new(vec!["ball".into(), "block".into()], vec![ball, block], vec![contact], 1e6, schedule)
         .unwrap()
-        .with_integrator(Integrator::Implicit(ImplicitSettings { tolerance: 1e-6, ..Default::default() }))
+        .with_integrator(Integrator::Implicit(ImplicitSettings { tolerance: 1e-6, settle_tolerance: 1e-6, ..Default::default() }))
 }
 
 fn momentum(body: &MassSpring) -> Vec3 {
