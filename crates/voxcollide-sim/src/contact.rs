@@ -579,9 +579,9 @@ fn vertex_normal(partner: &View, v: u32) -> Vec3 {
 /// What one step of a surface contact found.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct SurfaceStats {
-    /// Vertices of `b` pushed out of `a`.
+    /// Points of `b` pushed out of `a` (its vertices, and those of a surface it carries).
     pub b_pushed: u32,
-    /// Vertices of `a` pushed out of `b`.
+    /// Points of `a` pushed out of `b`.
     pub a_pushed: u32,
     /// The deepest push beyond the gap, either side.
     pub deepest: f32,
