@@ -161,6 +161,9 @@ struct System {
     tangents: Vec<Tangent>,
     /// Per vertex: the block-Jacobi preconditioner's inverse block.
     precondition: Vec<Mat3>,
+    /// The elements' products of one `apply`, kept from one to the next (a fresh one every
+    /// iteration faulted its pages in anew, on one thread).
+    element_products: std::sync::Mutex<Vec<Mat3>>,
     h: f32,
 }
 
@@ -171,14 +174,17 @@ impl System {
         let h2 = if stiff_only { 1.0 } else { self.h * self.h };
         debug_assert!(self.h > 0.0);
         // The elements' `−K·u`, per tetrahedron, gathered per vertex below.
-        let elements: Vec<Mat3> = match &body.elements {
-            Some(e) if !self.tangents.is_empty() => (0..e.tets.len())
-                .into_par_iter()
-                .with_min_len(CHUNK)
-                .map(|k| e.stiffness_product(&self.tangents[k], k, e.tets[k].map(|v| u[v as usize])))
-                .collect(),
-            _ => Vec::new(),
-        };
+        let mut elements = self.element_products.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        elements.clear();
+        if let Some(e) = body.elements.as_ref().filter(|_| !self.tangents.is_empty()) {
+            elements.par_extend(
+                (0..e.tets.len())
+                    .into_par_iter()
+                    .with_min_len(CHUNK)
+                    .map(|k| e.stiffness_product(&self.tangents[k], k, e.tets[k].map(|v| u[v as usize]))),
+            );
+        }
+        let elements = &*elements;
         out.clear();
         out.par_extend((0..body.len()).into_par_iter().with_min_len(CHUNK).map(|i| {
             if !stiff_only && !self.free[i] {
@@ -346,6 +352,7 @@ impl MassSpring {
             free,
             tangents,
             precondition,
+            element_products: std::sync::Mutex::new(Vec::new()),
             h,
         }
     }
