@@ -69,7 +69,8 @@ fn main() {
     println!("| case | integrator | median s | range s | steps | at rest | held |");
     println!("| --- | --- | ---: | ---: | ---: | --- | --- |");
     for case in &cases {
-        let outcomes: Vec<Outcome> = (0..runs).map(|k| run(&here, &work.join(format!("{}-{k}", case.name)), case)).collect();
+        let outcomes: Vec<Outcome> =
+            (0..runs).map(|k| run(&here, &work.join(format!("{}-{k}", case.name)), case)).collect();
         let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
         seconds.sort_by(f64::total_cmp);
         let last = &outcomes[outcomes.len() - 1];
@@ -94,8 +95,11 @@ fn run(here: &Path, dir: &Path, case: &Case) -> Outcome {
     std::fs::create_dir_all(dir).expect("a scratch folder");
     let text = std::fs::read_to_string(here.join(case.scene)).expect("the bench's scene");
     let scene = dir.join(case.scene);
-    std::fs::write(&scene, text.replace("integrator = \"implicit\"", &format!("integrator = \"{}\"", case.integrator)))
-        .expect("the scene written");
+    std::fs::write(
+        &scene,
+        text.replace("integrator = \"implicit\"", &format!("integrator = \"{}\"", case.integrator)),
+    )
+    .expect("the scene written");
     let out = dir.join("out");
     let mut command = Command::new(env!("CARGO_BIN_EXE_voxcollide"));
     if case.compare {

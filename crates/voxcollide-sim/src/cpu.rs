@@ -4,7 +4,9 @@
 use glam::{Mat3, Vec3};
 
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
-use crate::implicit::{BodyStep, Coupling, ImplicitSettings, Residual, StepStats, integrate_implicit_together};
+use crate::implicit::{
+    BodyStep, Coupling, ImplicitSettings, Residual, StepStats, integrate_implicit_together,
+};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
 use voxcollide::error::Error;

@@ -73,7 +73,12 @@ impl Default for ImplicitSettings {
     /// is the answer's path, and a contact must hold along it: at 1e-2 throughout, a 3,000 kPa
     /// shell filling to 800 mL under 1 kPa tissue went 4.2 mm into it (bound 4 mm).
     fn default() -> ImplicitSettings {
-        ImplicitSettings { tolerance: 1e-4, settle_tolerance: 1e-2, max_iterations: 400, max_move: f32::INFINITY }
+        ImplicitSettings {
+            tolerance: 1e-4,
+            settle_tolerance: 1e-2,
+            max_iterations: 400,
+            max_move: f32::INFINITY,
+        }
     }
 }
 

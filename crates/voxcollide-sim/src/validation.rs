@@ -23,8 +23,12 @@ use voxcollide::error::Error;
 
 /// How the static answers are solved: a tight conjugate gradient, and steps long enough that
 /// the beam's slowest mode is quasi-static in a few of them.
-const SETTINGS: ImplicitSettings =
-    ImplicitSettings { tolerance: 1e-6, settle_tolerance: 1e-6, max_iterations: 4000, max_move: f32::INFINITY };
+const SETTINGS: ImplicitSettings = ImplicitSettings {
+    tolerance: 1e-6,
+    settle_tolerance: 1e-6,
+    max_iterations: 4000,
+    max_move: f32::INFINITY,
+};
 
 /// Where a static solve stopped.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -486,7 +486,11 @@ fn a_block_of_neo_hookean_elements_indents_as_hertz_says_for_its_own_poisson_rat
     assert_eq!(setup.effective_poisson(), 0.45);
     let curve = measure(&setup).unwrap();
     eprintln!("{}\n{}", summary(&curve), table(&curve));
-    assert!(curve.max_penetration < 0.0, "a block vertex got {:.3} mm inside the sphere", curve.max_penetration);
+    assert!(
+        curve.max_penetration < 0.0,
+        "a block vertex got {:.3} mm inside the sphere",
+        curve.max_penetration
+    );
     for s in &curve.samples {
         assert!(
             (s.contact - s.reaction).abs() < 0.05 * s.reaction,

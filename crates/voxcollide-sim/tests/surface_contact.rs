@@ -252,7 +252,11 @@ fn moving_ball_on_block() -> World {
     });
     World::new(vec!["ball".into(), "block".into()], vec![ball, block], vec![contact], 1e6, schedule)
         .unwrap()
-        .with_integrator(Integrator::Implicit(ImplicitSettings { tolerance: 1e-6, settle_tolerance: 1e-6, ..Default::default() }))
+        .with_integrator(Integrator::Implicit(ImplicitSettings {
+            tolerance: 1e-6,
+            settle_tolerance: 1e-6,
+            ..Default::default()
+        }))
 }
 
 fn momentum(body: &MassSpring) -> Vec3 {
@@ -284,8 +288,10 @@ fn under_the_implicit_integrator_a_body_pushing_another_carries_it_within_the_st
 fn a_lattice_made_from_a_surface_meets_a_contact_at_that_surface_and_its_cells_carry_the_reaction() {
     // A lattice of spacing 5 in an ellipsoid 12 tall carries the ellipsoid (what is shown and
     // measured); its own vertices stop more than a millimetre below the top.
-    let skin = ellipsoid_shell(Vec3::ZERO, Vec3::new(20.0, 20.0, 12.0), 12, 24, f32::MIN, 10.0, material()).unwrap();
-    let (dome, _) = lattice_in_surface(&skin.pos, &skin.surface, 5.0, 10.0, material(), |_| Mode::Free).unwrap();
+    let skin =
+        ellipsoid_shell(Vec3::ZERO, Vec3::new(20.0, 20.0, 12.0), 12, 24, f32::MIN, 10.0, material()).unwrap();
+    let (dome, _) =
+        lattice_in_surface(&skin.pos, &skin.surface, 5.0, 10.0, material(), |_| Mode::Free).unwrap();
     let carried = dome.embedded.as_ref().expect("a lattice made from a surface carries it");
     let top = carried.rest.iter().map(|p| p.z).fold(f32::MIN, f32::max);
     let own_top = dome.pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
