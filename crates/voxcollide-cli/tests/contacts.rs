@@ -151,6 +151,23 @@ vtk = false
     assert!(s["bodies"][0]["max_displacement"].as_f64().unwrap() > 3.0, "{}", s["bodies"][0]);
 }
 
+/// Runs `scene(integrator)` under each integrator; asserts that each came to rest with its
+/// contact held and nothing to warn about, and returns the first body's largest displacement
+/// under each (implicit, explicit).
+fn held_under_both_integrators(name: &str, scene: &dyn Fn(&str) -> String) -> Vec<f64> {
+    let mut moved = Vec::new();
+    for integrator in ["implicit", "explicit"] {
+        let d = dir(&format!("{name}-{integrator}"));
+        let (stdout, stderr, s) = run(&d, &scene(integrator));
+        let c = contact(&s);
+        assert_eq!(c["held"], true, "{integrator}: {c}\n{stdout}\n{stderr}");
+        assert_eq!(s["settled"], true, "{integrator}: {stdout}");
+        assert!(!stdout.contains("warning") && !stderr.contains("warning"), "{stdout}\n{stderr}");
+        moved.push(s["bodies"][0]["max_displacement"].as_f64().unwrap());
+    }
+    moved
+}
+
 /// A 9 mm ball driven 12 mm down into a soft dome: a lattice made from a closed surface (an
 /// ellipsoid 35 mm tall), which carries that surface. The lattice's own boundary lies up to
 /// a spacing inside it.
@@ -190,16 +207,7 @@ fn a_ball_pressed_into_a_lattice_made_from_a_surface_is_held_at_that_surface() {
     // Against the lattice's own boundary the ball sank 5.2 mm into the shown surface at rest,
     // beyond half the spacing, and the dome moved 4.9 mm where the ball went 12: the run said
     // it did not hold, under both integrators.
-    let mut moved = Vec::new();
-    for integrator in ["implicit", "explicit"] {
-        let d = dir(&format!("dome-{integrator}"));
-        let (stdout, stderr, s) = run(&d, &DOME.replace("INTEGRATOR", integrator));
-        let c = contact(&s);
-        assert_eq!(c["held"], true, "{integrator}: {c}\n{stdout}\n{stderr}");
-        assert_eq!(s["settled"], true, "{integrator}: {stdout}");
-        assert!(!stdout.contains("warning") && !stderr.contains("warning"), "{stdout}\n{stderr}");
-        moved.push(s["bodies"][0]["max_displacement"].as_f64().unwrap());
-    }
+    let moved = held_under_both_integrators("dome", &|integrator| DOME.replace("INTEGRATOR", integrator));
     // Pushed nearly the whole 12 mm less its first gap, and alike under both integrators.
     assert!(moved.iter().all(|m| *m > 10.0), "the dome moved {moved:?} mm");
     assert!((moved[0] - moved[1]).abs() < 0.02 * moved[1], "{moved:?}");
@@ -242,17 +250,9 @@ fn a_ball_pressed_into_the_stanford_bunny_holds_at_its_surface() {
     // A real scan nobody here made. Against the lattice's own boundary the ball ended 0.58 cm
     // inside the bunny's surface at rest, past half the spacing, under both integrators.
     let mesh = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
-    let mut moved = Vec::new();
-    for integrator in ["implicit", "explicit"] {
-        let d = dir(&format!("bunny-{integrator}"));
-        let scene = BUNNY.replace("INTEGRATOR", integrator).replace("BUNNY", &mesh.display().to_string());
-        let (stdout, stderr, s) = run(&d, &scene);
-        let c = contact(&s);
-        assert_eq!(c["held"], true, "{integrator}: {c}\n{stdout}\n{stderr}");
-        assert_eq!(s["settled"], true, "{integrator}: {stdout}");
-        assert!(!stdout.contains("warning") && !stderr.contains("warning"), "{stdout}\n{stderr}");
-        moved.push(s["bodies"][0]["max_displacement"].as_f64().unwrap());
-    }
+    let moved = held_under_both_integrators("bunny", &|integrator| {
+        BUNNY.replace("INTEGRATOR", integrator).replace("BUNNY", &mesh.display().to_string())
+    });
     // The ball went 2.2 cm past the back's top: the back goes most of that way down.
     assert!(moved.iter().all(|m| *m > 1.8), "the bunny moved {moved:?} cm");
     assert!((moved[0] - moved[1]).abs() < 0.03 * moved[1], "{moved:?}");

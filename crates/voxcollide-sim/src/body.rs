@@ -273,23 +273,7 @@ impl MassSpring {
         }
         let inv_mass =
             degree.iter().map(|&d| 1.0 / (material.mass * (d as f32 / REFERENCE_DEGREE).max(1.0))).collect();
-        let mut tri_offsets = vec![0u32; n + 1];
-        for t in &surface.triangles {
-            for &v in t {
-                tri_offsets[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..n {
-            tri_offsets[i + 1] += tri_offsets[i];
-        }
-        let mut fill = tri_offsets.clone();
-        let mut tri_adjacency = vec![0u32; tri_offsets[n] as usize];
-        for (k, t) in surface.triangles.iter().enumerate() {
-            for &v in t {
-                tri_adjacency[fill[v as usize] as usize] = k as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (tri_offsets, tri_adjacency) = surface.triangles_at(n);
         Ok(MassSpring {
             inv_mass,
             tri_offsets,

@@ -116,24 +116,7 @@ impl Shown {
         let e = body.embedded.as_ref()?;
         let n = body.len() as u32;
         let mesh = TriangleMesh { triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect() };
-        let points = body.len() + e.rest.len();
-        let mut tri_offsets = vec![0u32; points + 1];
-        for t in &mesh.triangles {
-            for &v in t {
-                tri_offsets[v as usize + 1] += 1;
-            }
-        }
-        for i in 0..points {
-            tri_offsets[i + 1] += tri_offsets[i];
-        }
-        let mut fill = tri_offsets.clone();
-        let mut tri_adjacency = vec![0u32; mesh.triangles.len() * 3];
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            for &v in tri {
-                tri_adjacency[fill[v as usize] as usize] = t as u32;
-                fill[v as usize] += 1;
-            }
-        }
+        let (tri_offsets, tri_adjacency) = mesh.triangles_at(body.len() + e.rest.len());
         Some(Shown { mesh, tri_offsets, tri_adjacency })
     }
 }

@@ -23,6 +23,30 @@ impl TriangleMesh {
         self.corners(positions).map(|[a, b, c]| 0.5 * (b - a).cross(c - a).length()).sum()
     }
 
+    /// Per vertex of `n`, the triangles at it, as offsets into a flat list (CSR): vertex `v`'s
+    /// are `list[offsets[v]..offsets[v + 1]]`, ascending.
+    #[must_use]
+    pub fn triangles_at(&self, n: usize) -> (Vec<u32>, Vec<u32>) {
+        let mut offsets = vec![0u32; n + 1];
+        for t in &self.triangles {
+            for &v in t {
+                offsets[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut fill = offsets.clone();
+        let mut list = vec![0u32; offsets[n] as usize];
+        for (k, t) in self.triangles.iter().enumerate() {
+            for &v in t {
+                list[fill[v as usize] as usize] = k as u32;
+                fill[v as usize] += 1;
+            }
+        }
+        (offsets, list)
+    }
+
     fn corners<'a>(&'a self, positions: &'a [glam::Vec3]) -> impl Iterator<Item = [glam::DVec3; 3]> + 'a {
         self.triangles.iter().map(|t| t.map(|v| positions[v as usize].as_dvec3()))
     }
