@@ -17,7 +17,7 @@ use crate::scenario::Backend;
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
 use voxcollide_sim::build::{BodyNote, Built, build_world};
-use voxcollide_sim::geometry::{ClosedSurface, penetration};
+use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
 use voxcollide_sim::{CpuWorld, GpuWorld, Integrator, MassSpring, World};
 
@@ -548,11 +548,22 @@ struct ContactChecks {
     touched: Vec<bool>,
     /// Per contact: the depth of the last check (at the end, the last frame's).
     last: Vec<f32>,
+    /// Per contact: the hierarchies of its two bodies' surfaces, kept from one check to the
+    /// next and refit (a check builds none anew until one has gone stale).
+    hierarchies: Vec<[Option<Hierarchy>; 2]>,
+    /// Per contact: b's vertices in a, a's surface in b, from one check to the next (each
+    /// asks only the points that may have changed sides).
+    watches: Vec<[PenetrationWatch; 2]>,
 }
 
 impl ContactChecks {
     fn new(contacts: usize) -> ContactChecks {
-        ContactChecks { touched: vec![false; contacts], last: vec![0.0; contacts] }
+        ContactChecks {
+            touched: vec![false; contacts],
+            last: vec![0.0; contacts],
+            hierarchies: vec![[None, None]; contacts],
+            watches: vec![Default::default(); contacts],
+        }
     }
 
     /// Checks every contact's penetration now (`step`, in output frame `frame`) against its
@@ -570,7 +581,8 @@ impl ContactChecks {
         note: &mut dyn FnMut(&str),
     ) -> Result<(), Error> {
         for (c, pair) in world.contacts.iter().enumerate() {
-            let (b_in_a, a_in_b) = contact_depths(world, pair)?;
+            let (b_in_a, a_in_b) =
+                contact_depths(world, pair, &mut self.hierarchies[c], &mut self.watches[c])?;
             let depth = b_in_a.max_depth.max(a_in_b);
             self.last[c] = depth;
             let s = &mut summary.contacts[c];
@@ -648,13 +660,43 @@ impl ContactChecks {
 fn contact_depths(
     world: &World,
     pair: &voxcollide_sim::ContactPair,
+    hierarchies: &mut [Option<Hierarchy>; 2],
+    watches: &mut [PenetrationWatch; 2],
 ) -> Result<(voxcollide_sim::geometry::Penetration, f32), Error> {
     let surface_of = |k: usize| shown_surface(&world.bodies[k]);
     let (a_pos, a_mesh) = surface_of(pair.a);
-    let b_in_a = penetration(&ClosedSurface::new(&a_pos, a_mesh)?, &world.bodies[pair.b].pos);
     let (b_pos, b_mesh) = surface_of(pair.b);
-    let a_in_b = penetration(&ClosedSurface::new(&b_pos, b_mesh)?, &a_pos).max_depth;
-    Ok((b_in_a, a_in_b))
+    let [ha, hb] = hierarchies;
+    let [wa, wb] = watches;
+    // The two ways at once, each on every core.
+    let (b_in_a, a_in_b) = rayon::join(
+        || -> Result<_, Error> {
+            let surface = surface_kept(&a_pos, a_mesh, ha.take())?;
+            let depth = wa.penetration(&surface, &world.bodies[pair.b].pos);
+            *ha = Some(surface.into_hierarchy());
+            Ok(depth)
+        },
+        || -> Result<_, Error> {
+            let surface = surface_kept(&b_pos, b_mesh, hb.take())?;
+            let depth = wb.penetration(&surface, &a_pos).max_depth;
+            *hb = Some(surface.into_hierarchy());
+            Ok(depth)
+        },
+    );
+    Ok((b_in_a?, a_in_b?))
+}
+
+/// The closed surface of `mesh` at `positions` on the hierarchy kept from the last check, or
+/// on a new one where there is none or it has gone stale.
+fn surface_kept<'a>(
+    positions: &'a [Vec3],
+    mesh: &'a voxcollide_sim::mesh::TriangleMesh,
+    kept: Option<Hierarchy>,
+) -> Result<ClosedSurface<'a>, Error> {
+    match kept.filter(|h| !h.stale()).map(|h| ClosedSurface::refit(positions, mesh, h)) {
+        Some(Ok(surface)) => Ok(surface),
+        _ => ClosedSurface::new(positions, mesh),
+    }
 }
 
 /// The contact force on each vertex of body `k`: its side's forces of every contact it is in,

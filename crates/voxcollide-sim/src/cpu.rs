@@ -5,7 +5,7 @@ use glam::{Mat3, Vec3};
 
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::implicit::{
-    BodyStep, Coupling, ImplicitSettings, Residual, StepStats, integrate_implicit_together,
+    BodyStep, Coupling, Guess, ImplicitSettings, Residual, StepStats, integrate_implicit_together,
 };
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
@@ -41,6 +41,8 @@ pub struct CpuWorld {
     /// Implicit only: the step is the schedule's times this (see [`accelerate`](Self::accelerate)).
     dt_scale: f32,
     accelerate_to: f32,
+    /// Implicit only: the last step's answer, where the next solve starts.
+    guess: Guess,
 }
 
 impl CpuWorld {
@@ -77,6 +79,7 @@ impl CpuWorld {
             residual: Residual::default(),
             dt_scale: 1.0,
             accelerate_to: 1.0,
+            guess: Guess::default(),
         })
     }
 
@@ -110,6 +113,12 @@ impl CpuWorld {
     /// Collision errors, and [`Error::Simulation`] when a vertex's position stops being finite
     /// or its speed runs away (naming the step, the body and the vertex).
     pub fn step(&mut self) -> Result<(), Error> {
+        // On one of the pool's threads: each parallel loop within is then a fork on a worker,
+        // not a job sent to the pool from outside it and waited for asleep.
+        rayon::scope(|_| self.step_on_pool())
+    }
+
+    fn step_on_pool(&mut self) -> Result<(), Error> {
         let w = &mut self.world;
         for (c, pair) in w.contacts.iter().enumerate() {
             let (a, b) = (&w.bodies[pair.a], &w.bodies[pair.b]);
@@ -211,7 +220,8 @@ impl CpuWorld {
                     contact_vel: &voxel_vel[k],
                 })
                 .collect();
-            self.stats = integrate_implicit_together(&mut w.bodies, &steps, &couplings, &settings);
+            self.stats =
+                integrate_implicit_together(&mut w.bodies, &steps, &couplings, &settings, &mut self.guess);
         }
         if let Some(settings) = implicit {
             let peak_gross = self.residual.peak_gross.max(residual.gross);

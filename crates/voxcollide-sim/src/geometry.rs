@@ -30,7 +30,6 @@
 //!   identity, not an approximation, and it holds for open surfaces too. Far outside the whole
 //!   surface's box, a closed surface has no boundary, an empty fan, and `w = 0` at no cost.
 
-use std::collections::HashMap;
 use std::f64::consts::TAU;
 
 use glam::{DVec3, Vec3};
@@ -95,6 +94,9 @@ struct Node {
 /// `lo < hi`, how many more times it runs `lo → hi` than `hi → lo`. Edges shared by two
 /// consistently oriented triangles cancel; what remains is the boundary.
 type Chain = HashMap<(u32, u32), i32>;
+/// A hash map with a fixed, quick hash (the chains' keys are small integers; nothing depends
+/// on its order).
+type HashMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
 
 /// Adds the directed edge `u → v` to a chain, dropping it when it cancels.
 fn add_edge(chain: &mut Chain, u: u32, v: u32, times: i32) {
@@ -122,11 +124,47 @@ pub struct ClosedSurface<'a> {
     triangles: Vec<Triangle>,
     /// The fan triangles of the nodes whose [`Far::Fan`] is cheapest.
     caps: Vec<Triangle>,
+    /// Their corners, by vertex.
+    cap_corners: Vec<[u32; 3]>,
     nodes: Vec<Node>,
     /// Index of the root in `nodes` (none when there are no triangles).
     root: Option<u32>,
     /// How far outside a node's box a point must be for the node to count as far.
     margin: f64,
+    /// The triangles' hierarchy order, and the bounding-box diagonal it was built at.
+    built: (Vec<u32>, f64),
+    /// Whether the triangles have no boundary: the winding number is then an integer away from
+    /// the surface, and a point can change sides only by crossing it.
+    closed: bool,
+}
+
+/// The shape of a [`ClosedSurface`]'s hierarchy, without positions: which triangles each node
+/// holds, which fan stands for it from afar, by vertex. Kept from one frame to the next and
+/// [refit](ClosedSurface::refit) to the mesh's new positions.
+#[derive(Clone, Debug)]
+pub struct Hierarchy {
+    order: Vec<u32>,
+    cap_corners: Vec<[u32; 3]>,
+    nodes: Vec<Node>,
+    root: Option<u32>,
+    triangles: usize,
+    positions: usize,
+    /// The bounding-box diagonal at the build.
+    extent: f64,
+    /// The bounding-box diagonal at the last refit.
+    now: f64,
+    /// Whether the triangles have no boundary (every edge used once each way).
+    closed: bool,
+}
+
+impl Hierarchy {
+    /// Whether the surface's bounding box has grown or shrunk by more than a quarter since the
+    /// hierarchy was built (its boxes then overlap more than a fresh build's, and queries slow
+    /// down): time to build anew.
+    #[must_use]
+    pub fn stale(&self) -> bool {
+        !(self.now <= 1.25 * self.extent && self.now >= 0.8 * self.extent)
+    }
 }
 
 impl<'a> ClosedSurface<'a> {
@@ -162,32 +200,126 @@ impl<'a> ClosedSurface<'a> {
             nodes: Vec::new(),
             caps: Vec::new(),
         };
-        let root =
-            if mesh.triangles.is_empty() { None } else { Some(builder.build(0, mesh.triangles.len()).0) };
-        let triangles = builder
+        let (root, closed) = if mesh.triangles.is_empty() {
+            (None, true)
+        } else {
+            let (root, _, chain) = builder.build(0, mesh.triangles.len());
+            (Some(root), chain.is_empty())
+        };
+        let hierarchy = Hierarchy {
+            order: builder.order,
+            cap_corners: builder.caps,
+            nodes: builder.nodes,
+            root,
+            triangles: mesh.triangles.len(),
+            positions: positions.len(),
+            extent: 0.0,
+            now: 0.0,
+            closed,
+        };
+        Ok(ClosedSurface::fitted(positions, mesh, hierarchy))
+    }
+
+    /// The surface of `mesh` over `positions` on the shape of a hierarchy kept from an earlier
+    /// frame of the same mesh ([`ClosedSurface::into_hierarchy`]): its boxes and triangles
+    /// refit to the new positions in `O(T)`, where [`ClosedSurface::new`] sorts and merges
+    /// boundary chains in `O(T log T)`. The answers are those of any hierarchy over the same
+    /// triangles (the fans are an identity, the boxes bound what they hold); at the positions
+    /// it was built on, exactly those of [`ClosedSurface::new`]. A mesh that has deformed far
+    /// from where the hierarchy was built is answered as correctly, only more slowly: see
+    /// [`Hierarchy::stale`].
+    ///
+    /// # Errors
+    ///
+    /// [`Error::Invalid`](voxcollide::Error::Invalid) if the hierarchy was built over another
+    /// mesh (another count of triangles or positions).
+    pub fn refit(
+        positions: &'a [Vec3],
+        mesh: &'a TriangleMesh,
+        hierarchy: Hierarchy,
+    ) -> Result<ClosedSurface<'a>, voxcollide::Error> {
+        if hierarchy.triangles != mesh.triangles.len() || hierarchy.positions != positions.len() {
+            return Err(voxcollide::Error::Invalid {
+                what: "surface hierarchy",
+                value: format!("{} triangles over {} positions", hierarchy.triangles, hierarchy.positions),
+                rule: format!(
+                    "a hierarchy refits only the mesh it was built on ({} triangles over {} positions given)",
+                    mesh.triangles.len(),
+                    positions.len()
+                ),
+            });
+        }
+        Ok(ClosedSurface::fitted(positions, mesh, hierarchy))
+    }
+
+    /// The triangles, fans and boxes of `hierarchy` at `positions` (the nodes are stored
+    /// children first, so each box is its triangles' or its children's).
+    fn fitted(positions: &'a [Vec3], mesh: &'a TriangleMesh, mut hierarchy: Hierarchy) -> ClosedSurface<'a> {
+        let at = |i: u32| positions[i as usize].as_dvec3();
+        let triangles: Vec<Triangle> = hierarchy
             .order
             .iter()
             .map(|&t| {
-                let [a, b, c] = mesh.triangles[t as usize].map(|i| positions[i as usize].as_dvec3());
+                let [a, b, c] = mesh.triangles[t as usize].map(at);
                 Triangle::new(a, b, c)
             })
             .collect();
-        let margin = match root {
-            Some(r) => {
-                let n = &builder.nodes[r as usize];
-                FAR_MARGIN * (n.hi - n.lo).length().max(f64::MIN_POSITIVE)
-            }
-            None => 0.0,
-        };
-        Ok(ClosedSurface {
+        let caps =
+            hierarchy.cap_corners.iter().map(|&[a, b, c]| Triangle::new(at(a), at(b), at(c))).collect();
+        for k in 0..hierarchy.nodes.len() {
+            let node = hierarchy.nodes[k];
+            let (lo, hi) = if node.left == NONE {
+                triangles[node.start as usize..node.end as usize]
+                    .iter()
+                    .fold((DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)), |(lo, hi), t| {
+                        (lo.min(t.a).min(t.b).min(t.c), hi.max(t.a).max(t.b).max(t.c))
+                    })
+            } else {
+                let (l, r) = (&hierarchy.nodes[node.left as usize], &hierarchy.nodes[node.right as usize]);
+                (l.lo.min(r.lo), l.hi.max(r.hi))
+            };
+            hierarchy.nodes[k].lo = lo;
+            hierarchy.nodes[k].hi = hi;
+        }
+        let extent = hierarchy.root.map_or(0.0, |r| {
+            let n = &hierarchy.nodes[r as usize];
+            (n.hi - n.lo).length()
+        });
+        if hierarchy.extent == 0.0 {
+            hierarchy.extent = extent;
+        }
+        ClosedSurface {
             positions,
             mesh,
             triangles,
-            caps: builder.caps,
-            nodes: builder.nodes,
-            root,
-            margin,
-        })
+            caps,
+            cap_corners: hierarchy.cap_corners,
+            nodes: hierarchy.nodes,
+            root: hierarchy.root,
+            margin: FAR_MARGIN * extent.max(f64::MIN_POSITIVE),
+            built: (hierarchy.order, hierarchy.extent),
+            closed: hierarchy.closed,
+        }
+    }
+
+    /// The hierarchy's shape, to [`refit`](ClosedSurface::refit) at a later frame.
+    #[must_use]
+    pub fn into_hierarchy(self) -> Hierarchy {
+        let extent = self.root.map_or(0.0, |r| {
+            let n = &self.nodes[r as usize];
+            (n.hi - n.lo).length()
+        });
+        Hierarchy {
+            order: self.built.0,
+            cap_corners: self.cap_corners,
+            nodes: self.nodes,
+            root: self.root,
+            triangles: self.mesh.triangles.len(),
+            positions: self.positions.len(),
+            extent: self.built.1,
+            now: extent,
+            closed: self.closed,
+        }
     }
 
     /// The positions the surface was built on.
@@ -240,6 +372,7 @@ impl<'a> ClosedSurface<'a> {
                 (true, Far::Fan { start: fan_start, end: fan_end }) => {
                     sum += self.caps[fan_start as usize..fan_end as usize]
                         .iter()
+                        .filter(|t| !t.degenerate)
                         .map(|t| half_solid_angle(t, p))
                         .sum::<f64>();
                 }
@@ -426,7 +559,7 @@ struct Builder<'b> {
     order: Vec<u32>,
     centroids: Vec<DVec3>,
     nodes: Vec<Node>,
-    caps: Vec<Triangle>,
+    caps: Vec<[u32; 3]>,
 }
 
 impl Builder<'_> {
@@ -449,7 +582,7 @@ impl Builder<'_> {
         }
         let count = end - start;
         let (left, right, chain, below) = if count <= LEAF_SIZE {
-            let mut chain = Chain::new();
+            let mut chain = Chain::default();
             for &t in &self.order[start..end] {
                 let [a, b, c] = self.indices[t as usize];
                 add_edge(&mut chain, a, b, 1);
@@ -500,9 +633,9 @@ impl Builder<'_> {
 
     /// The fan over a boundary chain from one of its vertices: triangles `(v0, u, w)` for each
     /// boundary edge `u → w`, repeated by multiplicity. Its boundary equals the chain, because the
-    /// spokes `v0 → u` cancel around a cycle. Triangles through `v0` and zero-area ones are
-    /// left out (no solid angle for a point outside the node's box).
-    fn fan(&self, chain: &Chain) -> Vec<Triangle> {
+    /// spokes `v0 → u` cancel around a cycle. Triangles through `v0` are left out (no solid
+    /// angle); those of zero area now are kept, by vertex, for a refit may give them one.
+    fn fan(&self, chain: &Chain) -> Vec<[u32; 3]> {
         if chain.is_empty() {
             return Vec::new();
         }
@@ -510,23 +643,19 @@ impl Builder<'_> {
         let mut edges: Vec<(u32, u32, i32)> = chain.iter().map(|(&(u, v), &m)| (u, v, m)).collect();
         edges.sort_unstable();
         // The hub touching the most boundary edges leaves out the most triangles.
-        let mut touches: HashMap<u32, usize> = HashMap::new();
+        let mut touches: HashMap<u32, usize> = HashMap::default();
         for &(u, v, m) in &edges {
             *touches.entry(u).or_default() += m.unsigned_abs() as usize;
             *touches.entry(v).or_default() += m.unsigned_abs() as usize;
         }
         let hub = touches.iter().max_by(|x, y| x.1.cmp(y.1).then(y.0.cmp(x.0))).map(|(&v, _)| v).unwrap();
-        let at = |i: u32| self.positions[i as usize].as_dvec3();
         let mut fan = Vec::new();
         for (u, v, m) in edges {
             let (u, w) = if m > 0 { (u, v) } else { (v, u) };
             if u == hub || w == hub {
                 continue;
             }
-            let t = Triangle::new(at(hub), at(u), at(w));
-            if !t.degenerate {
-                fan.extend(std::iter::repeat_n(t, m.unsigned_abs() as usize));
-            }
+            fan.extend(std::iter::repeat_n([hub, u, w], m.unsigned_abs() as usize));
         }
         fan
     }
@@ -547,23 +676,137 @@ pub struct Penetration {
 
 /// The points of `points` inside the closed surface, and the deepest one's distance to it.
 ///
-/// Non-finite points are never inside. Only inside points pay for a distance query.
+/// Non-finite points are never inside. Only inside points pay for a distance query. The
+/// points are taken in chunks on every core and the chunks' answers combined in order: the
+/// same answer, the first of equally deep points included, on any number of threads.
 #[must_use]
 pub fn penetration(surface: &ClosedSurface, points: &[Vec3]) -> Penetration {
-    let mut out = Penetration::default();
-    for (i, &p) in points.iter().enumerate() {
-        if !surface.contains(p) {
-            continue;
-        }
-        out.count += 1;
-        let depth = surface.distance(p);
-        if out.deepest.is_none() || depth > out.max_depth {
-            out.max_depth = depth;
-            out.deepest = Some(i as u32);
+    use rayon::prelude::*;
+    let parts: Vec<Penetration> = points
+        .par_chunks(PENETRATION_CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let mut out = Penetration::default();
+            for (k, &p) in chunk.iter().enumerate() {
+                if surface.contains(p) {
+                    out.inside(c * PENETRATION_CHUNK + k, surface.distance(p));
+                }
+            }
+            out
+        })
+        .collect();
+    Penetration::combined(parts, points.len())
+}
+
+/// Points per parallel task of [`penetration`] and [`PenetrationWatch::penetration`].
+const PENETRATION_CHUNK: usize = 256;
+
+impl Penetration {
+    /// Counts point `i`, inside at `depth`: the deepest where deeper than all before it.
+    fn inside(&mut self, i: usize, depth: f32) {
+        self.count += 1;
+        if self.deepest.is_none() || depth > self.max_depth {
+            self.max_depth = depth;
+            self.deepest = Some(i as u32);
         }
     }
-    if !points.is_empty() {
-        out.fraction = out.count as f32 / points.len() as f32;
+
+    /// The chunks' answers combined in order (the first of equally deep points stays the
+    /// deepest), over `points` points.
+    fn combined(parts: Vec<Penetration>, points: usize) -> Penetration {
+        let mut out = Penetration::default();
+        for part in parts {
+            out.count += part.count;
+            if part.deepest.is_some() && (out.deepest.is_none() || part.max_depth > out.max_depth) {
+                out.max_depth = part.max_depth;
+                out.deepest = part.deepest;
+            }
+        }
+        if points > 0 {
+            out.fraction = out.count as f32 / points as f32;
+        }
+        out
     }
-    out
+}
+
+/// [`penetration`] from one frame to the next: the same answer, asking only the points that
+/// may have changed sides.
+///
+/// A point found outside a closed surface at distance `d` cannot be inside it later unless it
+/// and the surface have moved, together, `d` towards each other: its winding number is an
+/// integer away from the surface and changes only as the point crosses it (along the straight
+/// paths from then to now, it stays farther than `d − |Δp| − max|Δv|` from the surface, each of
+/// whose points moves no farther than its farthest vertex). So each point keeps a lower bound
+/// on its distance, lowered by its own move and the surface's largest vertex move at each call,
+/// and is asked again only when the bound runs out. Points inside are asked every time (their
+/// depth is the answer). Where the surface has a boundary (its winding number is not an
+/// integer), or the points or the surface change in number, every point is asked.
+#[derive(Clone, Debug, Default)]
+pub struct PenetrationWatch {
+    /// The surface's positions at the last call.
+    surface: Vec<Vec3>,
+    /// Per point: where it was at the last call, and a lower bound on its distance then to the
+    /// surface then (0: to be asked).
+    at: Vec<(Vec3, f32)>,
+    /// How many points the last call asked.
+    pub asked: usize,
+}
+
+impl PenetrationWatch {
+    /// [`penetration`] of `points` in `surface` now, asking only the points that may have
+    /// changed sides since the last call.
+    pub fn penetration(&mut self, surface: &ClosedSurface, points: &[Vec3]) -> Penetration {
+        use rayon::prelude::*;
+        let positions = surface.positions();
+        let fresh = !surface.closed || self.surface.len() != positions.len() || self.at.len() != points.len();
+        if fresh {
+            self.surface = positions.to_vec();
+            self.at = points.iter().map(|&p| (p, 0.0)).collect();
+        }
+        // The surface's largest vertex move (NaN or ∞ where a position is not finite: every
+        // point is asked).
+        let moved = positions
+            .iter()
+            .zip(&self.surface)
+            .map(|(p, q)| p.distance(*q))
+            .fold(0.0f32, |m, d| if d.is_nan() || m.is_nan() { f32::NAN } else { m.max(d) });
+        let root = surface.root.map(|r| surface.nodes[r as usize]);
+        let parts: Vec<(Penetration, usize)> = points
+            .par_chunks(PENETRATION_CHUNK)
+            .zip(self.at.par_chunks_mut(PENETRATION_CHUNK))
+            .enumerate()
+            .map(|(c, (chunk, at))| {
+                let mut out = Penetration::default();
+                let mut asked = 0;
+                for (k, (&p, (then, clear))) in chunk.iter().zip(at.iter_mut()).enumerate() {
+                    let gone = p.distance(*then) + moved;
+                    *then = p;
+                    // Slack for the rounding of the bound's sums.
+                    if *clear > 0.0 && gone * 1.001 < *clear {
+                        *clear -= gone * 1.001;
+                        continue;
+                    }
+                    asked += 1;
+                    if surface.contains(p) {
+                        out.inside(c * PENETRATION_CHUNK + k, surface.distance(p));
+                        *clear = 0.0;
+                        continue;
+                    }
+                    // Outside: outside the surface's box, the distance to the box bounds it.
+                    let d = match root {
+                        Some(n) if p.is_finite() => {
+                            let outside_box = box_distance2(&n, p.as_dvec3()).sqrt();
+                            if outside_box > 0.0 { outside_box as f32 } else { surface.distance(p) }
+                        }
+                        _ => 0.0,
+                    };
+                    *clear = if d.is_finite() { 0.999 * d } else { 0.0 };
+                }
+                (out, asked)
+            })
+            .collect();
+        self.surface.copy_from_slice(positions);
+        self.asked = parts.iter().map(|p| p.1).sum();
+        Penetration::combined(parts.into_iter().map(|p| p.0).collect(), points.len())
+    }
 }

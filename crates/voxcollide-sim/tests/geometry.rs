@@ -7,7 +7,7 @@ use std::time::Instant;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use voxcollide::glam::{DVec3, Vec3};
-use voxcollide_sim::geometry::{ClosedSurface, Penetration, penetration};
+use voxcollide_sim::geometry::{ClosedSurface, Penetration, PenetrationWatch, penetration};
 use voxcollide_sim::mesh::TriangleMesh;
 
 // ---------------------------------------------------------------------------------------------
@@ -622,4 +622,124 @@ fn run_points_against_sphere_2k(n: usize) {
     let expected = points.iter().filter(|p| p.length() < 1.0 - h).count();
     let shell = points.iter().filter(|p| (1.0 - h..=1.0).contains(&p.length())).count();
     assert!(pen.count >= expected && pen.count <= expected + shell, "{} vs {expected} + {shell}", pen.count);
+}
+
+// ---------------------------------------------------------------------------------------------
+// From one frame to the next: a hierarchy refit, and a watch that asks only what may change
+
+/// The sphere's vertices at frame `t` of a squash-and-wobble: flattened by up to 40 %, bulged
+/// sideways and shifted, so that the surface sweeps through points that were outside.
+fn wobbled(rest: &[Vec3], t: f32) -> Vec<Vec3> {
+    let squash = 1.0 - 0.4 * (0.5 - 0.5 * (3.0 * t).cos());
+    rest.iter()
+        .map(|p| {
+            let bulge = 1.0 + 0.3 * (1.0 - squash) * (1.0 - p.z * p.z);
+            Vec3::new(p.x * bulge + 0.2 * t, p.y * bulge, p.z * squash + 0.05 * (5.0 * p.x + t).sin())
+        })
+        .collect()
+}
+
+/// A refit hierarchy answers as a fresh one: exactly at the positions it was built on, and at
+/// a deformed frame the same inside answers (winding numbers within rounding) and the same
+/// distances; a hierarchy of another mesh is refused with a typed error.
+#[test]
+fn a_refit_hierarchy_answers_as_a_fresh_build() {
+    let (rest, mesh) = sphere();
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let points: Vec<Vec3> = (0..2000).map(|_| random_point(&mut rng, -1.6, 1.6)).collect();
+    let fresh = ClosedSurface::new(&rest, &mesh).unwrap();
+    let same = ClosedSurface::refit(&rest, &mesh, ClosedSurface::new(&rest, &mesh).unwrap().into_hierarchy())
+        .unwrap();
+    for &p in &points {
+        assert_eq!(fresh.winding_number(p).to_bits(), same.winding_number(p).to_bits(), "{p}");
+        assert_eq!(fresh.distance(p).to_bits(), same.distance(p).to_bits(), "{p}");
+    }
+    let mut hierarchy = fresh.into_hierarchy();
+    let mut insides = 0;
+    for frame in 1..=6 {
+        let now = wobbled(&rest, frame as f32 * 0.35);
+        let refit = ClosedSurface::refit(&now, &mesh, hierarchy).unwrap();
+        let built = ClosedSurface::new(&now, &mesh).unwrap();
+        for &p in &points {
+            let (a, b) = (refit.winding_number(p), built.winding_number(p));
+            assert!((a - b).abs() < 1e-9, "frame {frame}, {p}: {a} vs {b}");
+            assert_eq!(refit.contains(p), built.contains(p), "frame {frame}, {p}");
+            assert_eq!(refit.distance(p), built.distance(p), "frame {frame}, {p}");
+            insides += usize::from(built.contains(p));
+        }
+        hierarchy = refit.into_hierarchy();
+    }
+    assert!(insides > 1000, "the test's points should be inside often: {insides}");
+    // Another mesh: refused, not answered wrongly.
+    let (cube_positions, cube_mesh) = cube();
+    let err = ClosedSurface::refit(&cube_positions, &cube_mesh, hierarchy).unwrap_err();
+    assert!(matches!(err, voxcollide::Error::Invalid { what: "surface hierarchy", .. }), "{err:?}");
+}
+
+/// A hierarchy goes stale once the surface has grown or shrunk by more than a quarter.
+#[test]
+fn a_hierarchy_goes_stale_when_the_surface_changes_size() {
+    let (rest, mesh) = sphere();
+    let h = ClosedSurface::new(&rest, &mesh).unwrap().into_hierarchy();
+    assert!(!h.stale());
+    let grown: Vec<Vec3> = rest.iter().map(|p| 1.1 * *p).collect();
+    let h = ClosedSurface::refit(&grown, &mesh, h).unwrap().into_hierarchy();
+    assert!(!h.stale(), "10 % is not stale");
+    let doubled: Vec<Vec3> = rest.iter().map(|p| 2.0 * *p).collect();
+    let h = ClosedSurface::refit(&doubled, &mesh, h).unwrap().into_hierarchy();
+    assert!(h.stale(), "twice the size is");
+}
+
+/// The watch gives exactly [`penetration`]'s answer at every frame of a surface sweeping
+/// through points (and of points moving through it), while asking fewer points once it has
+/// their distances; on a surface with a hole it asks every point every time.
+#[test]
+fn a_penetration_watch_answers_as_penetration_and_asks_fewer_points() {
+    let (rest, mesh) = sphere();
+    let mut rng = ChaCha8Rng::seed_from_u64(22);
+    let base: Vec<Vec3> = (0..3000).map(|_| random_point(&mut rng, -2.5, 2.5)).collect();
+    let mut watch = PenetrationWatch::default();
+    let (mut asked, mut seen_inside) = (0, 0);
+    for frame in 0..40 {
+        let t = frame as f32 * 0.05;
+        let now = wobbled(&rest, t);
+        // The points drift too, each its own way.
+        let points: Vec<Vec3> = base
+            .iter()
+            .enumerate()
+            .map(|(i, p)| *p + 0.02 * t * Vec3::new((i % 7) as f32 - 3.0, 0.0, 1.0))
+            .collect();
+        let surface = ClosedSurface::new(&now, &mesh).unwrap();
+        let expected = penetration(&surface, &points);
+        assert_eq!(watch.penetration(&surface, &points), expected, "frame {frame}");
+        seen_inside += expected.count;
+        if frame > 0 {
+            asked += watch.asked;
+        }
+    }
+    assert!(seen_inside > 0);
+    assert!(asked < 39 * base.len() / 2, "the watch asked {asked} of {} points", 39 * base.len());
+    // A hole: every point, every time.
+    let (positions, mut open) = cube();
+    open.triangles.truncate(10);
+    let surface = ClosedSurface::new(&positions, &open).unwrap();
+    let mut watch = PenetrationWatch::default();
+    for _ in 0..3 {
+        assert_eq!(watch.penetration(&surface, &base), penetration(&surface, &base));
+        assert_eq!(watch.asked, base.len());
+    }
+}
+
+/// Of equally deep points in different parallel chunks, the first is the deepest, as on one
+/// thread.
+#[test]
+fn the_first_of_equally_deep_points_is_the_deepest_across_chunks() {
+    let (positions, mesh) = cube();
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
+    let mut points = vec![Vec3::splat(5.0); 1000];
+    points[700] = Vec3::new(0.5, 0.0, 0.0);
+    points[300] = Vec3::new(0.0, -0.5, 0.0);
+    let p = penetration(&s, &points);
+    assert_eq!((p.count, p.deepest), (2, Some(300)));
+    assert_eq!(PenetrationWatch::default().penetration(&s, &points), p);
 }
