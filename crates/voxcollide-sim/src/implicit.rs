@@ -39,7 +39,7 @@
 //! and every dot product is summed over fixed chunks in a fixed order: the same answer on any
 //! number of threads.
 
-use glam::{Mat3, Mat3A, Vec3, Vec3A};
+use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
@@ -144,11 +144,13 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
 
 /// The symmetric blocks of one step's linear system.
 struct System {
-    /// Per spring: `h²·H + h·c·uuᵀ`, the coupling of its two ends (in SIMD lanes: the same
-    /// products and sums as `Mat3`'s, lane by lane).
-    coupling: Vec<Mat3A>,
+    /// Per spring: its direction `u`. Each of its blocks is `a·I + b·uuᵀ`, kept as `[a, b]`:
+    /// a fifth of the nine numbers' memory, which the products stream through.
+    direction: Vec<Vec3>,
+    /// Per spring: `h²·H + h·c·uuᵀ`, the coupling of its two ends.
+    coupling: Vec<[f32; 2]>,
     /// Per spring: `H`, its share of `−K`.
-    stiffness: Vec<Mat3A>,
+    stiffness: Vec<[f32; 2]>,
     /// Per vertex: `m + h·damping`.
     diagonal: Vec<f32>,
     /// Per vertex: the contacts' `k_c·nnᵀ` (their share of `−K`).
@@ -199,11 +201,12 @@ impl System {
             }
             let ui = u[i];
             let blocks = if stiff_only { &self.stiffness } else { &self.coupling };
-            let mut sum = Vec3A::from(if stiff_only { Vec3::ZERO } else { self.diagonal[i] * ui });
+            let mut r = if stiff_only { Vec3::ZERO } else { self.diagonal[i] * ui };
             for &[j, s] in &body.adjacency[body.offsets[i] as usize..body.offsets[i + 1] as usize] {
-                sum += blocks[s as usize] * Vec3A::from(ui - u[j as usize]);
+                let d = ui - u[j as usize];
+                let ([a, b], n) = (blocks[s as usize], self.direction[s as usize]);
+                r += a * d + (b * n.dot(d)) * n;
             }
-            let mut r = Vec3::from(sum);
             r += if stiff_only { self.contact[i] * ui } else { self.contact_block[i] * ui };
             if let Some(e) = body.elements.as_ref().filter(|_| !elements.is_empty()) {
                 let mut sum = Vec3::ZERO;
@@ -281,7 +284,7 @@ impl MassSpring {
         let m = self.material;
         let rest_scale = inputs.rest_scale;
         // Per spring: the tangent stiffness along it and the tension across it.
-        let (stiffness, coupling): (Vec<Mat3A>, Vec<Mat3A>) = self
+        let blocks: Vec<(Vec3, [f32; 2], [f32; 2])> = self
             .springs
             .par_iter()
             .with_min_len(CHUNK)
@@ -289,19 +292,22 @@ impl MassSpring {
                 let d = self.pos[s.j as usize] - self.pos[s.i as usize];
                 let len = d.length();
                 if len < 1e-12 {
-                    return (Mat3A::ZERO, Mat3A::ZERO);
+                    return (Vec3::ZERO, [0.0; 2], [0.0; 2]);
                 }
                 let u = d / len;
                 let rest = s.rest * rest_scale;
                 let strain = (len - rest) / rest;
                 let tension = s.k * (len - rest) * (1.0 + m.stiffening * strain * strain);
                 let tangent = s.k * (1.0 + 3.0 * m.stiffening * strain * strain);
-                let uu = outer(u);
-                let across = (tension.max(0.0) / len) * (Mat3::IDENTITY - uu);
-                let stiff = tangent * uu + across;
-                (Mat3A::from(stiff), Mat3A::from(h * h * stiff + (h * m.spring_damping) * uu))
+                // tangent·uuᵀ + across·(I − uuᵀ) = across·I + (tangent − across)·uuᵀ.
+                let across = tension.max(0.0) / len;
+                let along = tangent - across;
+                (u, [across, along], [h * h * across, h * h * along + h * m.spring_damping])
             })
-            .unzip();
+            .collect();
+        let direction: Vec<Vec3> = blocks.iter().map(|b| b.0).collect();
+        let stiffness: Vec<[f32; 2]> = blocks.iter().map(|b| b.1).collect();
+        let coupling: Vec<[f32; 2]> = blocks.iter().map(|b| b.2).collect();
         let fill_k = Self::fill_stiffness(inputs);
         let fill_g = if fill_k > 0.0 { self.volume_gradient() } else { Vec::new() };
         let free: Vec<bool> = self.mode.iter().map(|m| *m == Mode::Free).collect();
@@ -335,7 +341,8 @@ impl MassSpring {
                     b += *e;
                 }
                 for &[_, s] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-                    b += Mat3::from(coupling[s as usize]);
+                    let [a, c] = coupling[s as usize];
+                    b += Mat3::from_diagonal(Vec3::splat(a)) + c * outer(direction[s as usize]);
                 }
                 if fill_k > 0.0 {
                     b += (h * h * fill_k) * outer(fill_g[i]);
@@ -350,6 +357,7 @@ impl MassSpring {
             })
             .collect();
         System {
+            direction,
             coupling,
             stiffness,
             diagonal,
