@@ -64,13 +64,16 @@ fn bench(c: &mut Criterion) {
             eprintln!("{name}, {threads} thread(s): {} CG iterations a step", w.stats[0].iterations);
             // Each timed step starts from the same state, so that both thread counts time the
             // same solve.
-            let (pos, vel) = (w.world.bodies[0].pos.clone(), w.world.bodies[0].vel.clone());
+            // The solver's first guess (the last step's answer) is part of that state.
+            let (pos, vel, guess) =
+                (w.world.bodies[0].pos.clone(), w.world.bodies[0].vel.clone(), w.guess.clone());
             group.bench_function(format!("{name}_{threads}_threads"), |b| {
                 b.iter_custom(|iters| {
                     let mut total = Duration::ZERO;
                     for _ in 0..iters {
                         w.world.bodies[0].pos.clone_from(&pos);
                         w.world.bodies[0].vel.clone_from(&vel);
+                        w.guess.clone_from(&guess);
                         let start = std::time::Instant::now();
                         pool.install(|| w.step().unwrap());
                         total += start.elapsed();

@@ -41,8 +41,9 @@ pub struct CpuWorld {
     /// Implicit only: the step is the schedule's times this (see [`accelerate`](Self::accelerate)).
     dt_scale: f32,
     accelerate_to: f32,
-    /// Implicit only: the last step's answer, where the next solve starts.
-    guess: Guess,
+    /// Implicit only: the last step's answer, where the next solve starts (part of the
+    /// world's state: a step taken again from the same positions and velocities takes it too).
+    pub guess: Guess,
 }
 
 impl CpuWorld {

@@ -284,7 +284,8 @@ impl MassSpring {
         let m = self.material;
         let rest_scale = inputs.rest_scale;
         // Per spring: the tangent stiffness along it and the tension across it.
-        let blocks: Vec<(Vec3, [f32; 2], [f32; 2])> = self
+        type Blocks = ((Vec<Vec3>, Vec<[f32; 2]>), Vec<[f32; 2]>);
+        let ((direction, stiffness), coupling): Blocks = self
             .springs
             .par_iter()
             .with_min_len(CHUNK)
@@ -292,7 +293,7 @@ impl MassSpring {
                 let d = self.pos[s.j as usize] - self.pos[s.i as usize];
                 let len = d.length();
                 if len < 1e-12 {
-                    return (Vec3::ZERO, [0.0; 2], [0.0; 2]);
+                    return ((Vec3::ZERO, [0.0; 2]), [0.0; 2]);
                 }
                 let u = d / len;
                 let rest = s.rest * rest_scale;
@@ -302,12 +303,9 @@ impl MassSpring {
                 // tangent·uuᵀ + across·(I − uuᵀ) = across·I + (tangent − across)·uuᵀ.
                 let across = tension.max(0.0) / len;
                 let along = tangent - across;
-                (u, [across, along], [h * h * across, h * h * along + h * m.spring_damping])
+                ((u, [across, along]), [h * h * across, h * h * along + h * m.spring_damping])
             })
-            .collect();
-        let direction: Vec<Vec3> = blocks.iter().map(|b| b.0).collect();
-        let stiffness: Vec<[f32; 2]> = blocks.iter().map(|b| b.1).collect();
-        let coupling: Vec<[f32; 2]> = blocks.iter().map(|b| b.2).collect();
+            .unzip();
         let fill_k = Self::fill_stiffness(inputs);
         let fill_g = if fill_k > 0.0 { self.volume_gradient() } else { Vec::new() };
         let free: Vec<bool> = self.mode.iter().map(|m| *m == Mode::Free).collect();

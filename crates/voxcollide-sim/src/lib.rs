@@ -26,6 +26,6 @@ pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
 pub use contact::{SurfaceContact, SurfacePenalty};
 pub use cpu::{CpuSim, CpuWorld};
 pub use gpu::{GpuSim, GpuWorld};
-pub use implicit::{ImplicitSettings, Residual};
+pub use implicit::{Guess, ImplicitSettings, Residual};
 pub use scene::{Kind, Scene, SceneConfig};
 pub use world::{ContactPair, Integrator, World};
