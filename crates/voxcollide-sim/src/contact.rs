@@ -35,7 +35,7 @@
 //! any number of threads.
 
 use std::borrow::Cow;
-use std::collections::HashMap;
+use crate::geometry::HashMap;
 
 use glam::{IVec3, Mat3, Vec3};
 use rayon::prelude::*;
@@ -234,7 +234,7 @@ fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Option<([f32; 3], Featu
 /// Per triangle, the triangle across each of its edges (edge `e` from corner `e` to `e + 1`);
 /// `u32::MAX` where the edge is not shared by exactly two triangles.
 fn edge_neighbours(mesh: &TriangleMesh) -> Vec<[u32; 3]> {
-    let mut by_edge: HashMap<(u32, u32), Vec<(u32, u8)>> = HashMap::new();
+    let mut by_edge: HashMap<(u32, u32), Vec<(u32, u8)>> = HashMap::default();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for e in 0..3u8 {
             let (u, v) = (tri[e as usize], tri[(e as usize + 1) % 3]);
@@ -320,7 +320,7 @@ impl Side {
         }
         let range = cutoff + skin;
         let cell_of = |p: Vec3| (p / range).floor().as_ivec3();
-        let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::new();
+        let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::default();
         let pos = &partner.pos;
         for (t, tri) in partner.mesh.triangles.iter().enumerate() {
             let [a, b, c] = tri.map(|v| pos[v as usize]);

@@ -94,9 +94,9 @@ struct Node {
 /// `lo < hi`, how many more times it runs `lo → hi` than `hi → lo`. Edges shared by two
 /// consistently oriented triangles cancel; what remains is the boundary.
 type Chain = HashMap<(u32, u32), i32>;
-/// A hash map with a fixed, quick hash (the chains' keys are small integers; nothing depends
-/// on its order).
-type HashMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
+/// A hash map with a fixed, quick hash, for keys of small integers (the chains' edges, the
+/// contacts' grid cells) where nothing depends on the map's order.
+pub(crate) type HashMap<K, V> = std::collections::HashMap<K, V, foldhash::fast::FixedState>;
 
 /// Adds the directed edge `u → v` to a chain, dropping it when it cancels.
 fn add_edge(chain: &mut Chain, u: u32, v: u32, times: i32) {
