@@ -13,6 +13,8 @@
 use std::time::Instant;
 
 use glam::Vec4;
+use std::cell::RefCell;
+
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use serde::Serialize;
 
@@ -45,6 +47,9 @@ pub struct BenchRow {
     /// The baseline's median over this one's, on the same workload and size: above 1 is faster
     /// than the baseline.
     pub speedup_vs_baseline: Option<f64>,
+    /// The least and the largest of the same ratio step by step: the backends are timed in
+    /// turns, one step each, so that each ratio compares steps taken at the same moments.
+    pub speedup_spread: Option<[f64; 2]>,
     /// Steps timed.
     pub samples: usize,
     /// The adapter (GPU rows) or `cpu`.
@@ -182,6 +187,62 @@ fn time(samples: usize, mut f: impl FnMut() -> Result<usize, Error>) -> Result<(
     Ok((median(ms), colliding))
 }
 
+/// One backend's step in [`interleaved`]: its name, device and threads, and the step, which
+/// returns the colliding B vertices it found.
+struct Contender<'s> {
+    backend: String,
+    device: String,
+    threads: usize,
+    step: Box<dyn FnMut() -> Result<usize, Error> + 's>,
+}
+
+impl<'s> Contender<'s> {
+    fn new(
+        backend: &str,
+        device: &str,
+        threads: usize,
+        step: impl FnMut() -> Result<usize, Error> + 's,
+    ) -> Contender<'s> {
+        Contender { backend: backend.into(), device: device.into(), threads, step: Box::new(step) }
+    }
+}
+
+/// What [`interleaved`] measured of one backend: each turn's milliseconds, in turn order.
+struct Measured {
+    backend: String,
+    samples: Vec<f64>,
+    device: String,
+    threads: usize,
+    colliding: usize,
+}
+
+/// Steps each contender once to warm up, then `samples` turns in which each steps once, in
+/// order: the machine's slow and quick moments fall on every backend alike, and each turn's
+/// ratio compares steps taken within moments of each other.
+fn interleaved(samples: usize, contenders: Vec<Contender>) -> Result<Vec<Measured>, Error> {
+    let mut out = Vec::with_capacity(contenders.len());
+    let mut steps = Vec::with_capacity(contenders.len());
+    for mut c in contenders {
+        let colliding = (c.step)()?;
+        out.push(Measured {
+            backend: c.backend,
+            samples: Vec::with_capacity(samples),
+            device: c.device,
+            threads: c.threads,
+            colliding,
+        });
+        steps.push(c.step);
+    }
+    for _ in 0..samples {
+        for (m, step) in out.iter_mut().zip(steps.iter_mut()) {
+            let t = Instant::now();
+            step()?;
+            m.samples.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    Ok(out)
+}
+
 /// Bytes a benchmark case holds per vertex of each body, generously: the two bodies and the
 /// k-d tree's copies, the reference's lists, the parallel backend's sorted copies, slots and
 /// accumulators, the reports and the GPU upload's scratch.
@@ -241,80 +302,102 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
         for (name, make) in WORKLOADS {
             let w = make(size, voxcollide::workload::DEFAULT_SEED)?;
             let n = w.a.len();
-            let mut measured: Vec<(String, f64, String, usize, usize)> = Vec::new();
             let mut passes = Vec::new();
             let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
             let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
+            // The GPU's two ways share one backend (the resident step's report is read back
+            // after the timing).
+            let gpu = match &ctx {
+                Some(ctx) => Some((RefCell::new(GpuCollision::new(ctx, w.grid, w.params)?), ctx)),
+                None => None,
+            };
+            let upload = |device: &wgpu::Device, points: &[glam::Vec3]| {
+                let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
+                wgpu::util::DeviceExt::create_buffer_init(
+                    device,
+                    &wgpu::util::BufferInitDescriptor {
+                        label: Some("bench positions"),
+                        contents: bytemuck::cast_slice(&data),
+                        usage: wgpu::BufferUsages::STORAGE,
+                    },
+                )
+            };
+            let resident =
+                gpu.as_ref().map(|(_, ctx)| (upload(ctx.device(), &w.a), upload(ctx.device(), &w.b)));
+            // Every backend of the workload, as one step each; timed in turns below.
+            let mut contenders: Vec<Contender> = Vec::new();
             let baseline = match w.params.search {
                 // The same answer as the workload: nearest A within the radius.
                 Search::Neighbours { radius } => {
-                    let (ms, colliding) = time(config.samples, || {
+                    let (a, b) = (&a, &b);
+                    contenders.push(Contender::new("kdtree_kiddo", "cpu", threads, move || {
                         let tree =
-                            ImmutableKdTree::<f32, 3>::new_from_slice(&a).map_err(|e| Error::Invalid {
+                            ImmutableKdTree::<f32, 3>::new_from_slice(a).map_err(|e| Error::Invalid {
                                 what: "k-d tree",
                                 value: format!("{e:?}"),
                                 rule: "kiddo could not build it".into(),
                             })?;
-                        let nearest = tree.query_batch(&b).nearest_one::<SquaredEuclidean<f32>>().execute();
+                        let nearest = tree.query_batch(b).nearest_one::<SquaredEuclidean<f32>>().execute();
                         Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
-                    })?;
-                    measured.push(("kdtree_kiddo".into(), ms, "cpu".into(), threads, colliding));
+                    }));
                     "kdtree_kiddo"
                 }
                 // The same answer as the workload: nearest A in B's own voxel.
                 Search::Voxel => {
-                    let (ms, colliding) = time(config.samples, || Ok(voxel_hashmap(&w)))?;
-                    measured.push(("voxel_hashmap".into(), ms, "cpu".into(), threads, colliding));
+                    let w = &w;
+                    contenders
+                        .push(Contender::new("voxel_hashmap", "cpu", threads, move || Ok(voxel_hashmap(w))));
                     "voxel_hashmap"
                 }
             };
             if config.reference {
                 let mut cpu = CpuCollision::new(w.grid, w.params)?;
-                let (ms, c) = time(config.samples, || Ok(cpu.step(&w.a, &w.b)?.colliding_b.len()))?;
-                measured.push(("cpu_reference".into(), ms, "cpu".into(), 1, c));
+                let w = &w;
+                contenders.push(Contender::new("cpu_reference", "cpu", 1, move || {
+                    Ok(cpu.step(&w.a, &w.b)?.colliding_b.len())
+                }));
             }
             let mut par = ParallelCpuCollision::new(w.grid, w.params)?;
             let mut report = Default::default();
-            let (ms, c) = time(config.samples, || {
-                par.step_into(&w.a, &w.b, &mut report)?;
+            let wr = &w;
+            contenders.push(Contender::new("parallel_cpu", "cpu", threads, move || {
+                par.step_into(&wr.a, &wr.b, &mut report)?;
                 Ok(report.colliding_b.len())
-            })?;
-            measured.push(("parallel_cpu".into(), ms, "cpu".into(), threads, c));
-            if let Some(ctx) = &ctx {
-                let mut gpu = GpuCollision::new(ctx, w.grid, w.params)?;
-                let (ms, c) = time(config.samples, || Ok(gpu.step(&w.a, &w.b)?.colliding_b.len()))?;
-                measured.push(("gpu_step".into(), ms, ctx.adapter_name(), 0, c));
-                let (device, queue) = (ctx.device(), ctx.queue());
-                let upload = |points: &[glam::Vec3]| {
-                    let data: Vec<Vec4> = points.iter().map(|p| p.extend(1.0)).collect();
-                    wgpu::util::DeviceExt::create_buffer_init(
-                        device,
-                        &wgpu::util::BufferInitDescriptor {
-                            label: Some("bench positions"),
-                            contents: bytemuck::cast_slice(&data),
-                            usage: wgpu::BufferUsages::STORAGE,
-                        },
-                    )
-                };
-                let (ba, bb) = (upload(&w.a), upload(&w.b));
-                let (ms, _) = time(config.samples, || {
+            }));
+            if let (Some((gpu, ctx)), Some((ba, bb))) = (&gpu, &resident) {
+                let w = &w;
+                contenders.push(Contender::new("gpu_step", &ctx.adapter_name(), 0, move || {
+                    Ok(gpu.borrow_mut().step(&w.a, &w.b)?.colliding_b.len())
+                }));
+                let nb = w.b.len() as u32;
+                contenders.push(Contender::new("gpu_resident", &ctx.adapter_name(), 0, move || {
+                    let (device, queue) = (ctx.device(), ctx.queue());
                     let mut encoder = device.create_command_encoder(&Default::default());
-                    gpu.record(&mut encoder, &ba, n as u32, &bb, w.b.len() as u32)?;
+                    gpu.borrow_mut().record(&mut encoder, ba, n as u32, bb, nb)?;
                     queue.submit([encoder.finish()]);
                     device
                         .poll(wgpu::PollType::wait_indefinitely())
                         .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
                     Ok(0)
-                })?;
+                }));
+            }
+            let mut measured = interleaved(config.samples, contenders)?;
+            if let Some((gpu, ctx)) = &gpu {
+                let gpu = &mut *gpu.borrow_mut();
                 // The resident step's own contacts, read back after the timing.
                 let c = gpu.read_report()?.colliding_b.len();
-                measured.push(("gpu_resident".into(), ms, ctx.adapter_name(), 0, c));
+                if let Some(m) = measured.iter_mut().find(|m| m.backend == "gpu_resident") {
+                    m.colliding = c;
+                }
                 // Per pass, in steps of their own: profiling splits the step into timed passes.
-                if config.passes && gpu.set_profiling(true).is_ok() {
+                if let (true, Some((ba, bb))) = (config.passes, &resident)
+                    && gpu.set_profiling(true).is_ok()
+                {
+                    let (device, queue) = (ctx.device(), ctx.queue());
                     let mut times: Vec<Vec<f64>> = vec![Vec::new(); voxcollide::gpu::PASSES.len()];
                     time(config.samples, || {
                         let mut encoder = device.create_command_encoder(&Default::default());
-                        gpu.record(&mut encoder, &ba, n as u32, &bb, w.b.len() as u32)?;
+                        gpu.record(&mut encoder, ba, n as u32, bb, w.b.len() as u32)?;
                         queue.submit([encoder.finish()]);
                         for (k, (_, ms)) in gpu.pass_times()?.into_iter().enumerate() {
                             times[k].push(ms);
@@ -329,8 +412,15 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                         .collect();
                 }
             }
-            let baseline_ms = measured[0].1;
-            for (backend, ms, device, threads, colliding) in measured {
+            let base = measured[0].samples.clone();
+            for Measured { backend, samples, device, threads, colliding } in measured {
+                let ms = median(samples.clone());
+                // Per turn, the baseline's step over this one's: the ratio's spread.
+                let ratios: Vec<f64> = base.iter().zip(&samples).map(|(b, s)| b / s).collect();
+                let spread = [
+                    ratios.iter().copied().fold(f64::INFINITY, f64::min),
+                    ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max),
+                ];
                 let backend_is_resident = backend == "gpu_resident";
                 let bandwidth = if backend.starts_with("gpu") { gpu_bw } else { Some(cpu_bw) };
                 let floor_ms = bandwidth.map(|bw| step_bytes(n, w.b.len(), colliding) as f64 / bw * 1e3);
@@ -339,7 +429,8 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     size,
                     vertices: n,
                     baseline: baseline.into(),
-                    speedup_vs_baseline: Some(baseline_ms / ms),
+                    speedup_vs_baseline: Some(median(base.clone()) / ms),
+                    speedup_spread: Some(spread),
                     vertices_per_second: (2 * n) as f64 / (ms / 1e3),
                     median_ms: ms,
                     backend,
@@ -410,13 +501,14 @@ pub fn voxel_hashmap(w: &Workload) -> usize {
 #[must_use]
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>9} {:>8} {:>8}  {}\n",
+        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>13} {:>9} {:>8} {:>8}  {}\n",
         "workload",
         "vertices",
         "backend",
         "median ms",
         "vertices/s",
         "vs baseline",
+        "step by step",
         "floor ms",
         "x floor",
         "threads",
@@ -425,13 +517,14 @@ pub fn table(rows: &[BenchRow]) -> String {
     for r in rows {
         let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };
         out += &format!(
-            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>9} {:>8} {:>8}  {}\n",
+            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>13} {:>9} {:>8} {:>8}  {}\n",
             r.workload,
             r.vertices,
             r.backend,
             r.median_ms,
             r.vertices_per_second,
             r.speedup_vs_baseline.unwrap_or(f64::NAN),
+            r.speedup_spread.map_or("-".into(), |[lo, hi]| format!("{lo:.2}–{hi:.2}x")),
             r.floor_ms.map_or("-".into(), |f| format!("{f:.3}")),
             r.times_floor.map_or("-".into(), |x| format!("{x:.0}x")),
             threads,

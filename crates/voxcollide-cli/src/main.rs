@@ -142,7 +142,7 @@ struct BenchArgs {
     /// Vertices per body, comma-separated; k and M suffixes allowed.
     #[arg(long, default_value = "10k,100k,1M", value_parser = parse_sizes)]
     sizes: Sizes,
-    /// Timed steps per case (after a warm-up step); medians are reported.
+    /// Timed steps per case (after a warm-up step), the backends taking turns, one step each; medians are reported, and each ratio's spread step by step.
     #[arg(long, default_value_t = 5)]
     samples: usize,
     /// Skip the GPU even when there is an adapter.

@@ -131,6 +131,16 @@ fn bench_prints_every_backend_and_writes_json() {
     assert_eq!(count("paper", "voxel_hashmap"), count("paper", "cpu_reference"));
     assert_eq!(count("paper_shuffled", "voxel_hashmap"), count("paper", "cpu_reference"));
     assert!(rows.iter().all(|r| r["speedup_vs_baseline"].as_f64().is_some_and(|s| s > 0.0)));
+    // The backends take turns, one step each: each ratio's spread step by step, the baseline's
+    // against itself exactly 1.
+    for r in rows.iter() {
+        let spread: Vec<f64> =
+            r["speedup_spread"].as_array().unwrap().iter().map(|v| v.as_f64().unwrap()).collect();
+        assert!(spread.len() == 2 && spread[0] > 0.0 && spread[0] <= spread[1], "{r}");
+        if r["backend"] == r["baseline"] {
+            assert_eq!(spread, [1.0, 1.0], "{r}");
+        }
+    }
 
     let output = voxcollide().args(["bench", "--sizes", "0"]).output().unwrap();
     assert!(!output.status.success());

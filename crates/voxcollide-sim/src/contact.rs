@@ -34,8 +34,8 @@
 //! index); the forces are then summed in probe order on one thread, so the result is the same on
 //! any number of threads.
 
-use std::borrow::Cow;
 use crate::geometry::HashMap;
+use std::borrow::Cow;
 
 use glam::{IVec3, Mat3, Vec3};
 use rayon::prelude::*;
