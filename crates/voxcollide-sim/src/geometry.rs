@@ -147,7 +147,8 @@ pub struct Hierarchy {
     cap_corners: Vec<[u32; 3]>,
     nodes: Vec<Node>,
     root: Option<u32>,
-    triangles: usize,
+    /// A hash of the triangles it was built on ([`fingerprint`]).
+    triangles: u64,
     positions: usize,
     /// The bounding-box diagonal at the build.
     extent: f64,
@@ -155,6 +156,30 @@ pub struct Hierarchy {
     now: f64,
     /// Whether the triangles have no boundary (every edge used once each way).
     closed: bool,
+}
+
+/// A hash of a mesh's triangles, their count included: a hierarchy refits only the triangles
+/// it was built on.
+fn fingerprint(mesh: &TriangleMesh) -> u64 {
+    use std::hash::{BuildHasher, Hash, Hasher};
+    let mut h = foldhash::fast::FixedState::default().build_hasher();
+    mesh.triangles.hash(&mut h);
+    h.finish()
+}
+
+/// [`Error::Invalid`](voxcollide::Error::Invalid) naming the first triangle that indexes
+/// outside `positions`.
+fn check_indices(positions: &[Vec3], mesh: &TriangleMesh) -> Result<(), voxcollide::Error> {
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        if let Some(&i) = tri.iter().find(|&&i| i as usize >= positions.len()) {
+            return Err(voxcollide::Error::Invalid {
+                what: "triangle vertex index",
+                value: i.to_string(),
+                rule: format!("triangle {t} must index one of the {} positions", positions.len()),
+            });
+        }
+    }
+    Ok(())
 }
 
 impl Hierarchy {
@@ -179,15 +204,7 @@ impl<'a> ClosedSurface<'a> {
         positions: &'a [Vec3],
         mesh: &'a TriangleMesh,
     ) -> Result<ClosedSurface<'a>, voxcollide::Error> {
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            if let Some(&i) = tri.iter().find(|&&i| i as usize >= positions.len()) {
-                return Err(voxcollide::Error::Invalid {
-                    what: "triangle vertex index",
-                    value: i.to_string(),
-                    rule: format!("triangle {t} must index one of the {} positions", positions.len()),
-                });
-            }
-        }
+        check_indices(positions, mesh)?;
         let mut builder = Builder {
             positions,
             indices: &mesh.triangles,
@@ -211,7 +228,7 @@ impl<'a> ClosedSurface<'a> {
             cap_corners: builder.caps,
             nodes: builder.nodes,
             root,
-            triangles: mesh.triangles.len(),
+            triangles: fingerprint(mesh),
             positions: positions.len(),
             extent: 0.0,
             now: 0.0,
@@ -232,23 +249,24 @@ impl<'a> ClosedSurface<'a> {
     /// # Errors
     ///
     /// [`Error::Invalid`](voxcollide::Error::Invalid) if the hierarchy was built over another
-    /// mesh (another count of triangles or positions).
+    /// mesh (other triangles, or another count of positions: its fans would stand for
+    /// triangles that are not there), or a triangle indexes outside `positions`.
     pub fn refit(
         positions: &'a [Vec3],
         mesh: &'a TriangleMesh,
         hierarchy: Hierarchy,
     ) -> Result<ClosedSurface<'a>, voxcollide::Error> {
-        if hierarchy.triangles != mesh.triangles.len() || hierarchy.positions != positions.len() {
+        if hierarchy.triangles != fingerprint(mesh) || hierarchy.positions != positions.len() {
             return Err(voxcollide::Error::Invalid {
                 what: "surface hierarchy",
-                value: format!("{} triangles over {} positions", hierarchy.triangles, hierarchy.positions),
+                value: format!("{} triangles over {} positions", mesh.triangles.len(), positions.len()),
                 rule: format!(
-                    "a hierarchy refits only the mesh it was built on ({} triangles over {} positions given)",
-                    mesh.triangles.len(),
-                    positions.len()
+                    "a hierarchy refits only the triangles it was built on, over as many positions ({})",
+                    hierarchy.positions
                 ),
             });
         }
+        check_indices(positions, mesh)?;
         Ok(ClosedSurface::fitted(positions, mesh, hierarchy))
     }
 
@@ -314,7 +332,7 @@ impl<'a> ClosedSurface<'a> {
             cap_corners: self.cap_corners,
             nodes: self.nodes,
             root: self.root,
-            triangles: self.mesh.triangles.len(),
+            triangles: fingerprint(self.mesh),
             positions: self.positions.len(),
             extent: self.built.1,
             now: extent,

@@ -670,9 +670,14 @@ fn a_refit_hierarchy_answers_as_a_fresh_build() {
         hierarchy = refit.into_hierarchy();
     }
     assert!(insides > 1000, "the test's points should be inside often: {insides}");
-    // Another mesh: refused, not answered wrongly.
+    // Another mesh: refused, not answered wrongly. So is the same count of triangles wired
+    // otherwise (its fans would stand for triangles that are not there).
     let (cube_positions, cube_mesh) = cube();
-    let err = ClosedSurface::refit(&cube_positions, &cube_mesh, hierarchy).unwrap_err();
+    let err = ClosedSurface::refit(&cube_positions, &cube_mesh, hierarchy.clone()).unwrap_err();
+    assert!(matches!(err, voxcollide::Error::Invalid { what: "surface hierarchy", .. }), "{err:?}");
+    let mut rewired = mesh.clone();
+    rewired.triangles[0].swap(1, 2);
+    let err = ClosedSurface::refit(&rest, &rewired, hierarchy).unwrap_err();
     assert!(matches!(err, voxcollide::Error::Invalid { what: "surface hierarchy", .. }), "{err:?}");
 }
 
