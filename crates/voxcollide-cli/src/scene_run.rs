@@ -396,6 +396,7 @@ pub fn run_scene(
     // as a result).
     let check_every = (planned / 64).min(window / 4).clamp(1, chunk);
     let mut checks = ContactChecks::new(world.contacts.len());
+    let mut stall = Stall::default();
     if file.time.settle && planned > file.time.max_steps {
         note(&format!(
             "warning: the schedule needs {planned} steps (dt {:.3e} s), more than max_steps = {}: the run will stop before it ends; raise [time] max_steps or shorten the schedule",
@@ -416,6 +417,17 @@ pub fn run_scene(
         let still = done >= planned && long_enough && motion <= REST_TOLERANCE && residual.is_none();
         let balanced = done >= planned && done > 0 && residual.is_some_and(|r| r <= RESIDUAL_TOLERANCE);
         let at_rest = still || balanced;
+        // Settling whose residual has stopped falling is said as soon as it is seen, not only
+        // after max_steps.
+        if let Some(r) = residual.filter(|_| file.time.settle && done >= planned && !at_rest)
+            && let Some(since) = stall.stalled(done, r)
+        {
+            note(&format!(
+                "warning: settling has stalled: the residual force has stayed near {r:.2e} of the largest load (at rest: {RESIDUAL_TOLERANCE:.0e}) since step {since}, {} steps; the run goes on to max_steps = {} and will likely end not at rest",
+                done - since,
+                file.time.max_steps
+            ));
+        }
         before = Some((done, world.bodies.iter().map(|b| b.pos.clone()).collect()));
         let last = if file.time.settle {
             (done >= planned && at_rest) || done >= file.time.max_steps
@@ -540,6 +552,40 @@ pub fn run_scene(
     std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
     summary.files.push("summary.json".into());
     Ok(summary)
+}
+
+/// Whether settling under the implicit integrator still gets anywhere: its residual force at
+/// each frame past the schedule against the least it has reached.
+#[derive(Debug, Default)]
+pub(crate) struct Stall {
+    /// The least residual so far, and the step it was reached at (a new least counts only
+    /// when it is a tenth below the last).
+    best: Option<(f64, u64)>,
+    /// Frames since the least.
+    frames: u32,
+    said: bool,
+}
+
+/// Settling frames without the residual falling by a tenth before [`Stall`] says so.
+pub(crate) const STALL_FRAMES: u32 = 8;
+
+impl Stall {
+    /// The residual `r` at a settling frame at step `step`: the step since which it has not
+    /// fallen by a tenth, the first time that has lasted [`STALL_FRAMES`] frames (once a run).
+    pub(crate) fn stalled(&mut self, step: u64, r: f64) -> Option<u64> {
+        match self.best {
+            Some((best, _)) if !(r < 0.9 * best) => self.frames += 1,
+            _ => {
+                self.best = Some((r, step));
+                self.frames = 0;
+            }
+        }
+        if self.frames >= STALL_FRAMES && !self.said {
+            self.said = true;
+            return self.best.map(|(_, at)| at);
+        }
+        None
+    }
 }
 
 /// The contacts' checks against their bounds (DESIGN §11), over a run.
@@ -841,5 +887,35 @@ fn picture<'a>(
         clip: None,
         view_dir: Vec3::new(0.3, 1.0, -0.35).normalize(),
         up: Vec3::Z,
+    }
+}
+
+#[cfg(test)]
+mod stall_tests {
+    use super::{STALL_FRAMES, Stall};
+
+    /// A residual falling steadily, even slowly, is not a stall; one that stops falling is said
+    /// once, after STALL_FRAMES frames, naming the step it stopped at; a NaN residual counts
+    /// as not falling.
+    #[test]
+    fn settling_is_said_to_stall_once_its_residual_stops_falling() {
+        let mut s = Stall::default();
+        for k in 0..100u64 {
+            assert_eq!(s.stalled(100 * k, 0.85f64.powi(k as i32)), None, "frame {k}");
+        }
+        let mut s = Stall::default();
+        let mut said = Vec::new();
+        for k in 0..40u64 {
+            // Falls to 1e-2 by frame 5, then wanders within a few percent.
+            let r = if k < 5 { 0.5f64.powi(k as i32) } else { 0.0625 * (1.0 + 0.05 * ((k % 3) as f64)) };
+            if let Some(since) = s.stalled(100 * k, r) {
+                said.push((k, since));
+            }
+        }
+        assert_eq!(said, [(4 + u64::from(STALL_FRAMES), 400)]);
+        let mut s = Stall::default();
+        let said: Vec<u64> =
+            (0..20u64).filter_map(|k| s.stalled(k, if k == 0 { 1.0 } else { f64::NAN })).collect();
+        assert_eq!(said, [0]);
     }
 }
