@@ -117,10 +117,11 @@ pub struct FileSummary {
     pub rest_motion: f32,
     /// `"explicit"` or `"implicit"` (DESIGN §12).
     pub integrator: String,
-    /// The criterion for rest that `settled` was judged by: `"rest_motion"`
-    /// ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling window,
-    /// either integrator) or `"residual"` (the implicit one: the net force at rest within
-    /// [`RESIDUAL_TOLERANCE`] of the gross force, [`residual`](Self::residual)).
+    /// The criterion for rest that `settled` was judged by: `"rest_motion"` under the explicit
+    /// integrator ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling
+    /// window) or `"residual"` under the implicit one (the net force at rest within
+    /// [`RESIDUAL_TOLERANCE`] of the gross force, [`residual`](Self::residual)); said whether or
+    /// not it was met.
     pub criterion: String,
     /// The implicit integrator's residual at the end: the net force on the free vertices over
     /// the largest gross force of the run (`√Σ|f|² / max √Σ(Σ|f_term|)²`); absent under the
@@ -506,7 +507,8 @@ pub fn run_scene(
             }
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
             summary.residual = residual;
-            summary.criterion = if balanced { "residual" } else { "rest_motion" }.into();
+            // Each integrator's own test, met or not (the implicit one never judges by motion).
+            summary.criterion = if residual.is_some() { "residual" } else { "rest_motion" }.into();
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
