@@ -576,7 +576,7 @@ impl Stall {
     /// fallen by a tenth, the first time that has lasted [`STALL_FRAMES`] frames (once a run).
     pub(crate) fn stalled(&mut self, step: u64, r: f64) -> Option<u64> {
         match self.best {
-            Some((best, _)) if !(r < 0.9 * best) => self.frames += 1,
+            Some((best, _)) if r.is_nan() || r >= 0.9 * best => self.frames += 1,
             _ => {
                 self.best = Some((r, step));
                 self.frames = 0;

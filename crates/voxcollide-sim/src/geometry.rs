@@ -161,10 +161,8 @@ pub struct Hierarchy {
 /// A hash of a mesh's triangles, their count included: a hierarchy refits only the triangles
 /// it was built on.
 fn fingerprint(mesh: &TriangleMesh) -> u64 {
-    use std::hash::{BuildHasher, Hash, Hasher};
-    let mut h = foldhash::fast::FixedState::default().build_hasher();
-    mesh.triangles.hash(&mut h);
-    h.finish()
+    use std::hash::BuildHasher;
+    foldhash::fast::FixedState::default().hash_one(&mesh.triangles)
 }
 
 /// [`Error::Invalid`](voxcollide::Error::Invalid) naming the first triangle that indexes
