@@ -201,6 +201,34 @@ impl StepInputs {
             floor: f32::MIN,
         }
     }
+
+    /// Part of a step: the inputs a fraction `t` (0 to 1) of the way from `self` (the last
+    /// step's, where its time ends) to `to` (this step's), for a step of `dt` that is `share`
+    /// of `to`'s. Rest lengths, drive, pressure, fill and floor are interpolated linearly (a
+    /// value the two share is kept exactly, and at `t = 1` they are `to`'s exactly), the turn
+    /// along the shortest arc, and the fill's integral term is `share` of `to`'s (it is a rate
+    /// per step).
+    #[must_use]
+    pub fn toward(&self, to: &StepInputs, t: f32, dt: f32, share: f32) -> StepInputs {
+        let mix = |a: f32, b: f32| if a == b || t >= 1.0 { b } else { a + (b - a) * t };
+        let turn = if self.turn == to.turn || t >= 1.0 {
+            to.turn
+        } else {
+            let (a, b) = (glam::Quat::from_mat3(&self.turn), glam::Quat::from_mat3(&to.turn));
+            Mat3::from_quat(a.slerp(b, t))
+        };
+        StepInputs {
+            dt,
+            rest_scale: mix(self.rest_scale, to.rest_scale),
+            drive: if self.drive == to.drive || t >= 1.0 { to.drive } else { self.drive.lerp(to.drive, t) },
+            turn,
+            pressure: mix(self.pressure, to.pressure),
+            fill_volume: mix(self.fill_volume, to.fill_volume),
+            fill_bulk: mix(self.fill_bulk, to.fill_bulk),
+            fill_hold: to.fill_hold * share,
+            floor: mix(self.floor, to.floor),
+        }
+    }
 }
 
 impl MassSpring {
@@ -487,4 +515,36 @@ pub fn spring_force(x: Vec3, v: Vec3, y: Vec3, w: Vec3, rest: f32, k: f32, m: &M
     let tension = k * (len - rest) * (1.0 + m.stiffening * strain * strain);
     let damping = m.spring_damping * dot(w - v, u);
     (tension + damping) * u
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn part_of_a_step_lies_between_the_two_steps_inputs() {
+        let from = StepInputs { fill_volume: 10.0, ..StepInputs::at_rest(0.2) };
+        let to = StepInputs {
+            rest_scale: 1.5,
+            drive: Vec3::new(2.0, 0.0, 0.0),
+            turn: Mat3::from_rotation_z(0.5),
+            pressure: 4.0,
+            fill_volume: 20.0,
+            fill_bulk: 8.0,
+            fill_hold: 0.4,
+            ..from
+        };
+        let half = from.toward(&to, 0.5, 0.1, 0.5);
+        assert_eq!(half.dt, 0.1);
+        assert_eq!(
+            (half.rest_scale, half.pressure, half.fill_volume, half.fill_bulk),
+            (1.25, 2.0, 15.0, 4.0)
+        );
+        assert_eq!(half.drive, Vec3::new(1.0, 0.0, 0.0));
+        assert!(half.turn.abs_diff_eq(Mat3::from_rotation_z(0.25), 1e-6), "{:?}", half.turn);
+        assert_eq!(half.fill_hold, 0.2);
+        // A value the two share is kept exactly (no floor stays no floor).
+        assert_eq!(half.floor, f32::MIN);
+        assert_eq!(from.toward(&to, 1.0, 0.2, 1.0), to);
+    }
 }

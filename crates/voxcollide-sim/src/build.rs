@@ -914,7 +914,8 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     let mut world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
     if implicit {
         // No vertex moves more than a quarter of the finest contact's reach in a step, so that
-        // every contact sees it arrive.
+        // every contact sees it arrive; a step that would move one farther is taken as shorter
+        // parts.
         let max_move = world
             .contacts
             .iter()
@@ -926,6 +927,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             * 0.25;
         world = world.with_integrator(Integrator::Implicit(ImplicitSettings {
             max_move,
+            split_far: true,
             ..ImplicitSettings::default()
         }));
     }

@@ -3,6 +3,7 @@
 
 use glam::{Mat3, Vec3};
 
+use crate::body::StepInputs;
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::implicit::{
     BodyStep, Coupling, Guess, ImplicitSettings, Residual, StepStats, integrate_implicit_together,
@@ -44,7 +45,16 @@ pub struct CpuWorld {
     /// Implicit only: the last step's answer, where the next solve starts (part of the
     /// world's state: a step taken again from the same positions and velocities takes it too).
     pub guess: Guess,
+    /// Implicit only: the parts the last step was taken in (1: whole; see
+    /// [`ImplicitSettings::split_far`]).
+    pub substeps: u32,
+    /// The last step's inputs, where the next step's parts start from.
+    last_inputs: Option<Vec<StepInputs>>,
 }
+
+/// The most parts one implicit step is taken in while a schedule runs; the last of them is
+/// scaled down if it would still carry a vertex farther than the largest move.
+pub const MAX_SUBSTEPS: u32 = 64;
 
 impl CpuWorld {
     /// Starts `world` at step 0.
@@ -81,6 +91,8 @@ impl CpuWorld {
             dt_scale: 1.0,
             accelerate_to: 1.0,
             guess: Guess::default(),
+            substeps: 1,
+            last_inputs: None,
         })
     }
 
@@ -120,6 +132,145 @@ impl CpuWorld {
     }
 
     fn step_on_pool(&mut self) -> Result<(), Error> {
+        let w = &self.world;
+        let mut inputs = w.inputs(self.step)?;
+        let implicit = match w.integrator {
+            Integrator::Explicit => None,
+            // Settling: each solve as far as the step towards rest needs.
+            Integrator::Implicit(s) if self.accelerate_to > 1.0 => {
+                Some(ImplicitSettings { tolerance: s.settle_tolerance, ..s })
+            }
+            Integrator::Implicit(settings) => Some(settings),
+        };
+        if implicit.is_some() {
+            inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
+        }
+        let residual = match implicit {
+            // While the schedule runs, a step that would carry a vertex farther than its largest
+            // move is taken again as shorter steps along the schedule (a fill outrunning the
+            // step); the last step's count is where the next starts, halved.
+            Some(settings)
+                if settings.split_far && self.accelerate_to <= 1.0 && settings.max_move.is_finite() =>
+            {
+                let from = self.last_inputs.take().unwrap_or_else(|| inputs.clone());
+                let parts = (self.substeps / 2).max(1);
+                self.substeps = 0;
+                let mut stats: Vec<StepStats> = Vec::new();
+                let mut first = None;
+                for j in 0..parts {
+                    let r = self.split(
+                        &from,
+                        &inputs,
+                        (j as f32 / parts as f32, (j + 1) as f32 / parts as f32),
+                        settings,
+                        &mut stats,
+                    )?;
+                    first.get_or_insert(r);
+                }
+                self.stats = stats;
+                first.unwrap_or_default()
+            }
+            _ => {
+                let r = self.advance(&inputs, implicit)?;
+                self.substeps = 1;
+                r
+            }
+        };
+        self.last_inputs = Some(inputs.clone());
+        let w = &self.world;
+        if let Some(settings) = implicit {
+            let peak_gross = self.residual.peak_gross.max(residual.gross);
+            let before = self.residual.net;
+            self.residual = Residual { peak_gross, ..residual };
+            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
+            // Switched evolution relaxation: the step grows as the residual falls and shrinks
+            // as it rises (a contact chattering), halving where a solve fell short or a vertex
+            // was held to the largest move. (Growing by a fifth each step whatever the residual
+            // did was tried: a 30 kPa shell under 30 kPa tissue then stalled 5.6 % short of its
+            // volume with the residual at 0.56, moving too little to notice. Growing by at
+            // least a tenth while the residual fell was tried too: on benches/rest/compare.toml's
+            // 300 mL the step reached 64× in 100 steps, then the residual stalled at a quarter of
+            // the schedule's end, and the run took 1,006 steps to 718.)
+            let calm = self
+                .stats
+                .iter()
+                .all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
+            let ratio = if residual.net > 0.0 { (before / residual.net) as f32 } else { 1.5 };
+            let grown = if calm { self.dt_scale * ratio.clamp(0.5, 1.5) } else { self.dt_scale * 0.5 };
+            self.dt_scale = grown.clamp(1.0, self.accelerate_to);
+        } else {
+            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
+        }
+        self.step += 1;
+        for (k, body) in w.bodies.iter().enumerate() {
+            if let Some((_, what)) = body.blow_up(w.v_max) {
+                return Err(w.blow_up(self.step, k, &what));
+            }
+        }
+        Ok(())
+    }
+
+    /// Splits the part `(t0, t1)` of the step from `from` to `to`: taken in one where no vertex
+    /// would move farther than the largest move, else as shorter parts (at most
+    /// [`MAX_SUBSTEPS`] in all, the last of them scaled). Adds each part's solve to `stats`
+    /// and returns the first part's residual.
+    fn split(
+        &mut self,
+        from: &[StepInputs],
+        to: &[StepInputs],
+        (t0, t1): (f32, f32),
+        settings: ImplicitSettings,
+        stats: &mut Vec<StepStats>,
+    ) -> Result<Residual, Error> {
+        let share = t1 - t0;
+        let part: Vec<StepInputs> =
+            from.iter().zip(to).map(|(a, b)| a.toward(b, t1, b.dt * share, share)).collect();
+        let deepest = (share * MAX_SUBSTEPS as f32) < 2.0;
+        // A part not taken leaves the world as it was: its fill's integral term too.
+        let held: Vec<f32> = self.world.bodies.iter().map(|b| b.held_pressure).collect();
+        let residual = self.advance(&part, Some(ImplicitSettings { split_far: !deepest, ..settings }))?;
+        let taken = self.stats.iter().all(|s| s.taken);
+        let add = |stats: &mut Vec<StepStats>, new: &[StepStats]| {
+            if stats.is_empty() {
+                stats.extend_from_slice(new);
+            } else {
+                for (s, n) in stats.iter_mut().zip(new) {
+                    s.iterations += n.iterations;
+                    s.relative_residual = s.relative_residual.max(n.relative_residual);
+                    s.scaled = s.scaled.min(n.scaled);
+                    s.farthest = s.farthest.max(n.farthest);
+                }
+            }
+        };
+        add(stats, &self.stats);
+        if taken {
+            self.substeps += 1;
+            return Ok(residual);
+        }
+        for (body, held) in self.world.bodies.iter_mut().zip(held) {
+            body.held_pressure = held;
+        }
+        // Parts short enough that each moves within the largest move, with a quarter to spare.
+        let farthest = self.stats.iter().map(|s| s.farthest).fold(0.0, f32::max);
+        let wanted = (1.25 * farthest / settings.max_move).ceil().clamp(2.0, 16.0) as u32;
+        let parts = wanted.min(((share * MAX_SUBSTEPS as f32) as u32).max(2));
+        let mut first = None;
+        for j in 0..parts {
+            let (a, b) = (t0 + share * j as f32 / parts as f32, t0 + share * (j + 1) as f32 / parts as f32);
+            let r = self.split(from, to, (a, if j + 1 == parts { t1 } else { b }), settings, stats)?;
+            first.get_or_insert(r);
+        }
+        Ok(first.unwrap_or(residual))
+    }
+
+    /// One step (or part of one) with `inputs`: every contact's collision, each body's contact
+    /// forces summed in contact order, spring forces, and integration, explicit or with
+    /// `implicit`'s settings. Returns the residual at rest at its start (implicit only).
+    fn advance(
+        &mut self,
+        inputs: &[StepInputs],
+        implicit: Option<ImplicitSettings>,
+    ) -> Result<Residual, Error> {
         let w = &mut self.world;
         for (c, pair) in w.contacts.iter().enumerate() {
             let (a, b) = (&w.bodies[pair.a], &w.bodies[pair.b]);
@@ -137,18 +288,6 @@ impl CpuWorld {
                 }
                 None => self.collisions[c].step_into(&a.pos, &b.pos, &mut self.reports[c])?,
             }
-        }
-        let mut inputs = w.inputs(self.step)?;
-        let implicit = match w.integrator {
-            Integrator::Explicit => None,
-            // Settling: each solve as far as the step towards rest needs.
-            Integrator::Implicit(s) if self.accelerate_to > 1.0 => {
-                Some(ImplicitSettings { tolerance: s.settle_tolerance, ..s })
-            }
-            Integrator::Implicit(settings) => Some(settings),
-        };
-        if implicit.is_some() {
-            inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
         }
         let mut residual = Residual::default();
         // Implicit: per body, the voxel model's contact stiffness and what it pushes against.
@@ -224,36 +363,7 @@ impl CpuWorld {
             self.stats =
                 integrate_implicit_together(&mut w.bodies, &steps, &couplings, &settings, &mut self.guess);
         }
-        if let Some(settings) = implicit {
-            let peak_gross = self.residual.peak_gross.max(residual.gross);
-            let before = self.residual.net;
-            self.residual = Residual { peak_gross, ..residual };
-            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-            // Switched evolution relaxation: the step grows as the residual falls and shrinks
-            // as it rises (a contact chattering), halving where a solve fell short or a vertex
-            // was held to the largest move. (Growing by a fifth each step whatever the residual
-            // did was tried: a 30 kPa shell under 30 kPa tissue then stalled 5.6 % short of its
-            // volume with the residual at 0.56, moving too little to notice. Growing by at
-            // least a tenth while the residual fell was tried too: on benches/rest/compare.toml's
-            // 300 mL the step reached 64× in 100 steps, then the residual stalled at a quarter of
-            // the schedule's end, and the run took 1,006 steps to 718.)
-            let calm = self
-                .stats
-                .iter()
-                .all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
-            let ratio = if residual.net > 0.0 { (before / residual.net) as f32 } else { 1.5 };
-            let grown = if calm { self.dt_scale * ratio.clamp(0.5, 1.5) } else { self.dt_scale * 0.5 };
-            self.dt_scale = grown.clamp(1.0, self.accelerate_to);
-        } else {
-            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-        }
-        self.step += 1;
-        for (k, body) in w.bodies.iter().enumerate() {
-            if let Some((_, what)) = body.blow_up(w.v_max) {
-                return Err(w.blow_up(self.step, k, &what));
-            }
-        }
-        Ok(())
+        Ok(residual)
     }
 }
 

@@ -28,6 +28,7 @@ const SETTINGS: ImplicitSettings = ImplicitSettings {
     settle_tolerance: 1e-6,
     max_iterations: 4000,
     max_move: f32::INFINITY,
+    split_far: false,
 };
 
 /// Where a static solve stopped.

@@ -173,3 +173,85 @@ fn a_filled_shell_resting_on_its_floor_comes_to_balance() {
     let lowest = body.pos.iter().map(|p| p.z).fold(f32::MAX, f32::min);
     assert!(lowest >= floor && lowest < floor + 0.01, "its base at {lowest}, the floor at {floor}");
 }
+
+/// A balloon under a soft block, filled from 34 to 100 mL in a few of its implicit steps: its
+/// top would move twice the largest move in a step.
+const FAST_FILL: &str = r#"
+units = "mm"
+[time]
+duration = 0.1
+settle = false
+integrator = "implicit"
+[[body]]
+name = "tissue"
+kind = "soft"
+shape = { box = [96, 96, 12] }
+spacing = 4
+position = [0, 0, 28]
+material = { young_kpa = 3, density = 950.0, damping = 0.5 }
+fixed = [{ rim = 1 }]
+[[body]]
+name = "balloon"
+kind = "shell"
+shape = { sphere = 20 }
+spacing = 4
+material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+fixed = [{ below = { z = -19 } }]
+inflate = { volume_ml = 100, ramp = 0.004 }
+[[contact]]
+a = "balloon"
+b = "tissue"
+"#;
+
+/// Steps the fast fill `steps` steps, split where a step outruns its largest move or (`split`
+/// false) scaled down: the volume (mL) after each step, the most parts a step took, and the
+/// deepest push seen.
+fn fast_fill(split: bool, steps: u64) -> (Vec<f64>, u32, f32) {
+    let built = build_world(&SceneFile::parse("fast.toml", FAST_FILL).unwrap()).unwrap();
+    let mut world = built.world;
+    let Integrator::Implicit(settings) = world.integrator else { panic!("not implicit") };
+    assert!(settings.split_far && settings.max_move.is_finite(), "{settings:?}");
+    world.integrator = Integrator::Implicit(ImplicitSettings { split_far: split, ..settings });
+    let mut w = CpuWorld::new(world).unwrap();
+    let (mut volumes, mut parts, mut deepest) = (Vec::new(), 0, 0.0f32);
+    for _ in 0..steps {
+        w.step().unwrap();
+        volumes.push(w.world.bodies[1].enclosed_volume() * 1e-3);
+        parts = parts.max(w.substeps);
+        deepest = w.surface_stats.iter().map(|s| s.deepest).fold(deepest, f32::max);
+    }
+    (volumes, parts, deepest)
+}
+
+#[test]
+fn a_step_that_outruns_its_largest_move_is_taken_in_parts_along_the_schedule() {
+    // The fill's ramp ends at the 8th step. Split, the volume follows the schedule (a twelfth
+    // of the way per step) and is there at its end. Scaled, every vertex moved at the fraction
+    // of its speed that kept the fastest within the largest move: the balloon fell behind its
+    // schedule by four steps, and would have pushed through whatever lay on it catching up.
+    let (split, parts, deepest) = fast_fill(true, 12);
+    let (scaled, one, _) = fast_fill(false, 12);
+    assert!(parts >= 2, "no step was split ({parts} parts at most)");
+    assert_eq!(one, 1, "scaled steps are taken whole");
+    assert!(
+        (split[7] - 100.0).abs() < 1.0,
+        "split: {:.2} mL of 100 at the ramp's end ({split:.1?})",
+        split[7]
+    );
+    assert!(scaled[7] < 80.0, "scaled: {:.2} mL at the ramp's end ({scaled:.1?})", scaled[7]);
+    for (k, (a, b)) in split.iter().zip(&split[1..]).take(7).enumerate() {
+        assert!((b - a - 66.0 / 8.0).abs() < 1.5, "step {}: {a:.2} → {b:.2} mL", k + 1);
+    }
+    assert!(deepest < 1.0, "the block went {deepest} mm into the balloon");
+    // Where a step splits depends on nothing the threads do.
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| fast_fill(true, 12))
+    };
+    let (one, two) = (on(1), on(2));
+    assert_eq!(
+        one.0.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+        two.0.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+    );
+    assert_eq!(one.1, two.1);
+}
