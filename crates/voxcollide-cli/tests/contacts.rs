@@ -294,11 +294,15 @@ fn a_sample_of_the_contact_matrix_passes() {
 
 #[test]
 fn the_matrixs_stiffest_corner_holds_under_the_implicit_integrator() {
-    // A 3,000 kPa shell filled under 1 kPa tissue at a 4 mm spacing: solved each against where
-    // the other was, the bodies went 5.8–7.4 mm into each other (bound 4 mm) and the fills
-    // stalled at 93 % and 36 %; solved together (docs/integrator.md), they hold.
+    // A 3,000 kPa shell filled under 1 kPa tissue at a 4 mm spacing, the tissue on the chest
+    // wall. Solved each against where the other was, the bodies went 5.8–7.4 mm into each
+    // other (bound 4 mm) and the fills stalled at 93 % and 36 %; solved together
+    // (docs/integrator.md), they held 10 mm above the chest wall. On it, the 800 mL fill moved
+    // its shell 3–5 times the largest move in a step: scaled down, the shell fell behind its
+    // schedule and went 4.6 mm into the tissue catching up, and had not settled by 3,000 steps;
+    // taken in parts, it holds (0.97 mm) and settles in 339.
     let d = dir("matrix-implicit");
-    let g = Group { gap: 10.0, shell: 3000.0, spacing: 4.0, tissue: 1.0 };
+    let g = Group { gap: 0.0, shell: 3000.0, spacing: 4.0, tissue: 1.0 };
     let cells = run_group(
         &g,
         &[200.0, 800.0],
@@ -314,6 +318,8 @@ fn the_matrixs_stiffest_corner_holds_under_the_implicit_integrator() {
     eprintln!("{t}");
     for c in &cells {
         assert!(c.failure.is_none(), "{t}");
+        // (A world whose steps are split refused its settling steps, once: frozen, not at rest.)
+        assert!(c.result.as_ref().is_some_and(|r| r.settled), "{t}");
     }
 }
 

@@ -170,8 +170,11 @@ impl CpuWorld {
                 self.stats = stats;
                 first.unwrap_or_default()
             }
+            // Settling (or no largest move): a step too far is scaled down, never refused, and
+            // the step shrinks (below).
             _ => {
-                let r = self.advance(&inputs, implicit)?;
+                let r =
+                    self.advance(&inputs, implicit.map(|s| ImplicitSettings { split_far: false, ..s }))?;
                 self.substeps = 1;
                 r
             }
