@@ -95,6 +95,24 @@ fn a_rigid_probe_driven_through_most_of_a_block_pushes_it_and_does_not_pierce_it
 }
 
 #[test]
+fn a_probe_driven_faster_than_the_implicit_step_allows_is_followed_in_parts_and_held() {
+    // The same 8 mm, in 10 ms instead of 250: under the implicit integrator (1.5 ms steps) the
+    // ball moves 1.2 mm a step, beyond the 1 mm a step may carry a vertex. Scaled down, the
+    // block's vertices moved at a fraction of the speed the ball (driven, not scaled) kept, and
+    // it went 4.4 mm into them against the 4 mm bound; taken in parts, it pushes them.
+    let d = dir("probe-fast");
+    let scene = probe_scene(8.0, "")
+        .replace("[time]\nduration = 0.3", "[time]\nduration = 0.3\nintegrator = \"implicit\"")
+        .replace("{ t = 0.25, position", "{ t = 0.01, position");
+    assert!(scene.contains("implicit") && scene.contains("t = 0.01"), "{scene}");
+    let (stdout, stderr, s) = run(&d, &scene);
+    let c = contact(&s);
+    assert_eq!(c["held"], true, "{c}\n{stdout}\n{stderr}");
+    assert!(!stderr.contains("warning") && !stdout.contains("warning"), "{stdout}\n{stderr}");
+    assert!(s["bodies"][0]["max_displacement"].as_f64().unwrap() > 6.0, "{}", s["bodies"][0]);
+}
+
+#[test]
 fn the_papers_constant_response_too_weak_for_the_load_is_caught_and_said() {
     let d = dir("weak");
     // A force of 1 mN a contact cannot hold a block being pressed 8 mm: the ball goes through,
