@@ -386,6 +386,14 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 "{:<28} {} × dt {:.2e} s = {:.3} s simulated, {:.0} steps/s, {:.3} simulated s per s",
                 "steps", s.steps, s.dt, s.simulated_time, s.steps_per_second, s.realtime_factor
             );
+            if let (Some(split), Some(parts)) = (s.split_steps, s.most_parts)
+                && split > 0
+            {
+                println!(
+                    "{:<28} {split} steps taken in parts (up to {parts}): a vertex would have moved farther in one than a contact may miss",
+                    "split steps"
+                );
+            }
             for b in &s.bodies {
                 println!(
                     "{:<28} {} vertices, moved up to {:.3} {}{}",

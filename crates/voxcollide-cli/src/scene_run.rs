@@ -128,6 +128,14 @@ pub struct FileSummary {
     /// explicit one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residual: Option<f64>,
+    /// The implicit integrator's steps taken in more than one part, because a vertex would
+    /// have moved farther in one than a contact may miss (docs/integrator.md, "A step too far
+    /// is split"); absent under the explicit one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub split_steps: Option<u64>,
+    /// The most parts one of them was taken in.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub most_parts: Option<u32>,
     /// The settling window, in seconds: twice the time an elastic wave takes to cross the
     /// largest deformable body ([`settling_window`]).
     pub rest_window: f64,
@@ -188,6 +196,15 @@ impl Run {
         match self {
             Run::Cpu(w) => w.step(),
             Run::Gpu(w) => w.step(),
+        }
+    }
+
+    /// The implicit integrator's steps taken in parts so far, and the most parts one took
+    /// (None: explicit).
+    pub(crate) fn split(&self) -> Option<(u64, u32)> {
+        match self {
+            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => Some((w.split_steps, w.most_parts)),
+            _ => None,
         }
     }
 
@@ -507,6 +524,7 @@ pub fn run_scene(
             }
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
             summary.residual = residual;
+            (summary.split_steps, summary.most_parts) = run.split().unzip();
             // Each integrator's own test, met or not (the implicit one never judges by motion).
             summary.criterion = if residual.is_some() { "residual" } else { "rest_motion" }.into();
             for (c, r) in reports.iter().enumerate() {

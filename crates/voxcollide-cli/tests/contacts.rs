@@ -110,6 +110,9 @@ fn a_probe_driven_faster_than_the_implicit_step_allows_is_followed_in_parts_and_
     assert_eq!(c["held"], true, "{c}\n{stdout}\n{stderr}");
     assert!(!stderr.contains("warning") && !stdout.contains("warning"), "{stdout}\n{stderr}");
     assert!(s["bodies"][0]["max_displacement"].as_f64().unwrap() > 6.0, "{}", s["bodies"][0]);
+    // Said, in the summary and on the console.
+    assert!(s["split_steps"].as_u64().unwrap() >= 3 && s["most_parts"].as_u64().unwrap() >= 2, "{s}");
+    assert!(stdout.contains("steps taken in parts"), "{stdout}");
 }
 
 #[test]

@@ -48,6 +48,10 @@ pub struct CpuWorld {
     /// Implicit only: the parts the last step was taken in (1: whole; see
     /// [`ImplicitSettings::split_far`]).
     pub substeps: u32,
+    /// Implicit only: the steps so far taken in more than one part.
+    pub split_steps: u64,
+    /// Implicit only: the most parts a step has been taken in so far.
+    pub most_parts: u32,
     /// The last step's inputs, where the next step's parts start from.
     last_inputs: Option<Vec<StepInputs>>,
 }
@@ -92,6 +96,8 @@ impl CpuWorld {
             accelerate_to: 1.0,
             guess: Guess::default(),
             substeps: 1,
+            split_steps: 0,
+            most_parts: 1,
             last_inputs: None,
         })
     }
@@ -180,6 +186,10 @@ impl CpuWorld {
             }
         };
         self.last_inputs = Some(inputs.clone());
+        if self.substeps > 1 {
+            self.split_steps += 1;
+        }
+        self.most_parts = self.most_parts.max(self.substeps);
         let w = &self.world;
         if let Some(settings) = implicit {
             let peak_gross = self.residual.peak_gross.max(residual.gross);
