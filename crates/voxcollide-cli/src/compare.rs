@@ -408,6 +408,7 @@ struct Shared<'a> {
 }
 
 /// What a worker of [`run_concurrently`] tells the thread that called `compare`.
+#[allow(clippy::large_enum_variant)] // (a few messages per candidate: not worth a box)
 enum Message {
     Progress(usize, u64, u64, bool),
     Note(String),

@@ -224,7 +224,8 @@ fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Option<([f32; 3], Featu
         return Some(([0.0, 1.0 - w, w], Feature::Edge(1)));
     }
     let sum = va + vb + vc;
-    if !(sum > 0.0) || !sum.is_finite() {
+    // (Written so that a NaN sum is refused too.)
+    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !sum.is_finite() {
         return None;
     }
     let (v, w) = (vb / sum, vc / sum);
@@ -531,14 +532,14 @@ fn confirm(
                 && !was_inside.get(k).copied().unwrap_or(false)
                 && inside > moved.get(k).copied().unwrap_or(0.0) * 1.001 + slack)
     };
-    if hits.iter().enumerate().any(|(k, h)| h.as_ref().is_some_and(|h| suspect(k, h))) {
-        if let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, partner.mesh) {
-            hits.par_iter_mut().zip(probes.par_iter()).enumerate().for_each(|(k, (hit, &i))| {
-                if hit.as_ref().is_some_and(|h| suspect(k, h)) && !surface.contains(probing.pos[i as usize]) {
-                    *hit = None;
-                }
-            });
-        }
+    if hits.iter().enumerate().any(|(k, h)| h.as_ref().is_some_and(|h| suspect(k, h)))
+        && let Ok(surface) = crate::geometry::ClosedSurface::new(&partner.pos, partner.mesh)
+    {
+        hits.par_iter_mut().zip(probes.par_iter()).enumerate().for_each(|(k, (hit, &i))| {
+            if hit.as_ref().is_some_and(|h| suspect(k, h)) && !surface.contains(probing.pos[i as usize]) {
+                *hit = None;
+            }
+        });
     }
     hits.iter().map(|h| h.as_ref().is_some_and(|h| h.depth > penalty.gap)).collect()
 }

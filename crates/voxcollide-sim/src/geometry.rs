@@ -148,7 +148,7 @@ pub struct Hierarchy {
     nodes: Vec<Node>,
     root: Option<u32>,
     /// A hash of the triangles it was built on ([`fingerprint`]).
-    triangles: u64,
+    fingerprint: u64,
     positions: usize,
     /// The bounding-box diagonal at the build.
     extent: f64,
@@ -226,7 +226,7 @@ impl<'a> ClosedSurface<'a> {
             cap_corners: builder.caps,
             nodes: builder.nodes,
             root,
-            triangles: fingerprint(mesh),
+            fingerprint: fingerprint(mesh),
             positions: positions.len(),
             extent: 0.0,
             now: 0.0,
@@ -254,7 +254,7 @@ impl<'a> ClosedSurface<'a> {
         mesh: &'a TriangleMesh,
         hierarchy: Hierarchy,
     ) -> Result<ClosedSurface<'a>, voxcollide::Error> {
-        if hierarchy.triangles != fingerprint(mesh) || hierarchy.positions != positions.len() {
+        if hierarchy.fingerprint != fingerprint(mesh) || hierarchy.positions != positions.len() {
             return Err(voxcollide::Error::Invalid {
                 what: "surface hierarchy",
                 value: format!("{} triangles over {} positions", mesh.triangles.len(), positions.len()),
@@ -330,7 +330,7 @@ impl<'a> ClosedSurface<'a> {
             cap_corners: self.cap_corners,
             nodes: self.nodes,
             root: self.root,
-            triangles: fingerprint(self.mesh),
+            fingerprint: fingerprint(self.mesh),
             positions: self.positions.len(),
             extent: self.built.1,
             now: extent,

@@ -800,6 +800,7 @@ pub fn integrate_implicit_together(
     let active = joint.active;
     for (k, body) in bodies.iter_mut().enumerate() {
         let inputs = steps[k].inputs;
+        #[allow(clippy::needless_range_loop)] // (each vertex's mode, position, velocity and push)
         for i in 0..body.len() {
             match body.mode[i] {
                 Mode::Free => {
@@ -920,7 +921,8 @@ fn conjugate_gradient(
         joint.apply(&p, &mut ap, false);
         joint.filter(&mut ap);
         let pap = dot_all(&p, &ap);
-        if !(pap > 0.0) {
+        // (A NaN curvature stops it too.)
+        if pap.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             break;
         }
         let alpha = (rz / pap) as f32;
