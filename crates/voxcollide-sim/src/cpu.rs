@@ -162,19 +162,9 @@ impl CpuWorld {
                 let parts = (self.substeps / 2).max(1);
                 self.substeps = 0;
                 let mut stats: Vec<StepStats> = Vec::new();
-                let mut first = None;
-                for j in 0..parts {
-                    let r = self.split(
-                        &from,
-                        &inputs,
-                        (j as f32 / parts as f32, (j + 1) as f32 / parts as f32),
-                        settings,
-                        &mut stats,
-                    )?;
-                    first.get_or_insert(r);
-                }
+                let residual = self.in_parts(&from, &inputs, (0.0, 1.0), parts, settings, &mut stats)?;
                 self.stats = stats;
-                first.unwrap_or_default()
+                residual
             }
             // Settling (or no largest move): a step too far is scaled down, never refused, and
             // the step shrinks (below).
@@ -267,13 +257,29 @@ impl CpuWorld {
         let farthest = self.stats.iter().map(|s| s.farthest).fold(0.0, f32::max);
         let wanted = (1.25 * farthest / settings.max_move).ceil().clamp(2.0, 16.0) as u32;
         let parts = wanted.min(((share * MAX_SUBSTEPS as f32) as u32).max(2));
+        self.in_parts(from, to, (t0, t1), parts, settings, stats)
+    }
+
+    /// The part `(t0, t1)` of the step from `from` to `to` as `parts` equal parts, each
+    /// [`split`](Self::split) as it needs (the last ends at `t1` exactly); the first part's
+    /// residual.
+    fn in_parts(
+        &mut self,
+        from: &[StepInputs],
+        to: &[StepInputs],
+        (t0, t1): (f32, f32),
+        parts: u32,
+        settings: ImplicitSettings,
+        stats: &mut Vec<StepStats>,
+    ) -> Result<Residual, Error> {
+        let share = t1 - t0;
         let mut first = None;
         for j in 0..parts {
             let (a, b) = (t0 + share * j as f32 / parts as f32, t0 + share * (j + 1) as f32 / parts as f32);
             let r = self.split(from, to, (a, if j + 1 == parts { t1 } else { b }), settings, stats)?;
             first.get_or_insert(r);
         }
-        Ok(first.unwrap_or(residual))
+        Ok(first.unwrap_or_default())
     }
 
     /// One step (or part of one) with `inputs`: every contact's collision, each body's contact
