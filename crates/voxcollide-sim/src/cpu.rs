@@ -56,6 +56,30 @@ pub struct CpuWorld {
     last_inputs: Option<Vec<StepInputs>>,
 }
 
+/// The implicit step's next scale over the schedule's, after a step at `dt_scale` whose
+/// solves gave `stats` and whose residual at rest went from `before` to `now` (net forces):
+/// switched evolution relaxation. The step grows as the residual falls and shrinks as it rises
+/// (a contact chattering), halving where a solve fell short or a vertex was held to the largest
+/// move; it stays within `1..=accelerate_to`. (Growing by a fifth each step whatever the
+/// residual did was tried: a 30 kPa shell under 30 kPa tissue then stalled 5.6 % short of its
+/// volume with the residual at 0.56, moving too little to notice. Growing by at least a tenth
+/// while the residual fell was tried too: on benches/rest/compare.toml's 300 mL the step
+/// reached 64× in 100 steps, then the residual stalled at a quarter of the schedule's end, and
+/// the run took 1,006 steps to 718.) Both worlds, CPU and GPU, step by it.
+pub(crate) fn next_dt_scale(
+    dt_scale: f32,
+    accelerate_to: f32,
+    before: f64,
+    now: f64,
+    stats: &[StepStats],
+    settings: &ImplicitSettings,
+) -> f32 {
+    let calm = stats.iter().all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
+    let ratio = if now > 0.0 { (before / now) as f32 } else { 1.5 };
+    let grown = if calm { dt_scale * ratio.clamp(0.5, 1.5) } else { dt_scale * 0.5 };
+    grown.clamp(1.0, accelerate_to)
+}
+
 /// The most parts one implicit step is taken in while a schedule runs; the last of them is
 /// scaled down if it would still carry a vertex farther than the largest move.
 pub const MAX_SUBSTEPS: u32 = 64;
@@ -186,21 +210,14 @@ impl CpuWorld {
             let before = self.residual.net;
             self.residual = Residual { peak_gross, ..residual };
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-            // Switched evolution relaxation: the step grows as the residual falls and shrinks
-            // as it rises (a contact chattering), halving where a solve fell short or a vertex
-            // was held to the largest move. (Growing by a fifth each step whatever the residual
-            // did was tried: a 30 kPa shell under 30 kPa tissue then stalled 5.6 % short of its
-            // volume with the residual at 0.56, moving too little to notice. Growing by at
-            // least a tenth while the residual fell was tried too: on benches/rest/compare.toml's
-            // 300 mL the step reached 64× in 100 steps, then the residual stalled at a quarter of
-            // the schedule's end, and the run took 1,006 steps to 718.)
-            let calm = self
-                .stats
-                .iter()
-                .all(|s| s.scaled >= 1.0 && s.relative_residual <= settings.tolerance * 10.0);
-            let ratio = if residual.net > 0.0 { (before / residual.net) as f32 } else { 1.5 };
-            let grown = if calm { self.dt_scale * ratio.clamp(0.5, 1.5) } else { self.dt_scale * 0.5 };
-            self.dt_scale = grown.clamp(1.0, self.accelerate_to);
+            self.dt_scale = next_dt_scale(
+                self.dt_scale,
+                self.accelerate_to,
+                before,
+                residual.net,
+                &self.stats,
+                &settings,
+            );
         } else {
             self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         }

@@ -7,11 +7,15 @@ use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
+use crate::cpu::next_dt_scale;
+use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup};
+use crate::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::scene::Scene;
-use crate::world::World;
+use crate::world::{Integrator, World};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuCollision, GpuContext, scoped};
+use voxcollide::params::Response;
 use voxcollide::report::ContactReport;
 
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
@@ -187,6 +191,23 @@ pub struct GpuWorld {
     bound: Option<Bound>,
     max_per_dim: u32,
     step: u64,
+    /// Implicit only: the passes, and what they carry from step to step.
+    implicit: Option<Implicit>,
+}
+
+/// What a [`GpuWorld`] stepping the implicit integrator keeps.
+struct Implicit {
+    settings: ImplicitSettings,
+    kernels: ImplicitKernels,
+    /// Per body, made with the bind groups (after the first collision step).
+    bodies: Vec<ImplicitBody>,
+    /// The last step's `h` (0: none yet), whose answer the next solve starts from.
+    guess_h: f32,
+    dt_scale: f32,
+    accelerate_to: f32,
+    residual: Residual,
+    stats: Vec<StepStats>,
+    time: f64,
 }
 
 /// The `accumulate` pass: one body's contact forces from several contacts.
@@ -211,13 +232,6 @@ impl GpuWorld {
                 value: format!("neo-hookean ({})", world.names[k]),
                 rule: "the GPU world steps spring lattices only: finite elements step on the CPU (CpuWorld)"
                     .into(),
-            });
-        }
-        if world.integrator != crate::world::Integrator::Explicit {
-            return Err(Error::Invalid {
-                what: "integrator",
-                value: "implicit".into(),
-                rule: "the GPU world steps the explicit integrator only: the implicit one steps on the CPU (CpuWorld)".into(),
             });
         }
         if let Some(c) = world.contacts.iter().position(|c| c.surface.is_some()) {
@@ -295,6 +309,20 @@ impl GpuWorld {
                 sources,
             )
         })?;
+        let implicit = match world.integrator {
+            Integrator::Explicit => None,
+            Integrator::Implicit(settings) => Some(Implicit {
+                settings,
+                kernels: scoped(device, || ImplicitKernels::new(device))?,
+                bodies: Vec::new(),
+                guess_h: 0.0,
+                dt_scale: 1.0,
+                accelerate_to: 1.0,
+                residual: Residual::default(),
+                stats: vec![StepStats::default(); world.bodies.len()],
+                time: 0.0,
+            }),
+        };
         Ok(GpuWorld {
             max_per_dim: device.limits().max_compute_workgroups_per_dimension,
             ctx: ctx.clone(),
@@ -308,6 +336,7 @@ impl GpuWorld {
             bound: None,
             world,
             step: 0,
+            implicit,
         })
     }
 
@@ -331,8 +360,12 @@ impl GpuWorld {
 
     fn record_and_submit(&mut self) -> Result<(), Error> {
         let device = self.ctx.device().clone();
-        let queue = self.ctx.queue();
-        let inputs = self.world.inputs(self.step)?;
+        let ctx = self.ctx.clone();
+        let queue = ctx.queue();
+        let mut inputs = self.world.inputs(self.step)?;
+        if let Some(imp) = &self.implicit {
+            inputs.iter_mut().for_each(|i| i.dt *= imp.dt_scale);
+        }
         for ((gpu, body), inputs) in self.bodies.iter().zip(&self.world.bodies).zip(&inputs) {
             queue.write_buffer(
                 &gpu.params,
@@ -347,7 +380,11 @@ impl GpuWorld {
             collision.record(&mut encoder, &a.pos, a.n, &b.pos, b.n)?;
         }
         if self.bound.is_none() {
-            self.bound = Some(self.bind(&device)?);
+            let (bound, implicit_bodies) = self.bind(&device)?;
+            self.bound = Some(bound);
+            if let Some(imp) = self.implicit.as_mut() {
+                imp.bodies = implicit_bodies;
+            }
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bound above") };
         {
@@ -365,20 +402,113 @@ impl GpuWorld {
                     self.volume.dispatch_one(&mut pass, group);
                 }
             }
-            for (group, body) in bound.forces.iter().zip(&self.bodies) {
-                self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
+            if self.implicit.is_none() {
+                for (group, body) in bound.forces.iter().zip(&self.bodies) {
+                    self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
+                }
+                for (group, body) in bound.integrate.iter().zip(&self.bodies) {
+                    self.integrate.dispatch(&mut pass, group, body.n, self.max_per_dim);
+                }
             }
-            for (group, body) in bound.integrate.iter().zip(&self.bodies) {
-                self.integrate.dispatch(&mut pass, group, body.n, self.max_per_dim);
-            }
+        }
+        if self.implicit.is_some() {
+            return self.implicit_step(encoder, &inputs);
         }
         queue.submit([encoder.finish()]);
         self.step += 1;
         Ok(())
     }
 
+    /// The implicit step after the collisions and the fills' pressures in `encoder`: the
+    /// solves ([`crate::gpu_implicit`]), one scale over every body where a vertex would move
+    /// farther than the largest move, the update, and the step's growth towards rest as the
+    /// CPU world's ([`CpuWorld::accelerate`](crate::CpuWorld::accelerate)).
+    fn implicit_step(&mut self, encoder: wgpu::CommandEncoder, inputs: &[StepInputs]) -> Result<(), Error> {
+        let Some(imp) = self.implicit.as_mut() else { unreachable!("implicit only") };
+        let settling = imp.accelerate_to > 1.0;
+        let settings = if settling {
+            ImplicitSettings { tolerance: imp.settings.settle_tolerance, ..imp.settings }
+        } else {
+            imp.settings
+        };
+        let h = inputs.first().map_or(0.0, |i| i.dt);
+        let setup = Setup {
+            h,
+            guess_scale: if imp.guess_h > 0.0 { h / imp.guess_h } else { 0.0 },
+            tolerance: settings.tolerance,
+            max_iterations: settings.max_iterations,
+        };
+        let solved = crate::gpu_implicit::solve(
+            &self.ctx,
+            encoder,
+            &imp.kernels,
+            &imp.bodies,
+            inputs,
+            &setup,
+            self.max_per_dim,
+        )?;
+        let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
+        let scale = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
+        crate::gpu_implicit::finish(
+            &self.ctx,
+            &imp.kernels,
+            &imp.bodies,
+            inputs,
+            &setup,
+            scale,
+            self.max_per_dim,
+        );
+        imp.guess_h = h;
+        imp.stats = crate::gpu_implicit::stats(&solved, scale);
+        let residual = solved.iter().fold(Residual::default(), |r, s| r.plus(s.residual));
+        let before = imp.residual.net;
+        imp.residual = Residual { peak_gross: imp.residual.peak_gross.max(residual.gross), ..residual };
+        imp.time += f64::from(h);
+        imp.dt_scale =
+            next_dt_scale(imp.dt_scale, imp.accelerate_to, before, residual.net, &imp.stats, &settings);
+        self.step += 1;
+        Ok(())
+    }
+
+    /// Implicit only: from now on, let the step grow towards rest by up to `factor` times the
+    /// schedule's (see [`CpuWorld::accelerate`](crate::CpuWorld::accelerate)); 1 returns to it.
+    pub fn accelerate(&mut self, factor: f32) {
+        if let Some(imp) = self.implicit.as_mut() {
+            imp.accelerate_to = factor.max(1.0);
+            if factor <= 1.0 {
+                imp.dt_scale = 1.0;
+            }
+        }
+    }
+
+    /// Implicit only: the last step's residual at rest over all bodies (at its start).
+    #[must_use]
+    pub fn residual(&self) -> Option<Residual> {
+        self.implicit.as_ref().map(|i| i.residual)
+    }
+
+    /// Implicit only: the last step's solve, per body.
+    #[must_use]
+    pub fn stats(&self) -> Option<&[StepStats]> {
+        self.implicit.as_ref().map(|i| i.stats.as_slice())
+    }
+
+    /// Simulated seconds so far under the implicit integrator, whose step grows to settle
+    /// (`None`: explicit, where it is steps × the schedule's step).
+    #[must_use]
+    pub fn time(&self) -> Option<f64> {
+        self.implicit.as_ref().map(|i| i.time)
+    }
+
+    /// The step the last step took, relative to the schedule's (1 under the explicit
+    /// integrator).
+    #[must_use]
+    pub fn dt_scale(&self) -> f32 {
+        self.implicit.as_ref().map_or(1.0, |i| i.dt_scale)
+    }
+
     /// The bind groups, once the collisions have their force buffers.
-    fn bind(&self, device: &wgpu::Device) -> Result<Bound, Error> {
+    fn bind(&self, device: &wgpu::Device) -> Result<(Bound, Vec<ImplicitBody>), Error> {
         let force_buffer = |c: usize, as_a: bool| {
             let collision = &self.collisions[c];
             if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
@@ -389,6 +519,8 @@ impl GpuWorld {
         let mut forces = Vec::with_capacity(self.bodies.len());
         let mut integrate = Vec::with_capacity(self.bodies.len());
         let mut volume = Vec::with_capacity(self.bodies.len());
+        let mut implicit_bodies = Vec::new();
+        let contacts_of = self.world.contacts_of();
         for (k, b) in self.bodies.iter().enumerate() {
             let mut groups = Vec::new();
             let contact = match &self.sources[k] {
@@ -420,8 +552,38 @@ impl GpuWorld {
             volume.push(self.volume.bind(device, &[&b.params, &b.pos, &b.triangles, &b.fill]));
             integrate
                 .push(self.integrate.bind(device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status]));
+            if let Some(imp) = self.implicit.as_ref() {
+                // Each penalty contact's force on this body, and its stiffness.
+                let mut penalties = Vec::new();
+                for &(c, as_a) in &contacts_of[k] {
+                    if let Response::Penalty { stiffness, .. } = self.world.contacts[c].response {
+                        penalties.push((force_buffer(c, as_a)?, stiffness));
+                    }
+                }
+                let buffers = BodyBuffers {
+                    sim: &b.params,
+                    pos: &b.pos,
+                    vel: &b.vel,
+                    info: &b.info,
+                    offsets: &b.offsets,
+                    adjacency: &b.adjacency,
+                    springs: &b.springs,
+                    triangles: &b.triangles,
+                    contact,
+                    fill: &b.fill,
+                    status: &b.status,
+                };
+                implicit_bodies.push(ImplicitBody::new(
+                    device,
+                    &imp.kernels,
+                    b.n,
+                    self.max_per_dim,
+                    &buffers,
+                    &penalties,
+                ));
+            }
         }
-        Ok(Bound { accumulate, volume, forces, integrate })
+        Ok((Bound { accumulate, volume, forces, integrate }, implicit_bodies))
     }
 
     /// Reads every body's positions, velocities and held fill pressure back into

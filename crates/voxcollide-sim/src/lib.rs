@@ -14,6 +14,7 @@ pub mod cpu; //      `CpuSim`: a scene stepped on the CPU
 pub mod fem; //      finite elements: stable Neo-Hookean tetrahedra (DESIGN §12)
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
 pub mod gpu; //      `GpuSim`: a scene stepped on the GPU, no per-step readback
+pub mod gpu_implicit; // the implicit integrator's WGSL passes, for `GpuWorld`
 pub mod implicit; // backward Euler, matrix-free conjugate gradient (DESIGN §12)
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked

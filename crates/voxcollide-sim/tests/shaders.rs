@@ -9,6 +9,9 @@ fn every_simulation_shader_validates() {
     for (name, source) in voxcollide_sim::gpu::SHADERS {
         wgsl::validate(name, source, &["main"]);
     }
+    // The implicit passes: one source, each pass its own value of the overridable `PASS`.
+    wgsl::validate("implicit", voxcollide_sim::gpu_implicit::IMPLICIT, &["main"]);
+    wgsl::validate("implicit_contact", voxcollide_sim::gpu_implicit::IMPLICIT_CONTACT, &["main"]);
 }
 
 #[test]

@@ -1,0 +1,703 @@
+// The implicit integrator's passes (DESIGN §12, `integrator = "implicit"`) for one body of
+// springs whose contacts are the voxel model's: backward Euler linearised once per step and
+// solved matrix-free by a block-Jacobi preconditioned conjugate gradient, as the CPU does it
+// (src/implicit.rs, `integrate_implicit_together`), term by term. One shader, built once per
+// pass with the pipeline-overridable constant `PASS`; every pass shares one binding layout.
+//
+// Every per-vertex vector of the solve lives in `work`, `n` entries per slot (SLOT_*). Dot
+// products are summed per workgroup (a tree over its 64 lanes) into `red`'s columns of `groups`
+// partials, and the partials by one workgroup (PASS_SCALARS_*) into `red`'s scalars (S_*): a
+// fixed order, so the same answer every time on one device (not the CPU's `f64` sums: the two
+// agree to the solve's tolerance, not bit for bit).
+
+override PASS: u32;
+
+const PASS_PREPARE: u32 = 0u;       // forces, floor rows, fill gradient, held Δv, residual terms
+const PASS_FLOOR: u32 = 1u;         // floor rows' vertical speed to 0; g·v and g·Δv_held
+const PASS_RHS: u32 = 2u;           // K·v, A·Δv_held, the right-hand side, the preconditioner, the guess
+const PASS_GUESS: u32 = 3u;         // b − A·x from the guess
+const PASS_START: u32 = 4u;         // r, z = P·r, p = z
+const PASS_GP: u32 = 5u;            // g·p (a fill's rank-one term)
+const PASS_APPLY: u32 = 6u;         // A·p and p·A·p
+const PASS_UPDATE: u32 = 7u;        // x += α·p, r −= α·A·p, z = P·r, r·r, r·z
+const PASS_DIRECTION: u32 = 8u;     // p = z + β·p
+const PASS_FARTHEST: u32 = 9u;      // the new velocity and the farthest move
+const PASS_MOVE: u32 = 10u;         // the update, the modes, the floor, the contacts' inelastic push
+const PASS_SCALARS_A: u32 = 20u;    // g·v, g·Δv_held, the residual's sums
+const PASS_SCALARS_B: u32 = 21u;    // |b|, |b − A·x|, whether the guess is used
+const PASS_SCALARS_C: u32 = 22u;    // r·z at the start
+const PASS_SCALARS_GP: u32 = 23u;   // g·p
+const PASS_SCALARS_ALPHA: u32 = 24u; // α, or done
+const PASS_SCALARS_BETA: u32 = 25u; // β, |r|, the iteration count
+const PASS_SCALARS_FAR: u32 = 26u;  // the farthest move
+
+const SLOT_F: u32 = 0u;      // xyz: the force; w: 1 on a floor row
+const SLOT_G: u32 = 1u;      // ∂V/∂x
+const SLOT_P0: u32 = 2u;     // the preconditioner's inverse block, by columns
+const SLOT_P1: u32 = 3u;
+const SLOT_P2: u32 = 4u;
+const SLOT_KC0: u32 = 5u;    // the contacts' k·nnᵀ: (xx, yy, zz, xy), (xz, yz, -, -)
+const SLOT_KC1: u32 = 6u;
+const SLOT_HELD: u32 = 7u;   // the prescribed Δv of pinned and driven vertices
+const SLOT_X: u32 = 8u;      // Δv (kept: the next step's guess)
+const SLOT_R: u32 = 9u;
+const SLOT_Z: u32 = 10u;
+const SLOT_P: u32 = 11u;
+const SLOT_AP: u32 = 12u;
+const SLOT_B: u32 = 13u;
+const SLOT_T: u32 = 14u;     // scratch: the new velocity
+const SLOTS: u32 = 15u;
+
+const COL_GP: u32 = 0u;
+const COL_PAP: u32 = 1u;
+const COL_RR: u32 = 2u;
+const COL_RZ: u32 = 3u;
+const COL_NET: u32 = 4u;
+const COL_GROSS: u32 = 5u;
+const COL_FAR: u32 = 6u;
+const COL_LEFT: u32 = 7u;
+const COLUMNS: u32 = 8u;
+
+const S_GV: u32 = 0u;
+const S_GHELD: u32 = 1u;
+const S_GP: u32 = 2u;
+const S_ALPHA: u32 = 3u;
+const S_BETA: u32 = 4u;
+const S_RR: u32 = 5u;
+const S_RZ: u32 = 6u;
+const S_DONE: u32 = 7u;
+const S_ITERATIONS: u32 = 8u;
+const S_NORM_B2: u32 = 9u;
+const S_NET2: u32 = 10u;
+const S_GROSS2: u32 = 11u;
+const S_FARTHEST: u32 = 12u;
+const S_LEFT2: u32 = 13u;
+const S_USE_GUESS: u32 = 14u;
+const S_TARGET2: u32 = 15u;
+const SCALARS: u32 = 16u;
+
+// Keep in sync with GpuImplicitParams in src/gpu_implicit.rs.
+struct ImplicitParams {
+    h: f32,
+    fill_k: f32,             // B / V* (0: no fill)
+    guess_scale: f32,        // h / the last step's h (0: no guess)
+    tolerance: f32,
+    scale: f32,              // the velocity's scale (PASS_MOVE)
+    max_iterations: f32,
+    groups: u32,             // partials per column
+    _pad: u32,
+}
+
+@group(0) @binding(0) var<uniform> sim: SimParams;
+@group(0) @binding(1) var<uniform> ip: ImplicitParams;
+@group(0) @binding(2) var<storage, read_write> pos: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read_write> vel: array<vec4<f32>>;     // w: 1 / mass
+@group(0) @binding(4) var<storage, read> info: array<vec4<f32>>;          // xyz: rest, w: mode
+@group(0) @binding(5) var<storage, read> offsets: array<vec2<u32>>;
+@group(0) @binding(6) var<storage, read> adjacency: array<u32>;
+@group(0) @binding(7) var<storage, read> springs: array<vec2<f32>>;       // (rest, k)
+@group(0) @binding(8) var<storage, read> triangles: array<vec4<u32>>;
+@group(0) @binding(9) var<storage, read> contact: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read> fill: array<f32>;                // [0]: the fill's pressure
+@group(0) @binding(11) var<storage, read_write> work: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read_write> red: array<f32>;
+@group(0) @binding(13) var<storage, read_write> status: array<atomic<u32>, 2>;
+
+var<workgroup> lanes: array<f32, 64>;
+
+fn slot(s: u32, i: u32) -> u32 {
+    return s * sim.n + i;
+}
+
+fn vget(s: u32, i: u32) -> vec3<f32> {
+    return work[slot(s, i)].xyz;
+}
+
+fn vput(s: u32, i: u32, v: vec3<f32>) {
+    work[slot(s, i)] = vec4<f32>(v, 0.0);
+}
+
+// `red` holds the scalars first (read back from offset 0), then the columns of partials.
+fn scalar(k: u32) -> f32 {
+    return red[k];
+}
+
+fn set_scalar(k: u32, v: f32) {
+    red[k] = v;
+}
+
+fn part(column: u32, wg: u32) -> u32 {
+    return SCALARS + column * ip.groups + wg;
+}
+
+fn is_free(i: u32) -> bool {
+    return u32(info[i].w) == MODE_FREE;
+}
+
+fn on_floor(i: u32) -> bool {
+    return work[slot(SLOT_F, i)].w != 0.0;
+}
+
+// The floor's rows are not solved for (the CPU's `Joint::filter`).
+fn filtered(i: u32, v: vec3<f32>) -> vec3<f32> {
+    if on_floor(i) {
+        return vec3<f32>(v.x, v.y, 0.0);
+    }
+    return v;
+}
+
+// Sums `value` over the workgroup into its partial of `column` (all lanes call it,
+// in uniform control flow).
+fn partial_sum(column: u32, wg: u32, lane: u32, value: f32) {
+    lanes[lane] = value;
+    workgroupBarrier();
+    for (var half = 32u; half > 0u; half /= 2u) {
+        if lane < half {
+            lanes[lane] += lanes[lane + half];
+        }
+        workgroupBarrier();
+    }
+    if lane == 0u {
+        red[part(column, wg)] = lanes[0];
+    }
+    workgroupBarrier();
+}
+
+// The largest `value` over the workgroup.
+fn partial_max(column: u32, wg: u32, lane: u32, value: f32) {
+    lanes[lane] = value;
+    workgroupBarrier();
+    for (var half = 32u; half > 0u; half /= 2u) {
+        if lane < half {
+            lanes[lane] = max(lanes[lane], lanes[lane + half]);
+        }
+        workgroupBarrier();
+    }
+    if lane == 0u {
+        red[part(column, wg)] = lanes[0];
+    }
+    workgroupBarrier();
+}
+
+// A column's partials summed by one workgroup (lane j takes partials j, j + 64, …, then the
+// lanes pairwise): the total, on every lane.
+fn column_sum(column: u32, lane: u32) -> f32 {
+    var s = 0.0;
+    for (var j = lane; j < ip.groups; j += 64u) {
+        s += red[part(column, j)];
+    }
+    lanes[lane] = s;
+    workgroupBarrier();
+    for (var half = 32u; half > 0u; half /= 2u) {
+        if lane < half {
+            lanes[lane] += lanes[lane + half];
+        }
+        workgroupBarrier();
+    }
+    let total = lanes[0];
+    workgroupBarrier();
+    return total;
+}
+
+fn column_max(column: u32, lane: u32) -> f32 {
+    var s = 0.0;
+    for (var j = lane; j < ip.groups; j += 64u) {
+        s = max(s, red[part(column, j)]);
+    }
+    lanes[lane] = s;
+    workgroupBarrier();
+    for (var half = 32u; half > 0u; half /= 2u) {
+        if lane < half {
+            lanes[lane] = max(lanes[lane], lanes[lane + half]);
+        }
+        workgroupBarrier();
+    }
+    let total = lanes[0];
+    workgroupBarrier();
+    return total;
+}
+
+// A spring's blocks at the start of the step, from vertex i to j: its direction and
+// (across, along): `−K`'s block is across·I + along·uuᵀ (CPU: MassSpring::system).
+struct Blocks {
+    u: vec3<f32>,
+    across: f32,
+    along: f32,
+}
+
+fn blocks(i: u32, j: u32, s: vec2<f32>) -> Blocks {
+    let d = pos[j].xyz - pos[i].xyz;
+    let len = sqrt(dot3(d, d));
+    if len < 1e-12 {
+        return Blocks(vec3<f32>(0.0), 0.0, 0.0);
+    }
+    let u = d / len;
+    let rest = s.x * sim.rest_scale;
+    let strain = (len - rest) / rest;
+    let tension = s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain);
+    let tangent = s.y * (1.0 + 3.0 * sim.stiffening * strain * strain);
+    let across = max(tension, 0.0) / len;
+    return Blocks(u, across, tangent - across);
+}
+
+fn outer(u: vec3<f32>) -> mat3x3<f32> {
+    return mat3x3<f32>(u * u.x, u * u.y, u * u.z);
+}
+
+fn contact_k(i: u32) -> mat3x3<f32> {
+    let a = work[slot(SLOT_KC0, i)];
+    let b = work[slot(SLOT_KC1, i)];
+    return mat3x3<f32>(vec3<f32>(a.x, a.w, b.x), vec3<f32>(a.w, a.y, b.y), vec3<f32>(b.x, b.y, a.z));
+}
+
+// The contacts' critical damping along their push: 2·√(m/k)·kc with k = trace(kc).
+fn contact_damping(i: u32, kc: mat3x3<f32>) -> mat3x3<f32> {
+    let k = kc[0].x + kc[1].y + kc[2].z;
+    if k > 0.0 {
+        return (2.0 * sqrt(1.0 / (vel[i].w * k))) * kc;
+    }
+    return mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
+// `A·u` on free row i (`A = M − h·D − h²·K`), `gu` = g·u; or `−K·u` on any row when `stiff`.
+fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
+    let h = ip.h;
+    let ui = vget(s_u, i);
+    var r = vec3<f32>(0.0);
+    if !stiff {
+        r = (1.0 / vel[i].w + h * sim.damping) * ui;
+    }
+    let range = vec2<u32>(offsets[i].x, offsets[i + 1u].x);
+    for (var e = range.x; e < range.y; e++) {
+        let j = adjacency[2u * e];
+        let b = blocks(i, j, springs[adjacency[2u * e + 1u]]);
+        var a = b.across;
+        var c = b.along;
+        if !stiff {
+            a = h * h * b.across;
+            c = h * h * b.along + h * sim.spring_damping;
+        }
+        let d = ui - vget(s_u, j);
+        r += a * d + (c * dot3(b.u, d)) * b.u;
+    }
+    let kc = contact_k(i);
+    if stiff {
+        r += kc * ui;
+    } else {
+        r += (h * h * kc + h * contact_damping(i, kc)) * ui;
+    }
+    if ip.fill_k > 0.0 {
+        var h2 = h * h;
+        if stiff {
+            h2 = 1.0;
+        }
+        r += (h2 * ip.fill_k * gu) * vget(SLOT_G, i);
+    }
+    return r;
+}
+
+fn spring_tension(x: vec3<f32>, y: vec3<f32>, s: vec2<f32>) -> vec3<f32> {
+    let d = y - x;
+    let len = sqrt(dot3(d, d));
+    if len < 1e-12 {
+        return vec3<f32>(0.0);
+    }
+    let u = d / len;
+    let rest = s.x * sim.rest_scale;
+    let strain = (len - rest) / rest;
+    return (s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain)) * u;
+}
+
+fn driven_target(rest: vec3<f32>) -> vec3<f32> {
+    if sim.turn_x.w != 0.0 {
+        return sim.turn_x.xyz * rest.x + sim.turn_y.xyz * rest.y + sim.turn_z.xyz * rest.z + sim.drive.xyz;
+    }
+    return rest + sim.drive.xyz;
+}
+
+fn inverse3(m: mat3x3<f32>) -> mat3x3<f32> {
+    // glam's Mat3::inverse: the columns' cross products over the determinant, transposed.
+    let t0 = cross3(m[1], m[2]);
+    let t1 = cross3(m[2], m[0]);
+    let t2 = cross3(m[0], m[1]);
+    let inv_det = 1.0 / dot3(m[2], t2);
+    return transpose(mat3x3<f32>(t0, t1, t2)) * inv_det;
+}
+
+fn finite3(v: vec3<f32>) -> bool {
+    return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
+}
+
+fn pass_prepare(i: u32) -> vec2<f32> {
+    let x = pos[i].xyz;
+    let v = vel[i].xyz;
+    let free = is_free(i);
+    var pressure = sim.pressure;
+    if sim.fill_volume > 0.0 {
+        pressure = fill[0];
+    }
+    // The forces (CPU: MassSpring::forces), and the residual's at rest (MassSpring::residual).
+    var f = contact[i].xyz - sim.damping * v;
+    var rest_f = contact[i].xyz;
+    var gross = sqrt(dot3(contact[i].xyz, contact[i].xyz));
+    let range = vec2<u32>(offsets[i].x, offsets[i + 1u].x);
+    for (var e = range.x; e < range.y; e++) {
+        let j = adjacency[2u * e];
+        let s = springs[adjacency[2u * e + 1u]];
+        let y = pos[j].xyz;
+        let d = y - x;
+        let len = sqrt(dot3(d, d));
+        if len >= 1e-12 {
+            let u = d / len;
+            let rest = s.x * sim.rest_scale;
+            let strain = (len - rest) / rest;
+            let tension = s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain);
+            let damping = sim.spring_damping * dot3(vel[j].xyz - v, u);
+            f += (tension + damping) * u;
+        }
+        let t = spring_tension(x, y, s);
+        rest_f += t;
+        gross += sqrt(dot3(t, t));
+    }
+    var g = vec3<f32>(0.0);
+    let tris = vec2<u32>(offsets[i].y, offsets[i + 1u].y);
+    for (var e = tris.x; e < tris.y; e++) {
+        let t = triangles[adjacency[sim.tri_base + e]];
+        let c = (1.0 / 6.0) * cross3(pos[t.y].xyz - pos[t.x].xyz, pos[t.z].xyz - pos[t.x].xyz);
+        g += c;
+        if pressure != 0.0 {
+            let p = (pressure / 6.0) * cross3(pos[t.y].xyz - pos[t.x].xyz, pos[t.z].xyz - pos[t.x].xyz);
+            f += p;
+            rest_f += p;
+            gross += sqrt(dot3(p, p));
+        }
+    }
+    if x.z <= sim.floor && rest_f.z < 0.0 {
+        rest_f.z = 0.0;
+    }
+    let floor_row = free && x.z <= sim.floor && f.z < 0.0;
+    work[slot(SLOT_F, i)] = vec4<f32>(f, select(0.0, 1.0, floor_row));
+    vput(SLOT_G, i, g);
+    let mode = u32(info[i].w);
+    var held = vec3<f32>(0.0);
+    if mode == MODE_PINNED {
+        held = -v;
+    } else if mode == MODE_DRIVEN {
+        held = (driven_target(info[i].xyz) - x) / ip.h - v;
+    }
+    vput(SLOT_HELD, i, held);
+    if free {
+        return vec2<f32>(dot3(rest_f, rest_f), gross * gross);
+    }
+    return vec2<f32>(0.0);
+}
+
+fn pass_rhs(i: u32) -> f32 {
+    let h = ip.h;
+    let free = is_free(i);
+    // The preconditioner's block: the diagonal of A.
+    let kc = contact_k(i);
+    let cd = contact_damping(i, kc);
+    let diagonal = 1.0 / vel[i].w + h * sim.damping;
+    var b = mat3x3<f32>(vec3<f32>(diagonal, 0.0, 0.0), vec3<f32>(0.0, diagonal, 0.0), vec3<f32>(0.0, 0.0, diagonal));
+    b += h * h * kc + h * cd;
+    let range = vec2<u32>(offsets[i].x, offsets[i + 1u].x);
+    for (var e = range.x; e < range.y; e++) {
+        let j = adjacency[2u * e];
+        let s = blocks(i, j, springs[adjacency[2u * e + 1u]]);
+        let a = h * h * s.across;
+        let c = h * h * s.along + h * sim.spring_damping;
+        b += mat3x3<f32>(vec3<f32>(a, 0.0, 0.0), vec3<f32>(0.0, a, 0.0), vec3<f32>(0.0, 0.0, a)) + c * outer(s.u);
+    }
+    if ip.fill_k > 0.0 {
+        b += (h * h * ip.fill_k) * outer(vget(SLOT_G, i));
+    }
+    var inv = inverse3(b);
+    if !(finite3(inv[0]) && finite3(inv[1]) && finite3(inv[2])) {
+        let d = 1.0 / diagonal;
+        inv = mat3x3<f32>(vec3<f32>(d, 0.0, 0.0), vec3<f32>(0.0, d, 0.0), vec3<f32>(0.0, 0.0, d));
+    }
+    vput(SLOT_P0, i, inv[0]);
+    vput(SLOT_P1, i, inv[1]);
+    vput(SLOT_P2, i, inv[2]);
+    // b = h·(f − C_c·v − h·(−K)·v) − A·Δv_held on the free rows (velocities as the floor left them).
+    var rhs = vec3<f32>(0.0);
+    var x = vec3<f32>(0.0);
+    if free {
+        // −K·v: the stiff product of the velocities (they live in `vel`, not `work`: gathered here).
+        let v = vel[i].xyz;
+        var kv = kc * v;
+        var a_held = vec3<f32>(0.0);
+        let hi = vget(SLOT_HELD, i);
+        for (var e = range.x; e < range.y; e++) {
+            let j = adjacency[2u * e];
+            let s = blocks(i, j, springs[adjacency[2u * e + 1u]]);
+            let d = v - vel[j].xyz;
+            kv += s.across * d + (s.along * dot3(s.u, d)) * s.u;
+            let dh = hi - vget(SLOT_HELD, j);
+            let a = h * h * s.across;
+            let c = h * h * s.along + h * sim.spring_damping;
+            a_held += a * dh + (c * dot3(s.u, dh)) * s.u;
+        }
+        a_held += (1.0 / vel[i].w + h * sim.damping) * hi + (h * h * kc + h * cd) * hi;
+        if ip.fill_k > 0.0 {
+            kv += (ip.fill_k * scalar(S_GV)) * vget(SLOT_G, i);
+            a_held += (h * h * ip.fill_k * scalar(S_GHELD)) * vget(SLOT_G, i);
+        }
+        rhs = h * (vget(SLOT_F, i) - cd * v - h * kv) - a_held;
+        if ip.guess_scale > 0.0 {
+            x = filtered(i, ip.guess_scale * vget(SLOT_X, i));
+        }
+    }
+    vput(SLOT_B, i, rhs);
+    vput(SLOT_X, i, x);
+    let r = filtered(i, rhs);
+    return dot3(r, r);
+}
+
+fn precondition(i: u32, r: vec3<f32>) -> vec3<f32> {
+    let m = mat3x3<f32>(vget(SLOT_P0, i), vget(SLOT_P1, i), vget(SLOT_P2, i));
+    return filtered(i, m * r);
+}
+
+@compute @workgroup_size(64)
+fn main(
+    @builtin(global_invocation_id) gid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let i = item_index(gid, nwg);
+    let wg = wid.x + wid.y * nwg.x;
+    let live = i < sim.n;
+    if PASS == PASS_PREPARE {
+        var terms = vec2<f32>(0.0);
+        if live {
+            terms = pass_prepare(i);
+        }
+        partial_sum(COL_NET, wg, lane, terms.x);
+        partial_sum(COL_GROSS, wg, lane, terms.y);
+    } else if PASS == PASS_FLOOR {
+        var gv = 0.0;
+        var gh = 0.0;
+        if live {
+            if on_floor(i) {
+                vel[i] = vec4<f32>(vel[i].x, vel[i].y, 0.0, vel[i].w);
+            }
+            let g = vget(SLOT_G, i);
+            gv = dot3(g, vel[i].xyz);
+            gh = dot3(g, vget(SLOT_HELD, i));
+        }
+        partial_sum(COL_GP, wg, lane, gv);
+        partial_sum(COL_PAP, wg, lane, gh);
+    } else if PASS == PASS_RHS {
+        var bb = 0.0;
+        if live {
+            bb = pass_rhs(i);
+        }
+        partial_sum(COL_RR, wg, lane, bb);
+    } else if PASS == PASS_GUESS {
+        // Needs g·x for a fill: taken as the scalar S_GP, written by PASS_SCALARS_GP over x.
+        var left2 = 0.0;
+        if live {
+            var ax = vec3<f32>(0.0);
+            if is_free(i) {
+                ax = filtered(i, apply_row(i, SLOT_X, scalar(S_GP), false));
+            }
+            let left = filtered(i, vget(SLOT_B, i)) - ax;
+            vput(SLOT_R, i, left);
+            left2 = dot3(left, left);
+        }
+        partial_sum(COL_LEFT, wg, lane, left2);
+    } else if PASS == PASS_START {
+        var rz = 0.0;
+        if live {
+            var r = filtered(i, vget(SLOT_B, i));
+            if scalar(S_USE_GUESS) != 0.0 {
+                r = vget(SLOT_R, i);
+            } else {
+                vput(SLOT_X, i, vec3<f32>(0.0));
+            }
+            vput(SLOT_R, i, r);
+            let z = precondition(i, r);
+            vput(SLOT_Z, i, z);
+            vput(SLOT_P, i, z);
+            rz = dot3(r, z);
+        }
+        partial_sum(COL_RZ, wg, lane, rz);
+    } else if PASS == PASS_GP {
+        // g·p, or g·x for PASS_GUESS (the vector in slot `ip` names: P unless guessing).
+        var gp = 0.0;
+        if live {
+            var s = SLOT_P;
+            if scalar(S_DONE) < 0.0 {
+                s = SLOT_X;
+            }
+            gp = dot3(vget(SLOT_G, i), vget(s, i));
+        }
+        partial_sum(COL_GP, wg, lane, gp);
+    } else if PASS == PASS_APPLY {
+        var pap = 0.0;
+        if live {
+            var ap = vec3<f32>(0.0);
+            if is_free(i) {
+                ap = filtered(i, apply_row(i, SLOT_P, scalar(S_GP), false));
+            }
+            vput(SLOT_AP, i, ap);
+            pap = dot3(vget(SLOT_P, i), ap);
+        }
+        partial_sum(COL_PAP, wg, lane, pap);
+    } else if PASS == PASS_UPDATE {
+        var rr = 0.0;
+        var rz = 0.0;
+        if live {
+            let alpha = scalar(S_ALPHA);
+            vput(SLOT_X, i, vget(SLOT_X, i) + alpha * vget(SLOT_P, i));
+            let r = vget(SLOT_R, i) - alpha * vget(SLOT_AP, i);
+            vput(SLOT_R, i, r);
+            let z = precondition(i, r);
+            vput(SLOT_Z, i, z);
+            rr = dot3(r, r);
+            rz = dot3(r, z);
+        }
+        partial_sum(COL_RR, wg, lane, rr);
+        partial_sum(COL_RZ, wg, lane, rz);
+    } else if PASS == PASS_DIRECTION {
+        if live && scalar(S_DONE) == 0.0 {
+            vput(SLOT_P, i, vget(SLOT_Z, i) + scalar(S_BETA) * vget(SLOT_P, i));
+        }
+    } else if PASS == PASS_FARTHEST {
+        var far = 0.0;
+        if live {
+            var dv = vget(SLOT_HELD, i);
+            if is_free(i) {
+                dv = vget(SLOT_X, i);
+            }
+            let v = vel[i].xyz + dv;
+            vput(SLOT_T, i, v);
+            if is_free(i) {
+                far = ip.h * sqrt(dot3(v, v));
+            }
+        }
+        partial_max(COL_FAR, wg, lane, far);
+    } else if PASS == PASS_MOVE {
+        if live {
+            pass_move(i);
+        }
+    } else {
+        scalars(lane);
+    }
+}
+
+fn pass_move(i: u32) {
+    let h = ip.h;
+    let mode = u32(info[i].w);
+    var x = pos[i].xyz;
+    var v = vel[i].xyz;
+    if mode == MODE_FREE {
+        v = ip.scale * vget(SLOT_T, i);
+        x += h * v;
+        // A voxel-model contact's push is inelastic: no speed left away from what pushes.
+        let push = sqrt(dot3(contact[i].xyz, contact[i].xyz));
+        let kc = contact_k(i);
+        if push > 0.0 && kc[0].x + kc[1].y + kc[2].z > 0.0 {
+            let n = contact[i].xyz / push;
+            let away = dot3(v, n);
+            if away > 0.0 {
+                v -= away * n;
+            }
+        }
+        if x.z < sim.floor {
+            x.z = sim.floor;
+            v.z = max(v.z, 0.0);
+        }
+    } else if mode == MODE_PINNED {
+        x = info[i].xyz;
+        v = vec3<f32>(0.0);
+    } else {
+        let t = driven_target(info[i].xyz);
+        v = (t - x) / h;
+        x = t;
+    }
+    pos[i] = vec4<f32>(x, 1.0);
+    vel[i] = vec4<f32>(v, vel[i].w);
+    if !finite3(x) || !finite3(v) || sqrt(dot3(v, v)) > sim.v_max {
+        atomicMax(&status[0], ~sim.step);
+        atomicMax(&status[1], ~i);
+    }
+}
+
+// The single-workgroup passes: the partials summed into the solve's scalars.
+fn scalars(lane: u32) {
+    if PASS == PASS_SCALARS_A {
+        let gv = column_sum(COL_GP, lane);
+        let gh = column_sum(COL_PAP, lane);
+        let net = column_sum(COL_NET, lane);
+        let gross = column_sum(COL_GROSS, lane);
+        if lane == 0u {
+            set_scalar(S_GV, gv);
+            set_scalar(S_GHELD, gh);
+            set_scalar(S_NET2, net);
+            set_scalar(S_GROSS2, gross);
+            // PASS_GP reads x while S_DONE is negative (the guess's g·x).
+            set_scalar(S_DONE, -1.0);
+        }
+    } else if PASS == PASS_SCALARS_B {
+        let bb = column_sum(COL_RR, lane);
+        let left = column_sum(COL_LEFT, lane);
+        if lane == 0u {
+            set_scalar(S_NORM_B2, bb);
+            set_scalar(S_LEFT2, left);
+            // From the guess where it leaves less to solve than 0 does.
+            set_scalar(S_USE_GUESS, select(0.0, 1.0, ip.guess_scale > 0.0 && left < bb));
+            set_scalar(S_TARGET2, ip.tolerance * ip.tolerance * bb);
+            // The first iteration always runs, as on the CPU (|r| is taken as |b| at the start).
+            set_scalar(S_RR, bb);
+            set_scalar(S_ITERATIONS, 0.0);
+            set_scalar(S_DONE, select(0.0, 1.0, bb == 0.0));
+            set_scalar(S_ALPHA, 0.0);
+            set_scalar(S_BETA, 0.0);
+        }
+    } else if PASS == PASS_SCALARS_C {
+        let rz = column_sum(COL_RZ, lane);
+        if lane == 0u {
+            set_scalar(S_RZ, rz);
+        }
+    } else if PASS == PASS_SCALARS_GP {
+        let gp = column_sum(COL_GP, lane);
+        if lane == 0u {
+            set_scalar(S_GP, gp);
+        }
+    } else if PASS == PASS_SCALARS_ALPHA {
+        let pap = column_sum(COL_PAP, lane);
+        if lane == 0u {
+            var alpha = 0.0;
+            var done = scalar(S_DONE);
+            if done == 0.0 {
+                // The CPU's loop test (iterations left, residual above the target), then a
+                // positive curvature (a NaN stops it too).
+                if scalar(S_ITERATIONS) >= ip.max_iterations || scalar(S_RR) <= scalar(S_TARGET2) || !(pap > 0.0) {
+                    done = 1.0;
+                } else {
+                    alpha = scalar(S_RZ) / pap;
+                }
+            }
+            set_scalar(S_DONE, done);
+            set_scalar(S_ALPHA, alpha);
+        }
+    } else if PASS == PASS_SCALARS_BETA {
+        let rr = column_sum(COL_RR, lane);
+        let rz = column_sum(COL_RZ, lane);
+        if lane == 0u && scalar(S_DONE) == 0.0 {
+            set_scalar(S_RR, rr);
+            set_scalar(S_BETA, rz / scalar(S_RZ));
+            set_scalar(S_RZ, rz);
+            set_scalar(S_ITERATIONS, scalar(S_ITERATIONS) + 1.0);
+        }
+    } else if PASS == PASS_SCALARS_FAR {
+        let far = column_max(COL_FAR, lane);
+        if lane == 0u {
+            set_scalar(S_FARTHEST, far);
+        }
+    }
+}

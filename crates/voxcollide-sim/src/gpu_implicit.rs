@@ -1,0 +1,416 @@
+//! The implicit integrator on the GPU (DESIGN §12): [`crate::GpuWorld`]'s step for a world of
+//! spring lattices whose contacts are the voxel model's, in WGSL (`shaders/implicit.wgsl`).
+//!
+//! Each body's step is the CPU's ([`crate::implicit`]) term by term: the same forces, the same
+//! blocks of `A = M − h·D − h²·K` (springs, a fill's rank-one term, each contact's `k·nnᵀ` and
+//! its critical damping), the same block-Jacobi preconditioner, the conjugate gradient started
+//! from the last step's answer where that leaves less to solve, the floor's rows held, and the
+//! same update. The passes run without a readback except where the host must decide: once per
+//! batch of [`BATCH`] iterations (has every body's solve converged?) and once at the end (how
+//! far would the farthest vertex move?).
+//!
+//! **What differs from the CPU.** The dot products are `f32` trees per workgroup on the device,
+//! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. Each
+//! body is solved on its own (the CPU solves every body in one system: with the voxel model's
+//! contacts, which push from a partner standing still, the systems do not couple, and the
+//! answers agree to the tolerance). A step that would carry a vertex farther than
+//! [`ImplicitSettings::max_move`](crate::ImplicitSettings::max_move) is scaled down here, never
+//! taken again in parts ([`crate::ImplicitSettings::split_far`] is the CPU world's).
+
+use bytemuck::{Pod, Zeroable};
+use wgpu::{Buffer, BufferUsages};
+
+use crate::body::StepInputs;
+use crate::implicit::{Residual, StepStats};
+use voxcollide::error::Error;
+use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
+
+/// The implicit passes' WGSL, composed with `sim_common.wgsl`.
+pub const IMPLICIT: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit.wgsl"));
+/// The contact stiffness pass's WGSL.
+pub const IMPLICIT_CONTACT: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit_contact.wgsl"));
+
+/// Conjugate-gradient iterations recorded between two looks at whether the solves converged.
+pub const BATCH: u32 = 8;
+
+// The passes (`PASS` in implicit.wgsl).
+const PREPARE: usize = 0;
+const FLOOR: usize = 1;
+const RHS: usize = 2;
+const GUESS: usize = 3;
+const START: usize = 4;
+const GP: usize = 5;
+const APPLY: usize = 6;
+const UPDATE: usize = 7;
+const DIRECTION: usize = 8;
+const FARTHEST: usize = 9;
+const MOVE: usize = 10;
+const SCALARS_A: usize = 11;
+const SCALARS_B: usize = 12;
+const SCALARS_C: usize = 13;
+const SCALARS_GP: usize = 14;
+const SCALARS_ALPHA: usize = 15;
+const SCALARS_BETA: usize = 16;
+const SCALARS_FAR: usize = 17;
+/// Each pass's `PASS` constant, in the order above.
+const PASS_IDS: [u32; 18] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 20, 21, 22, 23, 24, 25, 26];
+/// Whether each pass is one workgroup (the scalars) rather than one invocation per vertex.
+const fn single(pass: usize) -> bool {
+    pass >= SCALARS_A
+}
+
+/// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's.
+const SLOTS: u64 = 15;
+const SLOT_KC0: u32 = 5;
+/// Columns of partials and scalars in `red`.
+const COLUMNS: u64 = 8;
+const SCALARS: u64 = 16;
+// The scalars read back (`S_*` in implicit.wgsl).
+const S_DONE: usize = 7;
+const S_ITERATIONS: usize = 8;
+const S_RR: usize = 5;
+const S_NORM_B2: usize = 9;
+const S_NET2: usize = 10;
+const S_GROSS2: usize = 11;
+const S_FARTHEST: usize = 12;
+
+/// Keep in sync with `ImplicitParams` in `shaders/implicit.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct GpuImplicitParams {
+    h: f32,
+    fill_k: f32,
+    guess_scale: f32,
+    tolerance: f32,
+    scale: f32,
+    max_iterations: f32,
+    groups: u32,
+    _pad: u32,
+}
+
+/// The kernels of the implicit passes, built once per world.
+pub(crate) struct ImplicitKernels {
+    passes: Vec<Kernel>,
+    contact: Kernel,
+}
+
+impl ImplicitKernels {
+    pub(crate) fn new(device: &wgpu::Device) -> ImplicitKernels {
+        use Slot::{Read, ReadWrite, Uniform};
+        let slots = [
+            Uniform, Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read, Read, Read, ReadWrite,
+            ReadWrite, ReadWrite,
+        ];
+        let passes = PASS_IDS
+            .iter()
+            .map(|&id| {
+                Kernel::with_constants(
+                    device,
+                    "voxcollide implicit",
+                    IMPLICIT,
+                    &slots,
+                    &[("PASS", f64::from(id))],
+                )
+            })
+            .collect();
+        let contact =
+            Kernel::new(device, "voxcollide implicit contact", IMPLICIT_CONTACT, &[Uniform, Read, ReadWrite]);
+        ImplicitKernels { passes, contact }
+    }
+}
+
+/// One body's device buffers for the implicit passes, and its bind groups.
+pub(crate) struct ImplicitBody {
+    params: Buffer,
+    work: Buffer,
+    red: Buffer,
+    n: u32,
+    groups: u32,
+    /// One bind group per pass.
+    groups_of: Vec<wgpu::BindGroup>,
+    /// Per contact that pushes this body with a penalty: its params and bind group.
+    contacts: Vec<(Buffer, wgpu::BindGroup)>,
+}
+
+/// The buffers of a body that the implicit passes bind besides their own.
+pub(crate) struct BodyBuffers<'a> {
+    pub sim: &'a Buffer,
+    pub pos: &'a Buffer,
+    pub vel: &'a Buffer,
+    pub info: &'a Buffer,
+    pub offsets: &'a Buffer,
+    pub adjacency: &'a Buffer,
+    pub springs: &'a Buffer,
+    pub triangles: &'a Buffer,
+    pub contact: &'a Buffer,
+    pub fill: &'a Buffer,
+    pub status: &'a Buffer,
+}
+
+impl ImplicitBody {
+    /// `penalties`: the force buffer and stiffness of each of the body's penalty contacts, in
+    /// contact order.
+    pub(crate) fn new(
+        device: &wgpu::Device,
+        kernels: &ImplicitKernels,
+        n: u32,
+        max_per_dim: u32,
+        b: &BodyBuffers,
+        penalties: &[(&Buffer, f32)],
+    ) -> ImplicitBody {
+        let (x, y) = workgroups(n.max(1), max_per_dim);
+        let groups = x * y;
+        let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
+        let buffer = |label, size: u64, usage| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: size.max(16),
+                usage,
+                mapped_at_creation: false,
+            })
+        };
+        let params = buffer(
+            "implicit params",
+            std::mem::size_of::<GpuImplicitParams>() as u64,
+            BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+        );
+        let work = buffer("implicit work", 16 * SLOTS * u64::from(n), storage);
+        let red = buffer("implicit sums", 4 * (SCALARS + COLUMNS * u64::from(groups)), storage);
+        let groups_of = kernels
+            .passes
+            .iter()
+            .map(|k| {
+                k.bind(
+                    device,
+                    &[
+                        b.sim,
+                        &params,
+                        b.pos,
+                        b.vel,
+                        b.info,
+                        b.offsets,
+                        b.adjacency,
+                        b.springs,
+                        b.triangles,
+                        b.contact,
+                        b.fill,
+                        &work,
+                        &red,
+                        b.status,
+                    ],
+                )
+            })
+            .collect();
+        let contacts = penalties
+            .iter()
+            .map(|(force, stiffness)| {
+                use wgpu::util::DeviceExt as _;
+                let words: [u32; 4] = [n, SLOT_KC0 * n, stiffness.to_bits(), 0];
+                let p = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("implicit contact params"),
+                    contents: bytemuck::cast_slice(&words),
+                    usage: BufferUsages::UNIFORM,
+                });
+                let group = kernels.contact.bind(device, &[&p, force, &work]);
+                (p, group)
+            })
+            .collect();
+        ImplicitBody { params, work, red, n, groups, groups_of, contacts }
+    }
+
+    fn write(&self, queue: &wgpu::Queue, p: &GpuImplicitParams) {
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(p));
+    }
+}
+
+/// How one step's solve is set up for a body (host side).
+pub(crate) struct Setup {
+    pub h: f32,
+    pub guess_scale: f32,
+    pub tolerance: f32,
+    pub max_iterations: u32,
+}
+
+fn params(inputs: &StepInputs, s: &Setup, groups: u32, scale: f32) -> GpuImplicitParams {
+    GpuImplicitParams {
+        h: s.h,
+        fill_k: if inputs.fill_volume > 0.0 { inputs.fill_bulk / inputs.fill_volume } else { 0.0 },
+        guess_scale: s.guess_scale,
+        tolerance: s.tolerance,
+        scale,
+        max_iterations: s.max_iterations as f32,
+        groups,
+        _pad: 0,
+    }
+}
+
+/// What a body's solve reached, read back.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Solved {
+    pub iterations: u32,
+    pub relative_residual: f32,
+    pub farthest: f32,
+    pub residual: Residual,
+}
+
+fn read_scalars(ctx: &voxcollide::GpuContext, bodies: &[ImplicitBody]) -> Result<Vec<[f32; 16]>, Error> {
+    let parts: Vec<(&Buffer, u64)> = bodies.iter().map(|b| (&b.red, 4 * SCALARS)).collect();
+    let bytes = voxcollide::gpu::read_buffers(ctx, &parts)?;
+    Ok(bytes.iter().map(|b| bytemuck::pod_read_unaligned::<[f32; 16]>(b)).collect())
+}
+
+/// Records `passes` for every body listed in `which`, in one compute pass.
+fn record(
+    encoder: &mut wgpu::CommandEncoder,
+    kernels: &ImplicitKernels,
+    bodies: &[ImplicitBody],
+    which: &[usize],
+    passes: &[usize],
+    max_per_dim: u32,
+) {
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some("voxcollide implicit"),
+        timestamp_writes: None,
+    });
+    for &k in which {
+        let body = &bodies[k];
+        for &p in passes {
+            if single(p) {
+                kernels.passes[p].dispatch_one(&mut pass, &body.groups_of[p]);
+            } else {
+                kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.n, max_per_dim);
+            }
+        }
+    }
+}
+
+/// The solve of one implicit step for every body, after the collisions and the fills'
+/// pressures are recorded in `encoder`: the contact stiffness, the system, the conjugate
+/// gradient to each body's tolerance, and the farthest move. Returns each body's solve; the
+/// update is [`finish`]'s.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn solve(
+    ctx: &voxcollide::GpuContext,
+    mut encoder: wgpu::CommandEncoder,
+    kernels: &ImplicitKernels,
+    bodies: &[ImplicitBody],
+    inputs: &[StepInputs],
+    setup: &Setup,
+    max_per_dim: u32,
+) -> Result<Vec<Solved>, Error> {
+    let queue = ctx.queue();
+    for (b, inputs) in bodies.iter().zip(inputs) {
+        b.write(queue, &params(inputs, setup, b.groups, 1.0));
+        encoder.clear_buffer(&b.work, 16 * u64::from(SLOT_KC0) * u64::from(b.n), Some(32 * u64::from(b.n)));
+    }
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("voxcollide implicit contacts"),
+            timestamp_writes: None,
+        });
+        for b in bodies {
+            for (_, group) in &b.contacts {
+                kernels.contact.dispatch(&mut pass, group, b.n, max_per_dim);
+            }
+        }
+    }
+    let all: Vec<usize> = (0..bodies.len()).collect();
+    let fill = |k: usize| inputs[k].fill_volume > 0.0;
+    let guessing = setup.guess_scale > 0.0;
+    for &k in &all {
+        let mut passes = vec![PREPARE, FLOOR, SCALARS_A, RHS];
+        if guessing {
+            if fill(k) {
+                passes.extend([GP, SCALARS_GP]);
+            }
+            passes.push(GUESS);
+        }
+        passes.extend([SCALARS_B, START, SCALARS_C]);
+        record(&mut encoder, kernels, bodies, &[k], &passes, max_per_dim);
+    }
+    let iteration = |k: usize| -> Vec<usize> {
+        let mut p = Vec::with_capacity(7);
+        if fill(k) {
+            p.extend([GP, SCALARS_GP]);
+        }
+        p.extend([APPLY, SCALARS_ALPHA, UPDATE, SCALARS_BETA, DIRECTION]);
+        p
+    };
+    let mut running = all.clone();
+    let mut recorded = 0;
+    loop {
+        for &k in &running {
+            let one = iteration(k);
+            let passes: Vec<usize> = (0..BATCH).flat_map(|_| one.iter().copied()).collect();
+            record(&mut encoder, kernels, bodies, &[k], &passes, max_per_dim);
+        }
+        recorded += BATCH;
+        queue.submit([encoder.finish()]);
+        let scalars = read_scalars(ctx, bodies)?;
+        running.retain(|&k| scalars[k][S_DONE] == 0.0);
+        encoder = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("voxcollide implicit solve"),
+        });
+        // (The cap is the solve's own, checked on the device; this only stops the host.)
+        if running.is_empty() || recorded > setup.max_iterations + BATCH {
+            break;
+        }
+    }
+    record(&mut encoder, kernels, bodies, &all, &[FARTHEST, SCALARS_FAR], max_per_dim);
+    queue.submit([encoder.finish()]);
+    let scalars = read_scalars(ctx, bodies)?;
+    Ok(scalars
+        .iter()
+        .map(|s| Solved {
+            iterations: s[S_ITERATIONS] as u32,
+            relative_residual: if s[S_NORM_B2] > 0.0 { (s[S_RR] / s[S_NORM_B2]).sqrt() } else { 0.0 },
+            farthest: s[S_FARTHEST],
+            residual: Residual {
+                net: f64::from(s[S_NET2]).sqrt(),
+                gross: f64::from(s[S_GROSS2]).sqrt(),
+                peak_gross: 0.0,
+            },
+        })
+        .collect())
+}
+
+/// The update after [`solve`]: every body's velocity scaled by `scale`, then its positions,
+/// modes, floor and contacts' inelastic push, in one submit.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn finish(
+    ctx: &voxcollide::GpuContext,
+    kernels: &ImplicitKernels,
+    bodies: &[ImplicitBody],
+    inputs: &[StepInputs],
+    setup: &Setup,
+    scale: f32,
+    max_per_dim: u32,
+) {
+    let queue = ctx.queue();
+    for (b, inputs) in bodies.iter().zip(inputs) {
+        b.write(queue, &params(inputs, setup, b.groups, scale));
+    }
+    let mut encoder = ctx
+        .device()
+        .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide implicit move") });
+    let all: Vec<usize> = (0..bodies.len()).collect();
+    record(&mut encoder, kernels, bodies, &all, &[MOVE], max_per_dim);
+    queue.submit([encoder.finish()]);
+}
+
+/// Each body's [`StepStats`] from its solve and the common scale.
+pub(crate) fn stats(solved: &[Solved], scale: f32) -> Vec<StepStats> {
+    let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
+    solved
+        .iter()
+        .map(|s| StepStats {
+            iterations: s.iterations,
+            relative_residual: s.relative_residual,
+            scaled: scale,
+            farthest,
+            taken: true,
+        })
+        .collect()
+}
