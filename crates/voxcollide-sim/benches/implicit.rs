@@ -17,6 +17,15 @@ use voxcollide_sim::{CpuWorld, ImplicitSettings, Integrator, Material, Mode, Ste
 /// A block 27 × 27 × 27 vertices (19,683), its base pinned and its top pressed down by 5 % over
 /// the first 20 steps; `elements`: Neo-Hookean at ν = 0.45, else the paper's springs.
 fn block(elements: bool) -> CpuWorld {
+    let mut w = CpuWorld::new(block_world(elements)).unwrap();
+    // Into the press, where the solve has work every step.
+    for _ in 0..10 {
+        w.step().unwrap();
+    }
+    w
+}
+
+fn block_world(elements: bool) -> World {
     let n = 27;
     let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.1, damping: 0.1 };
     let mut body = box_lattice(UVec3::splat(n), 1.0, Vec3::ZERO, 0.4, material, |v| {
@@ -42,15 +51,9 @@ fn block(elements: bool) -> CpuWorld {
             ..StepInputs::at_rest(dt)
         }]
     });
-    let world = World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)
+    World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)
         .unwrap()
-        .with_integrator(Integrator::Implicit(ImplicitSettings::default()));
-    let mut w = CpuWorld::new(world).unwrap();
-    // Into the press, where the solve has work every step.
-    for _ in 0..10 {
-        w.step().unwrap();
-    }
-    w
+        .with_integrator(Integrator::Implicit(ImplicitSettings::default()))
 }
 
 fn bench(c: &mut Criterion) {
@@ -86,5 +89,38 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// The springs' block stepped on the GPU's implicit passes (`GpuWorld`) and on the CPU on every
+/// core, each from step 10 of the press on, step after step: a device's state cannot be set
+/// back cheaply, so each figure is a run of consecutive steps of the same trajectory (the two
+/// agree to the solve's tolerance, tests/implicit.rs), not the same step again and again.
+fn gpu(c: &mut Criterion) {
+    let ctx = match voxcollide::GpuContext::new() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("implicit_steps_20k_gpu skipped: no adapter ({e})");
+            return;
+        }
+    };
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let mut group = c.benchmark_group("implicit_steps_20k");
+    group.sample_size(10).measurement_time(Duration::from_secs(20));
+    let mut on_gpu = voxcollide_sim::GpuWorld::new(&ctx, block_world(false)).unwrap();
+    for _ in 0..10 {
+        on_gpu.step().unwrap();
+    }
+    eprintln!(
+        "springs on {}: {} CG iterations a step",
+        ctx.adapter_name(),
+        on_gpu.stats().map_or(0, |s| s[0].iterations)
+    );
+    group.bench_function("springs_gpu", |b| b.iter(|| on_gpu.step().unwrap()));
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(cores).build().unwrap();
+    let mut on_cpu = pool.install(|| block(false));
+    group.bench_function(format!("springs_cpu_{cores}_threads"), |b| {
+        b.iter(|| pool.install(|| on_cpu.step().unwrap()))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench, gpu);
 criterion_main!(benches);

@@ -45,15 +45,10 @@ pub struct CpuWorld {
     /// Implicit only: the last step's answer, where the next solve starts (part of the
     /// world's state: a step taken again from the same positions and velocities takes it too).
     pub guess: Guess,
-    /// Implicit only: the parts the last step was taken in (1: whole; see
-    /// [`ImplicitSettings::split_far`]).
-    pub substeps: u32,
-    /// Implicit only: the steps so far taken in more than one part.
-    pub split_steps: u64,
-    /// Implicit only: the most parts a step has been taken in so far.
-    pub most_parts: u32,
-    /// The last step's inputs, where the next step's parts start from.
-    last_inputs: Option<Vec<StepInputs>>,
+    /// Implicit only: the steps taken in parts (see [`ImplicitSettings::split_far`]).
+    pub parts: Parts,
+    /// The fills' held pressures at the start of a part, put back where it is refused.
+    kept: Vec<f32>,
 }
 
 /// The implicit step's next scale over the schedule's, after a step at `dt_scale` whose
@@ -119,10 +114,8 @@ impl CpuWorld {
             dt_scale: 1.0,
             accelerate_to: 1.0,
             guess: Guess::default(),
-            substeps: 1,
-            split_steps: 0,
-            most_parts: 1,
-            last_inputs: None,
+            parts: Parts::default(),
+            kept: Vec::new(),
         })
     }
 
@@ -175,35 +168,10 @@ impl CpuWorld {
         if implicit.is_some() {
             inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
         }
-        let residual = match implicit {
-            // While the schedule runs, a step that would carry a vertex farther than its largest
-            // move is taken again as shorter steps along the schedule (a fill outrunning the
-            // step); the last step's count is where the next starts, halved.
-            Some(settings)
-                if settings.split_far && self.accelerate_to <= 1.0 && settings.max_move.is_finite() =>
-            {
-                let from = self.last_inputs.take().unwrap_or_else(|| inputs.clone());
-                let parts = (self.substeps / 2).max(1);
-                self.substeps = 0;
-                let mut stats: Vec<StepStats> = Vec::new();
-                let residual = self.in_parts(&from, &inputs, (0.0, 1.0), parts, settings, &mut stats)?;
-                self.stats = stats;
-                residual
-            }
-            // Settling (or no largest move): a step too far is scaled down, never refused, and
-            // the step shrinks (below).
-            _ => {
-                let r =
-                    self.advance(&inputs, implicit.map(|s| ImplicitSettings { split_far: false, ..s }))?;
-                self.substeps = 1;
-                r
-            }
-        };
-        self.last_inputs = Some(inputs.clone());
-        if self.substeps > 1 {
-            self.split_steps += 1;
-        }
-        self.most_parts = self.most_parts.max(self.substeps);
+        let mut parts = std::mem::take(&mut self.parts);
+        let residual = parts.step(self, &inputs, implicit, self.accelerate_to > 1.0);
+        self.parts = parts;
+        let residual = residual?;
         let w = &self.world;
         if let Some(settings) = implicit {
             let peak_gross = self.residual.peak_gross.max(residual.gross);
@@ -228,75 +196,6 @@ impl CpuWorld {
             }
         }
         Ok(())
-    }
-
-    /// Splits the part `(t0, t1)` of the step from `from` to `to`: taken in one where no vertex
-    /// would move farther than the largest move, else as shorter parts (at most
-    /// [`MAX_SUBSTEPS`] in all, the last of them scaled). Adds each part's solve to `stats`
-    /// and returns the first part's residual.
-    fn split(
-        &mut self,
-        from: &[StepInputs],
-        to: &[StepInputs],
-        (t0, t1): (f32, f32),
-        settings: ImplicitSettings,
-        stats: &mut Vec<StepStats>,
-    ) -> Result<Residual, Error> {
-        let share = t1 - t0;
-        let part: Vec<StepInputs> =
-            from.iter().zip(to).map(|(a, b)| a.toward(b, t1, b.dt * share, share)).collect();
-        let deepest = (share * MAX_SUBSTEPS as f32) < 2.0;
-        // A part not taken leaves the world as it was: its fill's integral term too.
-        let held: Vec<f32> = self.world.bodies.iter().map(|b| b.held_pressure).collect();
-        let residual = self.advance(&part, Some(ImplicitSettings { split_far: !deepest, ..settings }))?;
-        let taken = self.stats.iter().all(|s| s.taken);
-        let add = |stats: &mut Vec<StepStats>, new: &[StepStats]| {
-            if stats.is_empty() {
-                stats.extend_from_slice(new);
-            } else {
-                for (s, n) in stats.iter_mut().zip(new) {
-                    s.iterations += n.iterations;
-                    s.relative_residual = s.relative_residual.max(n.relative_residual);
-                    s.scaled = s.scaled.min(n.scaled);
-                    s.farthest = s.farthest.max(n.farthest);
-                }
-            }
-        };
-        add(stats, &self.stats);
-        if taken {
-            self.substeps += 1;
-            return Ok(residual);
-        }
-        for (body, held) in self.world.bodies.iter_mut().zip(held) {
-            body.held_pressure = held;
-        }
-        // Parts short enough that each moves within the largest move, with a quarter to spare.
-        let farthest = self.stats.iter().map(|s| s.farthest).fold(0.0, f32::max);
-        let wanted = (1.25 * farthest / settings.max_move).ceil().clamp(2.0, 16.0) as u32;
-        let parts = wanted.min(((share * MAX_SUBSTEPS as f32) as u32).max(2));
-        self.in_parts(from, to, (t0, t1), parts, settings, stats)
-    }
-
-    /// The part `(t0, t1)` of the step from `from` to `to` as `parts` equal parts, each
-    /// [`split`](Self::split) as it needs (the last ends at `t1` exactly); the first part's
-    /// residual.
-    fn in_parts(
-        &mut self,
-        from: &[StepInputs],
-        to: &[StepInputs],
-        (t0, t1): (f32, f32),
-        parts: u32,
-        settings: ImplicitSettings,
-        stats: &mut Vec<StepStats>,
-    ) -> Result<Residual, Error> {
-        let share = t1 - t0;
-        let mut first = None;
-        for j in 0..parts {
-            let (a, b) = (t0 + share * j as f32 / parts as f32, t0 + share * (j + 1) as f32 / parts as f32);
-            let r = self.split(from, to, (a, if j + 1 == parts { t1 } else { b }), settings, stats)?;
-            first.get_or_insert(r);
-        }
-        Ok(first.unwrap_or_default())
     }
 
     /// One step (or part of one) with `inputs`: every contact's collision, each body's contact
@@ -400,6 +299,183 @@ impl CpuWorld {
                 integrate_implicit_together(&mut w.bodies, &steps, &couplings, &settings, &mut self.guess);
         }
         Ok(residual)
+    }
+}
+
+/// What an implicit step taken in parts needs of its world: a step, or part of one, with given
+/// inputs, and the state a refused part must leave as it was.
+pub(crate) trait Stepper {
+    /// One step (or part of one) with `inputs`, explicit or with `implicit`'s settings; the
+    /// residual at rest at its start (implicit only). Its solves are then [`Stepper::solves`].
+    fn advance(
+        &mut self,
+        inputs: &[StepInputs],
+        implicit: Option<ImplicitSettings>,
+    ) -> Result<Residual, Error>;
+    /// The last [`advance`](Stepper::advance)'s solve, per body.
+    fn solves(&self) -> &[StepStats];
+    /// Keeps what a step that is not taken must leave as it was (a fill's integral term).
+    fn keep(&mut self);
+    /// Puts back what [`keep`](Stepper::keep) kept.
+    fn put_back(&mut self);
+    /// Sets the step's solves, per body (the parts' merged).
+    fn set_solves(&mut self, stats: Vec<StepStats>);
+}
+
+/// How a world's implicit steps are taken: whole, or, while a schedule runs, in parts where a
+/// step would carry a vertex farther than its largest move (see
+/// [`ImplicitSettings::split_far`]). The CPU and the GPU world take them alike.
+#[derive(Clone, Debug)]
+pub struct Parts {
+    /// The parts the last step was taken in (1: whole).
+    pub substeps: u32,
+    /// The steps so far taken in more than one part.
+    pub split_steps: u64,
+    /// The most parts a step has been taken in so far.
+    pub most_parts: u32,
+    /// The last step's inputs, where the next step's parts start from.
+    last_inputs: Option<Vec<StepInputs>>,
+}
+
+impl Default for Parts {
+    fn default() -> Parts {
+        Parts { substeps: 1, split_steps: 0, most_parts: 1, last_inputs: None }
+    }
+}
+
+impl Parts {
+    /// One step of `world` with `inputs` (explicit where `implicit` is `None`). While a
+    /// schedule runs (not `settling`), a step that would carry a vertex farther than its
+    /// largest move is taken again as shorter steps along the schedule (a fill outrunning the
+    /// step); the last step's count is where the next starts, halved. Settling (or without a
+    /// largest move), a step too far is scaled down, never refused, and the step shrinks.
+    pub(crate) fn step<S: Stepper>(
+        &mut self,
+        world: &mut S,
+        inputs: &[StepInputs],
+        implicit: Option<ImplicitSettings>,
+        settling: bool,
+    ) -> Result<Residual, Error> {
+        let residual = match implicit {
+            Some(settings) if settings.split_far && !settling && settings.max_move.is_finite() => {
+                let from = self.last_inputs.take().unwrap_or_else(|| inputs.to_vec());
+                let parts = (self.substeps / 2).max(1);
+                self.substeps = 0;
+                let mut stats: Vec<StepStats> = Vec::new();
+                let residual = self.in_parts(world, &from, inputs, (0.0, 1.0), parts, settings, &mut stats);
+                world.set_solves(stats);
+                residual?
+            }
+            _ => {
+                let r =
+                    world.advance(inputs, implicit.map(|s| ImplicitSettings { split_far: false, ..s }))?;
+                self.substeps = 1;
+                r
+            }
+        };
+        self.last_inputs = Some(inputs.to_vec());
+        if self.substeps > 1 {
+            self.split_steps += 1;
+        }
+        self.most_parts = self.most_parts.max(self.substeps);
+        Ok(residual)
+    }
+
+    /// Splits the part `(t0, t1)` of the step from `from` to `to`: taken in one where no vertex
+    /// would move farther than the largest move, else as shorter parts (at most
+    /// [`MAX_SUBSTEPS`] in all, the last of them scaled). Adds each part's solve to `stats`
+    /// and returns the first part's residual.
+    #[allow(clippy::too_many_arguments)]
+    fn split<S: Stepper>(
+        &mut self,
+        world: &mut S,
+        from: &[StepInputs],
+        to: &[StepInputs],
+        (t0, t1): (f32, f32),
+        settings: ImplicitSettings,
+        stats: &mut Vec<StepStats>,
+    ) -> Result<Residual, Error> {
+        let share = t1 - t0;
+        let part: Vec<StepInputs> =
+            from.iter().zip(to).map(|(a, b)| a.toward(b, t1, b.dt * share, share)).collect();
+        let deepest = (share * MAX_SUBSTEPS as f32) < 2.0;
+        // A part not taken leaves the world as it was: its fill's integral term too.
+        world.keep();
+        let residual = world.advance(&part, Some(ImplicitSettings { split_far: !deepest, ..settings }))?;
+        let solves = world.solves();
+        let taken = solves.iter().all(|s| s.taken);
+        if stats.is_empty() {
+            stats.extend_from_slice(solves);
+        } else {
+            for (s, n) in stats.iter_mut().zip(solves) {
+                s.iterations += n.iterations;
+                s.relative_residual = s.relative_residual.max(n.relative_residual);
+                s.scaled = s.scaled.min(n.scaled);
+                s.farthest = s.farthest.max(n.farthest);
+            }
+        }
+        if taken {
+            self.substeps += 1;
+            return Ok(residual);
+        }
+        // Parts short enough that each moves within the largest move, with a quarter to spare.
+        let farthest = solves.iter().map(|s| s.farthest).fold(0.0, f32::max);
+        world.put_back();
+        let wanted = (1.25 * farthest / settings.max_move).ceil().clamp(2.0, 16.0) as u32;
+        let parts = wanted.min(((share * MAX_SUBSTEPS as f32) as u32).max(2));
+        self.in_parts(world, from, to, (t0, t1), parts, settings, stats)
+    }
+
+    /// The part `(t0, t1)` of the step from `from` to `to` as `parts` equal parts, each
+    /// [`split`](Self::split) as it needs (the last ends at `t1` exactly); the first part's
+    /// residual.
+    #[allow(clippy::too_many_arguments)]
+    fn in_parts<S: Stepper>(
+        &mut self,
+        world: &mut S,
+        from: &[StepInputs],
+        to: &[StepInputs],
+        (t0, t1): (f32, f32),
+        parts: u32,
+        settings: ImplicitSettings,
+        stats: &mut Vec<StepStats>,
+    ) -> Result<Residual, Error> {
+        let share = t1 - t0;
+        let mut first = None;
+        for j in 0..parts {
+            let (a, b) = (t0 + share * j as f32 / parts as f32, t0 + share * (j + 1) as f32 / parts as f32);
+            let r = self.split(world, from, to, (a, if j + 1 == parts { t1 } else { b }), settings, stats)?;
+            first.get_or_insert(r);
+        }
+        Ok(first.unwrap_or_default())
+    }
+}
+
+impl Stepper for CpuWorld {
+    fn advance(
+        &mut self,
+        inputs: &[StepInputs],
+        implicit: Option<ImplicitSettings>,
+    ) -> Result<Residual, Error> {
+        CpuWorld::advance(self, inputs, implicit)
+    }
+
+    fn solves(&self) -> &[StepStats] {
+        &self.stats
+    }
+
+    fn keep(&mut self) {
+        self.kept = self.world.bodies.iter().map(|b| b.held_pressure).collect();
+    }
+
+    fn put_back(&mut self) {
+        for (body, held) in self.world.bodies.iter_mut().zip(&self.kept) {
+            body.held_pressure = *held;
+        }
+    }
+
+    fn set_solves(&mut self, stats: Vec<StepStats>) {
+        self.stats = stats;
     }
 }
 

@@ -7,7 +7,7 @@ use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
-use crate::cpu::next_dt_scale;
+use crate::cpu::{Parts, Stepper, next_dt_scale};
 use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup};
 use crate::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::scene::Scene;
@@ -72,6 +72,8 @@ struct GpuBody {
     status: Buffer,
     /// A fill's pressure and volume, written by the `volume` pass.
     fill: Buffer,
+    /// `fill` kept aside while an implicit step may be refused.
+    fill_kept: Buffer,
 }
 
 impl GpuBody {
@@ -117,6 +119,7 @@ impl GpuBody {
             acc: init("sim acc", &vec![0; 16 * body.len()], storage),
             status: init("sim status", &[0; 8], storage),
             fill: init("sim fill", &[0; 16], storage),
+            fill_kept: init("sim fill kept", &[0; 16], storage),
         }
     }
 
@@ -208,6 +211,8 @@ struct Implicit {
     residual: Residual,
     stats: Vec<StepStats>,
     time: f64,
+    /// The steps taken in parts.
+    parts: Parts,
 }
 
 /// The `accumulate` pass: one body's contact forces from several contacts.
@@ -321,6 +326,7 @@ impl GpuWorld {
                 residual: Residual::default(),
                 stats: vec![StepStats::default(); world.bodies.len()],
                 time: 0.0,
+                parts: Parts::default(),
             }),
         };
         Ok(GpuWorld {
@@ -355,18 +361,26 @@ impl GpuWorld {
     /// error becomes this value instead of reaching wgpu's default handler).
     pub fn step(&mut self) -> Result<(), Error> {
         let device = self.ctx.device().clone();
-        scoped(&device, || self.record_and_submit())?
+        scoped(&device, || {
+            if self.implicit.is_some() {
+                self.implicit_step()
+            } else {
+                let inputs = self.world.inputs(self.step)?;
+                let encoder = self.record(&inputs)?;
+                self.ctx.queue().submit([encoder.finish()]);
+                self.step += 1;
+                Ok(())
+            }
+        })?
     }
 
-    fn record_and_submit(&mut self) -> Result<(), Error> {
+    /// Records one step's collisions and, for every body, its contact sums, its fill's pressure
+    /// and (explicit) its forces and integration; the encoder, not yet submitted.
+    fn record(&mut self, inputs: &[StepInputs]) -> Result<wgpu::CommandEncoder, Error> {
         let device = self.ctx.device().clone();
         let ctx = self.ctx.clone();
         let queue = ctx.queue();
-        let mut inputs = self.world.inputs(self.step)?;
-        if let Some(imp) = &self.implicit {
-            inputs.iter_mut().for_each(|i| i.dt *= imp.dt_scale);
-        }
-        for ((gpu, body), inputs) in self.bodies.iter().zip(&self.world.bodies).zip(&inputs) {
+        for ((gpu, body), inputs) in self.bodies.iter().zip(&self.world.bodies).zip(inputs) {
             queue.write_buffer(
                 &gpu.params,
                 0,
@@ -387,83 +401,52 @@ impl GpuWorld {
             }
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bound above") };
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("voxcollide sim"),
-                timestamp_writes: None,
-            });
-            for (groups, body) in bound.accumulate.iter().zip(&self.bodies) {
-                for group in groups {
-                    self.accumulate.dispatch(&mut pass, group, body.n, self.max_per_dim);
-                }
-            }
-            for (group, inputs) in bound.volume.iter().zip(&inputs) {
-                if inputs.fill_volume > 0.0 {
-                    self.volume.dispatch_one(&mut pass, group);
-                }
-            }
-            if self.implicit.is_none() {
-                for (group, body) in bound.forces.iter().zip(&self.bodies) {
-                    self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
-                }
-                for (group, body) in bound.integrate.iter().zip(&self.bodies) {
-                    self.integrate.dispatch(&mut pass, group, body.n, self.max_per_dim);
-                }
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("voxcollide sim"),
+            timestamp_writes: None,
+        });
+        for (groups, body) in bound.accumulate.iter().zip(&self.bodies) {
+            for group in groups {
+                self.accumulate.dispatch(&mut pass, group, body.n, self.max_per_dim);
             }
         }
-        if self.implicit.is_some() {
-            return self.implicit_step(encoder, &inputs);
+        for (group, inputs) in bound.volume.iter().zip(inputs) {
+            if inputs.fill_volume > 0.0 {
+                self.volume.dispatch_one(&mut pass, group);
+            }
         }
-        queue.submit([encoder.finish()]);
-        self.step += 1;
-        Ok(())
+        if self.implicit.is_none() {
+            for (group, body) in bound.forces.iter().zip(&self.bodies) {
+                self.forces.dispatch(&mut pass, group, body.n, self.max_per_dim);
+            }
+            for (group, body) in bound.integrate.iter().zip(&self.bodies) {
+                self.integrate.dispatch(&mut pass, group, body.n, self.max_per_dim);
+            }
+        }
+        drop(pass);
+        Ok(encoder)
     }
 
-    /// The implicit step after the collisions and the fills' pressures in `encoder`: the
-    /// solves ([`crate::gpu_implicit`]), one scale over every body where a vertex would move
-    /// farther than the largest move, the update, and the step's growth towards rest as the
-    /// CPU world's ([`CpuWorld::accelerate`](crate::CpuWorld::accelerate)).
-    fn implicit_step(&mut self, encoder: wgpu::CommandEncoder, inputs: &[StepInputs]) -> Result<(), Error> {
+    /// One implicit step, whole or in parts as the CPU world takes it ([`Parts`]), and the
+    /// step's growth towards rest ([`CpuWorld::accelerate`](crate::CpuWorld::accelerate)).
+    fn implicit_step(&mut self) -> Result<(), Error> {
+        let mut inputs = self.world.inputs(self.step)?;
         let Some(imp) = self.implicit.as_mut() else { unreachable!("implicit only") };
+        inputs.iter_mut().for_each(|i| i.dt *= imp.dt_scale);
         let settling = imp.accelerate_to > 1.0;
         let settings = if settling {
             ImplicitSettings { tolerance: imp.settings.settle_tolerance, ..imp.settings }
         } else {
             imp.settings
         };
-        let h = inputs.first().map_or(0.0, |i| i.dt);
-        let setup = Setup {
-            h,
-            guess_scale: if imp.guess_h > 0.0 { h / imp.guess_h } else { 0.0 },
-            tolerance: settings.tolerance,
-            max_iterations: settings.max_iterations,
-        };
-        let solved = crate::gpu_implicit::solve(
-            &self.ctx,
-            encoder,
-            &imp.kernels,
-            &imp.bodies,
-            inputs,
-            &setup,
-            self.max_per_dim,
-        )?;
-        let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
-        let scale = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
-        crate::gpu_implicit::finish(
-            &self.ctx,
-            &imp.kernels,
-            &imp.bodies,
-            inputs,
-            &setup,
-            scale,
-            self.max_per_dim,
-        );
-        imp.guess_h = h;
-        imp.stats = crate::gpu_implicit::stats(&solved, scale);
-        let residual = solved.iter().fold(Residual::default(), |r, s| r.plus(s.residual));
+        let mut parts = std::mem::take(&mut imp.parts);
+        let residual = parts.step(self, &inputs, Some(settings), settling);
+        let Some(imp) = self.implicit.as_mut() else { unreachable!("implicit only") };
+        imp.parts = parts;
+        let residual = residual?;
         let before = imp.residual.net;
         imp.residual = Residual { peak_gross: imp.residual.peak_gross.max(residual.gross), ..residual };
-        imp.time += f64::from(h);
+        imp.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         imp.dt_scale =
             next_dt_scale(imp.dt_scale, imp.accelerate_to, before, residual.net, &imp.stats, &settings);
         self.step += 1;
@@ -485,6 +468,12 @@ impl GpuWorld {
     #[must_use]
     pub fn residual(&self) -> Option<Residual> {
         self.implicit.as_ref().map(|i| i.residual)
+    }
+
+    /// Implicit only: the steps taken in parts so far.
+    #[must_use]
+    pub fn parts(&self) -> Option<&Parts> {
+        self.implicit.as_ref().map(|i| &i.parts)
     }
 
     /// Implicit only: the last step's solve, per body.
@@ -621,6 +610,83 @@ impl GpuWorld {
             body.held_pressure = fill[2];
         }
         Ok(reports)
+    }
+}
+
+impl Stepper for GpuWorld {
+    /// The collisions and fills recorded, the solves ([`crate::gpu_implicit`]), and the update
+    /// with one scale over every body where a vertex would move farther than the largest move,
+    /// or none where [`ImplicitSettings::split_far`] refuses such a step.
+    fn advance(
+        &mut self,
+        inputs: &[StepInputs],
+        implicit: Option<ImplicitSettings>,
+    ) -> Result<Residual, Error> {
+        let encoder = self.record(inputs)?;
+        let (Some(settings), Some(imp)) = (implicit, self.implicit.as_mut()) else {
+            self.ctx.queue().submit([encoder.finish()]);
+            return Ok(Residual::default());
+        };
+        let h = inputs.first().map_or(0.0, |i| i.dt);
+        let setup = Setup {
+            h,
+            guess_scale: if imp.guess_h > 0.0 { h / imp.guess_h } else { 0.0 },
+            tolerance: settings.tolerance,
+            max_iterations: settings.max_iterations,
+        };
+        let solved = crate::gpu_implicit::solve(
+            &self.ctx,
+            encoder,
+            &imp.kernels,
+            &imp.bodies,
+            inputs,
+            &setup,
+            self.max_per_dim,
+        )?;
+        imp.guess_h = h;
+        let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
+        let scale = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
+        let taken = !(settings.split_far && scale < 1.0);
+        if taken {
+            crate::gpu_implicit::finish(
+                &self.ctx,
+                &imp.kernels,
+                &imp.bodies,
+                inputs,
+                &setup,
+                scale,
+                self.max_per_dim,
+            );
+        }
+        imp.stats = crate::gpu_implicit::stats(&solved, scale, taken);
+        Ok(solved.iter().fold(Residual::default(), |r, s| r.plus(s.residual)))
+    }
+
+    fn solves(&self) -> &[StepStats] {
+        self.implicit.as_ref().map_or(&[], |i| i.stats.as_slice())
+    }
+
+    /// The fills' held pressures stay on the device: copied aside.
+    fn keep(&mut self) {
+        let mut encoder = self.ctx.device().create_command_encoder(&Default::default());
+        for b in &self.bodies {
+            encoder.copy_buffer_to_buffer(&b.fill, 0, &b.fill_kept, 0, 16);
+        }
+        self.ctx.queue().submit([encoder.finish()]);
+    }
+
+    fn put_back(&mut self) {
+        let mut encoder = self.ctx.device().create_command_encoder(&Default::default());
+        for b in &self.bodies {
+            encoder.copy_buffer_to_buffer(&b.fill_kept, 0, &b.fill, 0, 16);
+        }
+        self.ctx.queue().submit([encoder.finish()]);
+    }
+
+    fn set_solves(&mut self, stats: Vec<StepStats>) {
+        if let Some(imp) = self.implicit.as_mut() {
+            imp.stats = stats;
+        }
     }
 }
 

@@ -14,8 +14,8 @@
 //! body is solved on its own (the CPU solves every body in one system: with the voxel model's
 //! contacts, which push from a partner standing still, the systems do not couple, and the
 //! answers agree to the tolerance). A step that would carry a vertex farther than
-//! [`ImplicitSettings::max_move`](crate::ImplicitSettings::max_move) is scaled down here, never
-//! taken again in parts ([`crate::ImplicitSettings::split_far`] is the CPU world's).
+//! [`ImplicitSettings::max_move`](crate::ImplicitSettings::max_move) is taken in parts, or
+//! scaled, as on the CPU ([`crate::Parts`]).
 
 use bytemuck::{Pod, Zeroable};
 use wgpu::{Buffer, BufferUsages};
@@ -400,8 +400,8 @@ pub(crate) fn finish(
     queue.submit([encoder.finish()]);
 }
 
-/// Each body's [`StepStats`] from its solve and the common scale.
-pub(crate) fn stats(solved: &[Solved], scale: f32) -> Vec<StepStats> {
+/// Each body's [`StepStats`] from its solve, the common scale, and whether the step was taken.
+pub(crate) fn stats(solved: &[Solved], scale: f32, taken: bool) -> Vec<StepStats> {
     let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
     solved
         .iter()
@@ -410,7 +410,7 @@ pub(crate) fn stats(solved: &[Solved], scale: f32) -> Vec<StepStats> {
             relative_residual: s.relative_residual,
             scaled: scale,
             farthest,
-            taken: true,
+            taken,
         })
         .collect()
 }

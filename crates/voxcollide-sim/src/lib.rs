@@ -25,7 +25,7 @@ pub mod world; //    `World`: any number of bodies and contacts, each pair its o
 
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
 pub use contact::{SurfaceContact, SurfacePenalty};
-pub use cpu::{CpuSim, CpuWorld};
+pub use cpu::{CpuSim, CpuWorld, Parts};
 pub use gpu::{GpuSim, GpuWorld};
 pub use implicit::{Guess, ImplicitSettings, Residual};
 pub use scene::{Kind, Scene, SceneConfig};

@@ -170,12 +170,11 @@ fn on_both(world: World, steps: u64, settle: u64) -> Option<(CpuWorld, GpuWorld,
     Some((cpu, gpu, gaps))
 }
 
-/// A scene file's world under the implicit integrator, each step taken whole (the GPU world
-/// scales a step too far where the CPU's would take it in parts).
+/// A scene file's world (under the implicit integrator, as the file says).
 fn implicit_world(text: &str) -> World {
     let built = build_world(&SceneFile::parse("scene.toml", text).unwrap()).unwrap();
-    let Integrator::Implicit(s) = built.world.integrator else { panic!("not implicit") };
-    built.world.with_integrator(Integrator::Implicit(ImplicitSettings { split_far: false, ..s }))
+    assert!(matches!(built.world.integrator, Integrator::Implicit(_)));
+    built.world
 }
 
 #[test]
@@ -228,6 +227,30 @@ fn the_gpu_world_fills_a_balloon_on_its_floor_as_the_cpu_does() {
     assert!(gpu.dt_scale() > 1.0, "the GPU's step never grew to settle");
 }
 
+#[test]
+fn the_gpu_world_follows_a_probe_driven_faster_than_its_step_in_parts_as_the_cpu_does() {
+    // A ball driven 8 mm into a block in 10 ms: steps too far, taken again in parts.
+    let text = PRESS.replace("t = 0.15, position = [0, 0, 8.5]", "t = 0.01, position = [0, 0, 4.0]");
+    let world = implicit_world(&text);
+    let steps = build_world(&SceneFile::parse("p.toml", &text).unwrap()).unwrap().steps;
+    let Some((cpu, gpu, gaps)) = on_both(world, steps, 0) else { return };
+    let (c, g) = (&cpu.parts, gpu.parts().unwrap());
+    assert!(g.split_steps >= 3 && g.most_parts >= 2, "{g:?}");
+    // (A step at the edge of its largest move may be split on one and not the other.)
+    assert!(c.split_steps.abs_diff(g.split_steps) * 10 <= c.split_steps, "{c:?} (CPU), {g:?} (GPU)");
+    // From there their parts differ, and so their paths (up to a millimetre apart in a block
+    // struck at 0.8 m/s), but not where the ball ends the block's top.
+    assert!(gaps[0] < 1e-3, "CPU and GPU apart by {gaps:?} mm");
+    let (dc, dg) = (dent(&cpu.world), dent(&gpu.world));
+    assert!(dc > 3.0 && (dg - dc).abs() < 0.05 * dc, "dent {dc} mm (CPU), {dg} mm (GPU)");
+}
+
+/// How far the block's surface was pressed down, at most.
+fn dent(w: &World) -> f32 {
+    let b = &w.bodies[0];
+    b.pos.iter().zip(&b.rest_pos).map(|(p, r)| r.z - p.z).fold(0.0, f32::max)
+}
+
 const PRESS: &str = r#"
 units = "mm"
 [time]
@@ -260,17 +283,15 @@ fn the_gpu_world_presses_a_ball_into_a_block_as_the_cpu_does() {
     // its inelastic push after it.
     let world = implicit_world(PRESS);
     let steps = build_world(&SceneFile::parse("p.toml", PRESS).unwrap()).unwrap().steps;
-    let Some((cpu, gpu, gaps)) = on_both(world, steps, 40) else { return };
-    let dent = |w: &World| {
-        let b = &w.bodies[0];
-        b.pos.iter().zip(&b.rest_pos).map(|(p, r)| r.z - p.z).fold(0.0, f32::max)
-    };
+    let Some((cpu, gpu, gaps)) = on_both(world, steps, 0) else { return };
     let (dc, dg) = (dent(&cpu.world), dent(&gpu.world));
     assert!(dc > 1.0, "the ball pressed the block {dc} mm");
     assert!((dg - dc).abs() < 0.02 * dc, "dent {dc} mm (CPU), {dg} mm (GPU)");
-    // Together while the ball is driven; then each settles along its own path.
-    assert!(gaps[..7].iter().all(|g| *g < 1e-3), "CPU and GPU apart by {gaps:?} mm");
-    assert!(gaps.iter().all(|g| *g < 0.2), "CPU and GPU apart by {gaps:?} mm");
+    // Together to 1e-6 mm while the ball is driven; once it stands, the contact's chatter
+    // grows the sums' rounding eightfold every tenth of the way (and a settle takes each along
+    // its own path to rest).
+    assert!(gaps[..7].iter().all(|g| *g < 1e-4), "CPU and GPU apart by {gaps:?} mm");
+    assert!(gaps.iter().all(|g| *g < 1e-2), "CPU and GPU apart by {gaps:?} mm");
 }
 
 #[test]
@@ -346,7 +367,7 @@ fn fast_fill(split: bool, steps: u64) -> (Vec<f64>, u32, f32) {
     for _ in 0..steps {
         w.step().unwrap();
         volumes.push(w.world.bodies[1].enclosed_volume() * 1e-3);
-        parts = parts.max(w.substeps);
+        parts = parts.max(w.parts.substeps);
         deepest = w.surface_stats.iter().map(|s| s.deepest).fold(deepest, f32::max);
     }
     (volumes, parts, deepest)

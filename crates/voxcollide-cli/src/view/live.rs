@@ -345,7 +345,11 @@ impl Live {
             }
             Backend::Auto => true,
         };
-        let on_gpu = match crate::scene_run::cpu_only(&built.world) {
+        let on_cpu = match config.backend {
+            Backend::Auto => crate::scene_run::cpu_first(&built.world),
+            _ => crate::scene_run::cpu_only(&built.world),
+        };
+        let on_gpu = match on_cpu {
             Some(why) if on_gpu => {
                 if config.backend == Backend::Gpu {
                     return Err(Error::Invalid {
