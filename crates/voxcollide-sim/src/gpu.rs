@@ -1,6 +1,8 @@
 //! The scene stepped entirely on the GPU: the collision passes (through the embedding API) and
 //! the simulation passes `forces` and `integrate` for both bodies, recorded into one encoder per
-//! step, with nothing read back until a frame is wanted.
+//! step, with nothing read back until a frame is wanted. Under the implicit integrator the
+//! step's solve is [`crate::gpu_implicit`]'s passes instead, which read back a few numbers
+//! (has the solve converged, how far would a vertex move) where the host must decide.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;

@@ -23,7 +23,8 @@ pub enum Integrator {
     Explicit,
     /// Backward Euler, linearised per step and solved by conjugate gradient
     /// ([`MassSpring::integrate_implicit`]): a step chosen for accuracy, not stability. The CPU
-    /// steps it; [`crate::GpuWorld`] refuses it by name.
+    /// steps it, and [`crate::GpuWorld`] in WGSL ([`crate::gpu_implicit`]) for spring lattices
+    /// whose contacts are the voxel model's.
     Implicit(ImplicitSettings),
 }
 
