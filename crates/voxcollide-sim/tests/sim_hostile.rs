@@ -149,3 +149,57 @@ fn bodies_without_volume_are_errors_or_finite_runs() {
         assert_named_or_finite("flat shell, gpu", synced, &gpu.scene);
     }
 }
+
+#[test]
+fn nan_or_huge_positions_under_the_implicit_integrator_are_named_on_the_cpu_and_the_gpu() {
+    let ctx = common::gpu();
+    let implicit = Integrator::Implicit(ImplicitSettings::default());
+    for kind in [Kind::Cylinder, Kind::Implant] {
+        for tissue in [true, false] {
+            for value in POISONS {
+                let what = format!("implicit {kind:?} tissue {tissue} value {value}");
+                let mut scene = mid_run(kind, 30);
+                poison(&mut scene, tissue, value);
+                let world = scene.world().unwrap().with_integrator(implicit);
+                let mut cpu = CpuWorld::new(world.clone()).unwrap();
+                let mut result = Ok(());
+                for _ in 0..10 {
+                    result = cpu.step();
+                    if result.is_err() {
+                        break;
+                    }
+                }
+                let finite =
+                    |w: &World| w.bodies.iter().all(|b| b.pos.iter().chain(&b.vel).all(|v| v.is_finite()));
+                match &result {
+                    Err(Error::Simulation { step, message }) => {
+                        assert!(*step >= 1 && message.contains("vertex"), "{what}: {message}");
+                    }
+                    Err(e) => panic!("{what}: not a simulation error: {e:?}"),
+                    Ok(()) => assert!(finite(&cpu.world), "{what}: a NaN was handed on (CPU)"),
+                }
+                if !value.is_finite() {
+                    assert!(matches!(result, Err(Error::Simulation { step: 1, .. })), "{what}: {result:?}");
+                }
+                // The GPU's passes run on (a NaN ends each solve at once), and the readback
+                // names the blow-up with its step.
+                let Some(ctx) = ctx.as_ref() else { continue };
+                let mut gpu = GpuWorld::new(ctx, world).unwrap();
+                for _ in 0..10 {
+                    gpu.step().unwrap_or_else(|e| panic!("{what}: recording failed: {e:?}"));
+                }
+                match gpu.sync() {
+                    Err(Error::Simulation { step, message }) => {
+                        assert!(message.contains("vertex"), "{what}: {message}");
+                        assert!(value.is_finite() || step == 1, "{what}: step {step}");
+                    }
+                    Err(e) => panic!("{what}: not a simulation error: {e:?}"),
+                    Ok(_) => {
+                        assert!(value.is_finite(), "{what}: the GPU did not name it");
+                        assert!(finite(&gpu.world), "{what}: a NaN was handed on (GPU)");
+                    }
+                }
+            }
+        }
+    }
+}
