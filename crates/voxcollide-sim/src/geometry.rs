@@ -762,7 +762,7 @@ pub struct PenetrationWatch {
     /// The surface's positions at the last call.
     surface: Vec<Vec3>,
     /// Per point: where it was at the last call, and a lower bound on its distance then to the
-    /// surface then (0: to be asked).
+    /// surface: positive outside, negative inside (0: to be asked).
     at: Vec<(Vec3, f32)>,
     /// How many points the last call asked.
     pub asked: usize,
@@ -802,10 +802,19 @@ impl PenetrationWatch {
                         *clear -= gone * 1.001;
                         continue;
                     }
+                    // Inside by more than it and the surface have moved since: inside still,
+                    // and its depth now is the answer.
+                    if *clear < 0.0 && gone * 1.001 < -*clear {
+                        let d = surface.distance(p);
+                        out.inside(c * PENETRATION_CHUNK + k, d);
+                        *clear = if d.is_finite() { -0.999 * d } else { 0.0 };
+                        continue;
+                    }
                     asked += 1;
                     if surface.contains(p) {
-                        out.inside(c * PENETRATION_CHUNK + k, surface.distance(p));
-                        *clear = 0.0;
+                        let d = surface.distance(p);
+                        out.inside(c * PENETRATION_CHUNK + k, d);
+                        *clear = if d.is_finite() { -0.999 * d } else { 0.0 };
                         continue;
                     }
                     // Outside: outside the surface's box, the distance to the box bounds it.
