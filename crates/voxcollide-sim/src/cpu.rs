@@ -55,15 +55,15 @@ pub struct CpuWorld {
 /// (the last residual over this one) to this power. Switched evolution relaxation proper (1)
 /// makes the step inversely proportional to the residual, so that a residual falling by 0.4 %
 /// a step grows it by 0.4 % a step: on benches/rest/compare.toml's 300 mL candidate the step
-/// reached 14× the schedule's in 527 settling steps. At 4 it reached the rest criterion in 153
-/// (the three candidates: 2,125 steps → 1,057), and a residual that rises shrinks it as fast.
+/// reached 14× the schedule's in 527 settling steps. At 4 it reached the rest criterion in 159
+/// (the three candidates: 2,125 steps → 1,056), and a residual that rises shrinks it as fast.
 pub const SETTLE_GROWTH: i32 = 4;
 
 /// The implicit step's next scale over the schedule's, after a step at `dt_scale` whose
 /// solves gave `stats` and whose residual at rest went from `before` to `now` (net forces):
 /// switched evolution relaxation, steepened ([`SETTLE_GROWTH`]). The step grows as the
-/// residual falls and shrinks as it rises (a contact chattering), by at most half and at least
-/// a half each step, halving where a solve fell short or a vertex was held to the largest
+/// residual falls and shrinks as it rises (a contact chattering), by at most ×1.5 and at
+/// least ×0.5 a step, halving where a solve fell short or a vertex was held to the largest
 /// move; it stays within `1..=accelerate_to`. (Growing by a fifth each step whatever the
 /// residual did was tried: a 30 kPa shell under 30 kPa tissue then stalled 5.6 % short of its
 /// volume with the residual at 0.56, moving too little to notice. Growing by at least a tenth
