@@ -328,18 +328,24 @@ impl MassSpring {
         let fill_k = Self::fill_stiffness(inputs);
         let fill_g = if fill_k > 0.0 { self.volume_gradient() } else { Vec::new() };
         let free: Vec<bool> = self.mode.iter().map(|m| *m == Mode::Free).collect();
-        let diagonal: Vec<f32> = self.inv_mass.iter().map(|w| 1.0 / w + h * m.damping).collect();
+        let diagonal: Vec<f32> =
+            self.inv_mass.par_iter().with_min_len(CHUNK).map(|w| 1.0 / w + h * m.damping).collect();
         // The contacts' damping: critical along each push, for the vertex's mass.
         let contact_damping: Vec<Mat3> = contact_k
-            .iter()
+            .par_iter()
             .zip(&self.inv_mass)
+            .with_min_len(CHUNK)
             .map(|(kc, w)| {
                 let k = trace(kc);
                 if k > 0.0 { (2.0 * (1.0 / (w * k)).sqrt()) * *kc } else { Mat3::ZERO }
             })
             .collect();
-        let contact_block: Vec<Mat3> =
-            contact_k.iter().zip(&contact_damping).map(|(kc, c)| h * h * *kc + h * *c).collect();
+        let contact_block: Vec<Mat3> = contact_k
+            .par_iter()
+            .zip(&contact_damping)
+            .with_min_len(CHUNK)
+            .map(|(kc, c)| h * h * *kc + h * *c)
+            .collect();
         // The elements' stiffness at the start of the step, and its diagonal blocks.
         let tangents = self.elements.as_ref().map_or_else(Vec::new, |e| e.tangents(&self.pos));
         let element_blocks: Vec<[Mat3; 4]> = self.elements.as_ref().map_or_else(Vec::new, |e| {
@@ -676,6 +682,8 @@ pub fn integrate_implicit_together(
         .zip(steps)
         .map(|(body, s)| {
             (0..body.len())
+                .into_par_iter()
+                .with_min_len(CHUNK)
                 .map(|i| match body.mode[i] {
                     Mode::Free => Vec3::ZERO,
                     Mode::Pinned => -body.vel[i],
@@ -704,6 +712,8 @@ pub fn integrate_implicit_together(
             .map(|k| {
                 let (body, s, system) = (&joint.bodies[k], &steps[k], &joint.systems[k]);
                 (0..body.len())
+                    .into_par_iter()
+                    .with_min_len(CHUNK)
                     .map(|i| {
                         if system.free[i] {
                             h * (s.forces[i]
@@ -717,6 +727,9 @@ pub fn integrate_implicit_together(
                     .collect()
             })
             .collect();
+        if joint.couplings.is_empty() {
+            return rhs;
+        }
         // The couplings' damping of the relative velocity, and the arriving ones' force.
         let mut extra = zeros();
         for ((c, d), active) in joint.couplings.iter().zip(&joint.damping).zip(&joint.active) {
@@ -740,6 +753,8 @@ pub fn integrate_implicit_together(
             .map(|k| {
                 let (body, free) = (&joint.bodies[k], &joint.free[k]);
                 (0..body.len())
+                    .into_par_iter()
+                    .with_min_len(CHUNK)
                     .map(|i| body.vel[i] + if free[i] { dv[k][i] } else { prescribed[k][i] })
                     .collect()
             })
@@ -784,12 +799,19 @@ pub fn integrate_implicit_together(
     guess.dv.clone_from(&dv);
     // The update, scaled where a vertex would move farther than `max_move`.
     let new_vel = velocity_after(&joint, &dv);
-    let mut farthest = 0.0f32;
-    for (v, free) in new_vel.iter().zip(&joint.free) {
-        for (v, _) in v.iter().zip(free).filter(|(_, f)| **f) {
-            farthest = farthest.max(h * v.length());
-        }
-    }
+    // (A maximum: the same on any number of threads.)
+    let farthest = new_vel
+        .iter()
+        .zip(&joint.free)
+        .map(|(v, free)| {
+            v.par_iter()
+                .zip(free)
+                .with_min_len(CHUNK)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| h * v.length())
+                .reduce(|| 0.0f32, f32::max)
+        })
+        .fold(0.0f32, f32::max);
     let scaled = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
     if settings.split_far && scaled < 1.0 {
         return vec![
@@ -799,40 +821,43 @@ pub fn integrate_implicit_together(
     }
     let active = joint.active;
     for (k, body) in bodies.iter_mut().enumerate() {
-        let inputs = steps[k].inputs;
-        #[allow(clippy::needless_range_loop)] // (each vertex's mode, position, velocity and push)
-        for i in 0..body.len() {
-            match body.mode[i] {
+        let (inputs, step, new_vel) = (steps[k].inputs, &steps[k], &new_vel[k]);
+        let MassSpring { mode, rest_pos, pos, vel, .. } = body;
+        // Each vertex on its own, on every core.
+        (pos.par_iter_mut(), vel.par_iter_mut(), mode.par_iter(), rest_pos.par_iter())
+            .into_par_iter()
+            .enumerate()
+            .with_min_len(CHUNK)
+            .for_each(|(i, (pos, vel, mode, rest))| match mode {
                 Mode::Free => {
-                    body.vel[i] = scaled * new_vel[k][i];
-                    body.pos[i] += h * body.vel[i];
+                    *vel = scaled * new_vel[i];
+                    *pos += h * *vel;
                     // A voxel-model contact's push is inelastic: it moves the vertex out, and
                     // leaves it no speed away from what pushes it (which would carry it on once
                     // free of it).
-                    let push = steps[k].contact[i].length();
-                    if push > 0.0 && trace(&steps[k].contact_k[i]) > 0.0 {
-                        let n = steps[k].contact[i] / push;
-                        let away = (body.vel[i] - steps[k].contact_vel[i]).dot(n);
+                    let push = step.contact[i].length();
+                    if push > 0.0 && trace(&step.contact_k[i]) > 0.0 {
+                        let n = step.contact[i] / push;
+                        let away = (*vel - step.contact_vel[i]).dot(n);
                         if away > 0.0 {
-                            body.vel[i] -= away * n;
+                            *vel -= away * n;
                         }
                     }
-                    if body.pos[i].z < inputs.floor {
-                        body.pos[i].z = inputs.floor;
-                        body.vel[i].z = body.vel[i].z.max(0.0);
+                    if pos.z < inputs.floor {
+                        pos.z = inputs.floor;
+                        vel.z = vel.z.max(0.0);
                     }
                 }
                 Mode::Pinned => {
-                    body.pos[i] = body.rest_pos[i];
-                    body.vel[i] = Vec3::ZERO;
+                    *pos = *rest;
+                    *vel = Vec3::ZERO;
                 }
                 Mode::Driven => {
-                    let target = driven_target(inputs, body.rest_pos[i]);
-                    body.vel[i] = (target - body.pos[i]) / h;
-                    body.pos[i] = target;
+                    let target = driven_target(inputs, *rest);
+                    *vel = (target - *pos) / h;
+                    *pos = target;
                 }
-            }
-        }
+            });
     }
     // A surface contact's push is inelastic too, between the two bodies: where a vertex and
     // its point on the partner's surface separate along the push, an impulse between them
