@@ -73,7 +73,7 @@ const S_GROSS2: u32 = 11u;
 const S_FARTHEST: u32 = 12u;
 const S_LEFT2: u32 = 13u;
 const S_USE_GUESS: u32 = 14u;
-const S_TARGET2: u32 = 15u;
+const S_TARGET: u32 = 15u;
 const SCALARS: u32 = 16u;
 
 // Keep in sync with GpuImplicitParams in src/gpu_implicit.rs.
@@ -550,7 +550,8 @@ fn main(
     } else if PASS == PASS_UPDATE {
         var rr = 0.0;
         var rz = 0.0;
-        if live {
+        // Done: nothing moves (where a NaN curvature stopped it, `0·p` would not be 0).
+        if live && scalar(S_DONE) == 0.0 {
             let alpha = scalar(S_ALPHA);
             vput(SLOT_X, i, vget(SLOT_X, i) + alpha * vget(SLOT_P, i));
             let r = vget(SLOT_R, i) - alpha * vget(SLOT_AP, i);
@@ -650,7 +651,9 @@ fn scalars(lane: u32) {
             set_scalar(S_LEFT2, left);
             // From the guess where it leaves less to solve than 0 does.
             set_scalar(S_USE_GUESS, select(0.0, 1.0, ip.guess_scale > 0.0 && left < bb));
-            set_scalar(S_TARGET2, ip.tolerance * ip.tolerance * bb);
+            // |r| against tol·|b| unsquared, as the CPU compares them (tol²·|b|² would leave
+            // f32's normal range near rest in small units).
+            set_scalar(S_TARGET, ip.tolerance * sqrt(bb));
             // The first iteration always runs, as on the CPU (|r| is taken as |b| at the start).
             set_scalar(S_RR, bb);
             set_scalar(S_ITERATIONS, 0.0);
@@ -676,7 +679,7 @@ fn scalars(lane: u32) {
             if done == 0.0 {
                 // The CPU's loop test (iterations left, residual above the target), then a
                 // positive curvature (a NaN stops it too).
-                if scalar(S_ITERATIONS) >= ip.max_iterations || scalar(S_RR) <= scalar(S_TARGET2) || !(pap > 0.0) {
+                if scalar(S_ITERATIONS) >= ip.max_iterations || sqrt(scalar(S_RR)) <= scalar(S_TARGET) || !(pap > 0.0) {
                     done = 1.0;
                 } else {
                     alpha = scalar(S_RZ) / pap;
@@ -692,7 +695,13 @@ fn scalars(lane: u32) {
             set_scalar(S_RR, rr);
             set_scalar(S_BETA, rz / scalar(S_RZ));
             set_scalar(S_RZ, rz);
-            set_scalar(S_ITERATIONS, scalar(S_ITERATIONS) + 1.0);
+            let iterations = scalar(S_ITERATIONS) + 1.0;
+            set_scalar(S_ITERATIONS, iterations);
+            // The CPU's loop test, at once (so that the host sees a finished solve in the batch
+            // it finished in); a curvature that is not positive is ALPHA's to find.
+            if iterations >= ip.max_iterations || sqrt(rr) <= scalar(S_TARGET) {
+                set_scalar(S_DONE, 1.0);
+            }
         }
     } else if PASS == PASS_SCALARS_FAR {
         let far = column_max(COL_FAR, lane);

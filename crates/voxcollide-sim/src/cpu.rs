@@ -408,7 +408,10 @@ impl Parts {
         let part: Vec<StepInputs> =
             from.iter().zip(to).map(|(a, b)| a.toward(b, t1, b.dt * share, share)).collect();
         let deepest = (share * MAX_SUBSTEPS as f32) < 2.0;
-        // A part not taken leaves the world as it was: its fill's integral term too.
+        // A part not taken leaves the world as it was: its fill's integral term too. (Not the
+        // vertical speed of vertices pressed into their floor, which the solve zeroes before it
+        // is refused, on the CPU and the GPU alike; the next part, from the same positions,
+        // zeroes it again where they are still pressed.)
         world.keep();
         let residual = world.advance(&part, Some(ImplicitSettings { split_far: !deepest, ..settings }))?;
         let solves = world.solves();

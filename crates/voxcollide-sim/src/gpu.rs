@@ -229,8 +229,9 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with the implicit integrator,
-    /// finite elements or a surface contact.
+    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with finite elements or a surface
+    /// contact (both integrators step here: the implicit one in [`crate::gpu_implicit`]'s
+    /// passes).
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
         if let Some(k) = world.bodies.iter().position(|b| b.elements.is_some()) {

@@ -13,7 +13,11 @@
 //! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. Each
 //! body is solved on its own (the CPU solves every body in one system: with the voxel model's
 //! contacts, which push from a partner standing still, the systems do not couple, and the
-//! answers agree to the tolerance). A step that would carry a vertex farther than
+//! answers agree to the tolerance). So each body reports its own solve in its
+//! [`StepStats`] (the CPU reports the joint one to every body), and each stops at its own
+//! `|r| ≤ tol·|b|`, stricter for a lightly loaded body than the CPU's over all of them: with
+//! several bodies free to move, the settling step, which watches the solves, may take another
+//! path to the same rest. A step that would carry a vertex farther than
 //! [`ImplicitSettings::max_move`](crate::ImplicitSettings::max_move) is taken in parts, or
 //! scaled, as on the CPU ([`crate::Parts`]).
 
