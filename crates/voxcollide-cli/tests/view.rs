@@ -466,3 +466,31 @@ fn a_blow_up_ends_a_run_of_frames_with_its_error_on_either_backend() {
     }
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn the_implicit_integrator_steps_in_the_window_on_the_gpu() {
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("implicit");
+    // scenes/indentation.toml under the implicit integrator with the voxel model's penalty:
+    // its WGSL passes, asked for by --backend gpu.
+    let scenes = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let text = std::fs::read_to_string(scenes.join("indentation.toml")).unwrap();
+    let implicit = text
+        .replace("max_steps = 8000", "max_steps = 8000\nintegrator = \"implicit\"")
+        .replace("b = \"block\"", "b = \"block\"\nresponse = \"penalty\"");
+    assert!(implicit.contains("integrator") && implicit.contains("penalty"));
+    let scene = d.join("implicit.toml");
+    std::fs::write(&scene, implicit).unwrap();
+    let report = d.join("report.json");
+    let out = ok(x
+        .view(&[scene.to_str().unwrap(), "--backend", "gpu", "--frames", "8", "--steps-per-frame", "10"])
+        .args(["--report".as_ref(), report.as_os_str()])
+        .output()
+        .unwrap());
+    assert!(out.contains("on the gpu backend"), "{out}");
+    let r = json(&report);
+    assert_eq!((r["backend"].as_str(), r["steps"].as_u64()), (Some("gpu"), Some(80)), "{r}");
+    let block = r["max_displacement"][0][1].as_f64().unwrap();
+    assert!(block > 0.5, "the ball pressed the block {block} mm");
+    std::fs::remove_dir_all(&d).unwrap();
+}
