@@ -146,37 +146,40 @@ fn filtered(i: u32, v: vec3<f32>) -> vec3<f32> {
     return v;
 }
 
-// Sums `value` over the workgroup into its partial of `column` (all lanes call it,
-// in uniform control flow).
-fn partial_sum(column: u32, wg: u32, lane: u32, value: f32) {
+// `value` over the workgroup's lanes, summed (or the largest, `maximum`) pairwise, halving:
+// the total, on every lane (all lanes call it, in uniform control flow).
+fn lanes_total(lane: u32, value: f32, maximum: bool) -> f32 {
     lanes[lane] = value;
     workgroupBarrier();
     for (var half = 32u; half > 0u; half /= 2u) {
         if lane < half {
-            lanes[lane] += lanes[lane + half];
+            if maximum {
+                lanes[lane] = max(lanes[lane], lanes[lane + half]);
+            } else {
+                lanes[lane] += lanes[lane + half];
+            }
         }
         workgroupBarrier();
     }
-    if lane == 0u {
-        red[part(column, wg)] = lanes[0];
-    }
+    let total = lanes[0];
     workgroupBarrier();
+    return total;
 }
 
-// The largest `value` over the workgroup.
-fn partial_max(column: u32, wg: u32, lane: u32, value: f32) {
-    lanes[lane] = value;
-    workgroupBarrier();
-    for (var half = 32u; half > 0u; half /= 2u) {
-        if lane < half {
-            lanes[lane] = max(lanes[lane], lanes[lane + half]);
-        }
-        workgroupBarrier();
-    }
+// Sums `value` over the workgroup into its partial of `column`.
+fn partial_sum(column: u32, wg: u32, lane: u32, value: f32) {
+    let total = lanes_total(lane, value, false);
     if lane == 0u {
-        red[part(column, wg)] = lanes[0];
+        red[part(column, wg)] = total;
     }
-    workgroupBarrier();
+}
+
+// The largest `value` over the workgroup, into its partial of `column`.
+fn partial_max(column: u32, wg: u32, lane: u32, value: f32) {
+    let total = lanes_total(lane, value, true);
+    if lane == 0u {
+        red[part(column, wg)] = total;
+    }
 }
 
 // A column's partials summed by one workgroup (lane j takes partials j, j + 64, …, then the
@@ -186,35 +189,16 @@ fn column_sum(column: u32, lane: u32) -> f32 {
     for (var j = lane; j < ip.groups; j += 64u) {
         s += red[part(column, j)];
     }
-    lanes[lane] = s;
-    workgroupBarrier();
-    for (var half = 32u; half > 0u; half /= 2u) {
-        if lane < half {
-            lanes[lane] += lanes[lane + half];
-        }
-        workgroupBarrier();
-    }
-    let total = lanes[0];
-    workgroupBarrier();
-    return total;
+    return lanes_total(lane, s, false);
 }
 
+// The largest of a column's partials.
 fn column_max(column: u32, lane: u32) -> f32 {
     var s = 0.0;
     for (var j = lane; j < ip.groups; j += 64u) {
         s = max(s, red[part(column, j)]);
     }
-    lanes[lane] = s;
-    workgroupBarrier();
-    for (var half = 32u; half > 0u; half /= 2u) {
-        if lane < half {
-            lanes[lane] = max(lanes[lane], lanes[lane + half]);
-        }
-        workgroupBarrier();
-    }
-    let total = lanes[0];
-    workgroupBarrier();
-    return total;
+    return lanes_total(lane, s, true);
 }
 
 // A spring's blocks at the start of the step, from vertex i to j: its direction and

@@ -84,6 +84,22 @@ pub(crate) fn next_dt_scale(
     grown.clamp(1.0, accelerate_to)
 }
 
+/// After an implicit step whose residual at rest was `now` and whose solves gave `stats`: the
+/// world's residual (`held`, its largest gross force kept) updated, and the next step's scale
+/// ([`next_dt_scale`]). Both worlds, CPU and GPU, keep their books by it.
+pub(crate) fn after_implicit_step(
+    held: &mut Residual,
+    now: Residual,
+    dt_scale: f32,
+    accelerate_to: f32,
+    stats: &[StepStats],
+    settings: &ImplicitSettings,
+) -> f32 {
+    let before = held.net;
+    *held = Residual { peak_gross: held.peak_gross.max(now.gross), ..now };
+    next_dt_scale(dt_scale, accelerate_to, before, now.net, stats, settings)
+}
+
 /// The most parts one implicit step is taken in while a schedule runs; the last of them is
 /// scaled down if it would still carry a vertex farther than the largest move.
 pub const MAX_SUBSTEPS: u32 = 64;
@@ -169,10 +185,7 @@ impl CpuWorld {
         let implicit = match w.integrator {
             Integrator::Explicit => None,
             // Settling: each solve as far as the step towards rest needs.
-            Integrator::Implicit(s) if self.accelerate_to > 1.0 => {
-                Some(ImplicitSettings { tolerance: s.settle_tolerance, ..s })
-            }
-            Integrator::Implicit(settings) => Some(settings),
+            Integrator::Implicit(s) => Some(s.for_step(self.accelerate_to > 1.0)),
         };
         if implicit.is_some() {
             inputs.iter_mut().for_each(|i| i.dt *= self.dt_scale);
@@ -183,21 +196,16 @@ impl CpuWorld {
         let residual = residual?;
         let w = &self.world;
         if let Some(settings) = implicit {
-            let peak_gross = self.residual.peak_gross.max(residual.gross);
-            let before = self.residual.net;
-            self.residual = Residual { peak_gross, ..residual };
-            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-            self.dt_scale = next_dt_scale(
+            self.dt_scale = after_implicit_step(
+                &mut self.residual,
+                residual,
                 self.dt_scale,
                 self.accelerate_to,
-                before,
-                residual.net,
                 &self.stats,
                 &settings,
             );
-        } else {
-            self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         }
+        self.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
         self.step += 1;
         for (k, body) in w.bodies.iter().enumerate() {
             if let Some((_, what)) = body.blow_up(w.v_max) {

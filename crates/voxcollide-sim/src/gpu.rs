@@ -9,7 +9,7 @@ use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
-use crate::cpu::{Parts, Stepper, next_dt_scale};
+use crate::cpu::{Parts, Stepper, after_implicit_step};
 use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup};
 use crate::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::scene::Scene;
@@ -437,21 +437,21 @@ impl GpuWorld {
         let Some(imp) = self.implicit.as_mut() else { unreachable!("implicit only") };
         inputs.iter_mut().for_each(|i| i.dt *= imp.dt_scale);
         let settling = imp.accelerate_to > 1.0;
-        let settings = if settling {
-            ImplicitSettings { tolerance: imp.settings.settle_tolerance, ..imp.settings }
-        } else {
-            imp.settings
-        };
+        let settings = imp.settings.for_step(settling);
         let mut parts = std::mem::take(&mut imp.parts);
         let residual = parts.step(self, &inputs, Some(settings), settling);
         let Some(imp) = self.implicit.as_mut() else { unreachable!("implicit only") };
         imp.parts = parts;
         let residual = residual?;
-        let before = imp.residual.net;
-        imp.residual = Residual { peak_gross: imp.residual.peak_gross.max(residual.gross), ..residual };
+        imp.dt_scale = after_implicit_step(
+            &mut imp.residual,
+            residual,
+            imp.dt_scale,
+            imp.accelerate_to,
+            &imp.stats,
+            &settings,
+        );
         imp.time += f64::from(inputs.first().map_or(0.0, |i| i.dt));
-        imp.dt_scale =
-            next_dt_scale(imp.dt_scale, imp.accelerate_to, before, residual.net, &imp.stats, &settings);
         self.step += 1;
         Ok(())
     }

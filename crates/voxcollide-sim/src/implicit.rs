@@ -97,6 +97,16 @@ impl Default for ImplicitSettings {
     }
 }
 
+impl ImplicitSettings {
+    /// The settings of one step: with [`settle_tolerance`](Self::settle_tolerance) in place of
+    /// [`tolerance`](Self::tolerance) while `settling` (each solve as far as the step towards
+    /// rest needs).
+    #[must_use]
+    pub fn for_step(self, settling: bool) -> ImplicitSettings {
+        if settling { ImplicitSettings { tolerance: self.settle_tolerance, ..self } } else { self }
+    }
+}
+
 /// What one implicit step of a body did.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct StepStats {
