@@ -128,6 +128,13 @@ pub struct FileSummary {
     /// explicit one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residual: Option<f64>,
+    /// How finely the positions resolve that residual (on its scale): the net force's change
+    /// when every coordinate moves by one unit in the last place of an `f32`
+    /// (`CpuWorld::residual_floor`). A residual near it is as balanced as single precision
+    /// allows, and a criterion below it cannot be met. Absent under the explicit integrator
+    /// and on the GPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_floor: Option<f64>,
     /// The implicit integrator's steps taken in more than one part, because a vertex would
     /// have moved farther in one than a contact may miss (docs/integrator.md, "A step too far
     /// is split"); absent under the explicit one.
@@ -225,6 +232,15 @@ impl Run {
             Run::Cpu(w) if w.world.integrator != Integrator::Explicit => Some(w.residual.relative()),
             Run::Gpu(w) => w.residual().map(|r| r.relative()),
             Run::Cpu(_) => None,
+        }
+    }
+
+    /// How finely the positions resolve the residual ([`FileSummary::residual_floor`]; CPU
+    /// and implicit only).
+    pub(crate) fn residual_floor(&self) -> Option<f64> {
+        match self {
+            Run::Cpu(w) => w.residual_floor(),
+            Run::Gpu(_) => None,
         }
     }
 
@@ -434,6 +450,8 @@ pub fn run_scene(
     }
     loop {
         let (residual, now) = (run.residual(), run.time(done, built.dt));
+        // How finely the positions resolve the residual, past the schedule (two force sums).
+        let floor = if residual.is_some() && done >= planned { run.residual_floor() } else { None };
         let (world, reports) = run.frame()?;
         measure(world, &mut summary);
         checks.check(world, &reports, &mut summary, done, frame, true, note)?;
@@ -451,8 +469,11 @@ pub fn run_scene(
         if let Some(r) = residual.filter(|_| file.time.settle && done >= planned && !at_rest)
             && let Some(since) = stall.stalled(done, r)
         {
+            let floor = floor.map_or(String::new(), |f| {
+                format!(" (single-precision positions resolve it to about {f:.1e})")
+            });
             note(&format!(
-                "warning: settling has stalled: the residual force has stayed near {r:.2e} of the largest load (at rest: {RESIDUAL_TOLERANCE:.0e}) since step {since}, {} steps; the run goes on to max_steps = {} and will likely end not at rest",
+                "warning: settling has stalled: the residual force has stayed near {r:.2e} of the largest load (at rest: {RESIDUAL_TOLERANCE:.0e}){floor} since step {since}, {} steps; the run goes on to max_steps = {} and will likely end not at rest",
                 done - since,
                 file.time.max_steps
             ));
@@ -535,6 +556,7 @@ pub fn run_scene(
             }
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
             summary.residual = residual;
+            summary.residual_floor = floor;
             (summary.split_steps, summary.most_parts) = run.split().unzip();
             // Each integrator's own test, met or not (the implicit one never judges by motion).
             summary.criterion = if residual.is_some() { "residual" } else { "rest_motion" }.into();

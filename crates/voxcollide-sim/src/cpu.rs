@@ -161,6 +161,31 @@ impl CpuWorld {
         self.dt_scale
     }
 
+    /// Implicit only: how finely the positions resolve the residual at rest, on the same scale
+    /// as [`residual`](Self::residual)'s [`Residual::relative`]: each body's
+    /// [`MassSpring::residual_floor`](crate::MassSpring::residual_floor) (in quadrature) over
+    /// the residual's gross force. A residual near it is as balanced as `f32` positions can
+    /// be. `None` under the explicit integrator, before the first step, or where nothing has
+    /// pushed yet.
+    #[must_use]
+    pub fn residual_floor(&self) -> Option<f64> {
+        if self.world.integrator == Integrator::Explicit || self.step == 0 {
+            return None;
+        }
+        let inputs = self.world.inputs(self.step - 1).ok()?;
+        let net = self
+            .world
+            .bodies
+            .iter()
+            .zip(&inputs)
+            .zip(&self.contact_force)
+            .map(|((b, i), c)| b.residual_floor(i, c).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let scale = self.residual.gross.max(crate::implicit::UNLOADED * self.residual.peak_gross);
+        (scale > 0.0).then(|| net / scale)
+    }
+
     /// Steps taken so far.
     #[must_use]
     pub fn steps_done(&self) -> u64 {

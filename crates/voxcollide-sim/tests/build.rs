@@ -445,3 +445,46 @@ fn a_contact_responds_with_a_penalty_stiff_for_the_step_unless_told_otherwise() 
     let built = build_world(&SceneFile::parse("indent.toml", &constant).unwrap()).unwrap();
     assert_eq!(built.world.contacts[0].response, Response::Constant);
 }
+
+#[test]
+fn an_implant_surface_is_closed_and_has_no_hub() {
+    // Every edge is shared by two triangles, once each way (closed, turned alike), the surface
+    // encloses its volume outward, and no vertex has more than 8 triangles: each ring holds as
+    // many segments as its circumference has edges, so that the apex and the base's centre are
+    // not hubs of `2π r / edge` slivers (73 at a 6 mm edge on a 140 mm base), whose hub took a
+    // contact's load alone among dozens of vertices half a millimetre apart.
+    use std::collections::HashMap;
+    use voxcollide_sim::bodies::{ImplantShape, implant_surface};
+    for (volume, base, projection, anatomical, edge) in [
+        (200e3, 140.0, 21.654, false, 6.0),
+        (800e3, 140.0, 86.6, false, 4.0),
+        (300e3, 115.0, 40.0, true, 2.0),
+        (250e3, 125.0, 30.0, false, 10.0),
+    ] {
+        let shape = ImplantShape { volume, base, projection, anatomical };
+        let (pos, mesh) = implant_surface(shape, edge).unwrap();
+        let mut edges: HashMap<(u32, u32), i32> = HashMap::new();
+        let mut valence = vec![0u32; pos.len()];
+        for t in &mesh.triangles {
+            for c in 0..3 {
+                let (a, b) = (t[c], t[(c + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+                *edges.entry((a.min(b), a.max(b) + u32::MAX / 2)).or_default() += 1;
+                valence[a as usize] += 1;
+            }
+            let [a, b, c] = t.map(|v| pos[v as usize]);
+            assert!((b - a).cross(c - a).length() > 1e-6, "a degenerate triangle {t:?}");
+        }
+        for (&(a, b), &n) in &edges {
+            if b >= u32::MAX / 2 {
+                assert_eq!(n, 2, "edge {a}–{} has {n} triangles", b - u32::MAX / 2);
+            } else {
+                assert_eq!(n, 0, "edge {a}–{b} is turned the same way in both its triangles");
+            }
+        }
+        let hub = valence.iter().max().unwrap();
+        assert!(*hub <= 8, "{volume} at {edge}: a vertex with {hub} triangles");
+        let enclosed = mesh.volume(&pos);
+        assert!((enclosed - volume).abs() < 1e-3 * volume, "{enclosed} for {volume}");
+    }
+}
