@@ -177,12 +177,16 @@ fn candidates_lift_the_tissue_as_volume_profile_and_stiffness_say() {
     let stiff = run(&d2, &scene(48.0), one).unwrap();
     let stiff_high = stiff.candidates.iter().find(|r| r.name == high.name).unwrap();
     // With contacts that hold the filled implant's lift is mostly its own height, and at this
-    // coarse lattice, unsettled after 4,000 steps, the skin's effect on it is small: the
-    // stiffer skin lifted 18.3 against 17.8 mm when first measured, on an implant mesh whose
-    // apex was a hub of slivers, and 17.2 against 19.3 mm once its rings thinned towards the
-    // apex. So it is held only not to lift noticeably more; the skin's effect is checked below
-    // on the pressure the implant needs.
-    assert!(stiff_high.apex_lift < 1.05 * high.apex_lift, "{} vs {}", stiff_high.apex_lift, high.apex_lift);
+    // coarse lattice, unsettled after 4,000 steps, the stiffer skin no longer lifts less (18.3
+    // against 17.8 mm when first measured; with the constant response it did, by going
+    // through the tissue): it is held to within a tenth here, and the skin's effect is checked
+    // below on the pressure the implant needs. Issue 21's static solve is to settle it.
+    assert!(
+        (stiff_high.apex_lift / high.apex_lift - 1.0).abs() < 0.1,
+        "{} vs {}",
+        stiff_high.apex_lift,
+        high.apex_lift
+    );
     // The implant presses on the tissue: harder under the stiffer skin, and for the larger volume.
     for r in c.candidates.iter().chain(&stiff.candidates) {
         assert!(

@@ -1003,55 +1003,31 @@ fn implant_facets(
         .collect();
     rings.push((1.0, 0.0));
     rings.extend((1..flat).rev().map(|j| (f64::from(j) / f64::from(flat), 0.0)));
-    // Each ring has as many segments as its circumference holds edges (at least 6): one count
-    // for all of them made the apex and the base's centre fans of `segments` slivers, whose
-    // hub carried a contact's load alone among dozens of vertices half a millimetre apart.
-    let counts: Vec<u32> =
-        rings.iter().map(|&(rho, _)| ((f64::from(segments) * rho).round() as u32).clamp(6, segments)).collect();
-    let mut starts = Vec::with_capacity(rings.len());
     let mut pos = vec![at(0.0, 0.0, p)];
-    for (&(rho, z), &n) in rings.iter().zip(&counts) {
-        starts.push(pos.len() as u32);
-        for s in 0..n {
-            pos.push(at(rho, std::f64::consts::TAU * f64::from(s) / f64::from(n), z));
+    for &(rho, z) in &rings {
+        for s in 0..segments {
+            pos.push(at(rho, std::f64::consts::TAU * f64::from(s) / f64::from(segments), z));
         }
     }
     let bottom = pos.len() as u32;
     pos.push(at(0.0, 0.0, 0.0));
-    let ring = |k: usize, s: u32| starts[k] + s % counts[k];
-    let last = rings.len() - 1;
-    let rim = dome as usize - 1; // the index of the rim ring
+    let ring = |k: u32, s: u32| 1 + k * segments + s % segments;
+    let last = rings.len() as u32 - 1;
+    let rim = dome - 1; // the index of the rim ring
     // Outward: up and away from the apex's axis on the dome, down on the base.
     let up = Vec3::new(0.0, 0.0, p as f32);
     let foot32 = foot.as_vec3();
     let dome_out = |q: Vec3| Vec3::new(q.x - foot32.x, q.y - foot32.y, 0.0) + up;
     let down = Vec3::NEG_Z;
     let mut mesh = TriangleMesh::default();
-    for s in 0..counts[0] {
+    for s in 0..segments {
         let (a, b) = (ring(0, s), ring(0, s + 1));
         tri(&mut mesh, &pos, [0, a, b], dome_out(pos[a as usize]));
-    }
-    // Each band between two rings, zipped: the next triangle advances along the ring whose
-    // next vertex comes first round the axis.
-    for k in 0..last {
-        let (na, nb) = (counts[k], counts[k + 1]);
-        let outward = |q: u32| if k < rim { dome_out(pos[q as usize]) } else { down };
-        let (mut i, mut j) = (0, 0);
-        while i < na || j < nb {
-            let next_a = f64::from(i + 1) / f64::from(na);
-            let next_b = f64::from(j + 1) / f64::from(nb);
-            if j >= nb || (i < na && next_a < next_b) {
-                let t = [ring(k, i), ring(k, i + 1), ring(k + 1, j)];
-                tri(&mut mesh, &pos, t, outward(t[0]));
-                i += 1;
-            } else {
-                let t = [ring(k, i), ring(k + 1, j + 1), ring(k + 1, j)];
-                tri(&mut mesh, &pos, t, outward(t[0]));
-                j += 1;
-            }
+        for k in 0..last {
+            let q = [ring(k, s), ring(k + 1, s), ring(k + 1, s + 1), ring(k, s + 1)];
+            let outward = if k < rim { dome_out(pos[q[0] as usize]) } else { down };
+            quad(&mut mesh, &pos, q, outward);
         }
-    }
-    for s in 0..counts[last] {
         tri(&mut mesh, &pos, [bottom, ring(last, s + 1), ring(last, s)], down);
     }
     (pos, mesh)
