@@ -91,6 +91,10 @@ fn an_implicit_fill_records_its_integrator_criterion_and_residual() {
     assert_eq!(implicit["criterion"], "residual");
     let residual = implicit["residual"].as_f64().unwrap();
     assert!(residual.is_finite() && residual <= 1e-3, "residual {residual}");
+    // How finely single precision resolves that residual: recorded beside it, and below the
+    // criterion the run met.
+    let floor = implicit["residual_floor"].as_f64().unwrap();
+    assert!(floor > 0.0 && floor < 1e-3, "residual floor {floor}");
     assert!(stdout.contains("integrator") && stdout.contains("residual force"), "{stdout}");
     let volume = implicit["bodies"][0]["volume_ml"].as_f64().unwrap();
     assert!((volume - 50.0).abs() < 0.25, "{volume} mL of 50");
@@ -98,7 +102,7 @@ fn an_implicit_fill_records_its_integrator_criterion_and_residual() {
     let (_, explicit) = run(&d, "explicit", &BALLOON.replace("INTEGRATOR", "explicit"));
     assert_eq!(explicit["integrator"], "explicit");
     assert_eq!(explicit["criterion"], "rest_motion");
-    assert!(explicit.get("residual").is_none());
+    assert!(explicit.get("residual").is_none() && explicit.get("residual_floor").is_none());
     assert!(implicit["steps"].as_u64().unwrap() * 10 < explicit["steps"].as_u64().unwrap());
 }
 
@@ -139,6 +143,7 @@ fn the_gpu_backend_steps_the_implicit_integrator_to_the_cpus_rest() {
     assert_eq!((gpu["backend"].as_str(), gpu["integrator"].as_str()), (Some("gpu"), Some("implicit")));
     assert_eq!(gpu["settled"], true, "{stdout}");
     assert!(gpu["residual"].as_f64().unwrap() <= 1e-3);
+    assert!(gpu.get("residual_floor").is_none(), "measured on the CPU only");
     let volume = |s: &serde_json::Value| s["bodies"][0]["volume_ml"].as_f64().unwrap();
     assert!((volume(&gpu) - 50.0).abs() < 0.25 && (volume(&gpu) - volume(&cpu)).abs() < 0.05);
     let moved = |s: &serde_json::Value| s["bodies"][0]["max_displacement"].as_f64().unwrap();
