@@ -479,7 +479,8 @@ impl MassSpring {
         let mut g = contact[i].length();
         for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
             let s = self.springs[k as usize];
-            let t = spring_force(x, Vec3::ZERO, pos[j as usize], Vec3::ZERO, s.rest * inputs.rest_scale, s.k, m);
+            let t =
+                spring_force(x, Vec3::ZERO, pos[j as usize], Vec3::ZERO, s.rest * inputs.rest_scale, s.k, m);
             f += t;
             g += t.length();
         }
