@@ -128,9 +128,9 @@ pub struct FileSummary {
     /// explicit one.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residual: Option<f64>,
-    /// How finely the positions resolve that residual (on its scale): the net force's change
-    /// when every coordinate moves by one unit in the last place of an `f32`
-    /// (`CpuWorld::residual_floor`). A residual near it is as balanced as single precision
+    /// How finely the positions resolve that residual (on its scale): half the net force's
+    /// change when every coordinate moves to a neighbouring `f32`, a stored position being off
+    /// by at most half that (`CpuWorld::residual_floor`). A residual near it is as balanced as single precision
     /// allows, and a criterion below it cannot be met. Absent under the explicit integrator
     /// and on the GPU.
     #[serde(skip_serializing_if = "Option::is_none")]

@@ -417,7 +417,7 @@ impl MassSpring {
             .with_min_len(CHUNK)
             .filter(|&i| self.mode[i] == Mode::Free)
             .map(|i| {
-                let (f, g) = self.force_at_rest(&self.pos, i, inputs, contact, pressure, self.pos[i]);
+                let (f, g) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
                 (f64::from(f.length_squared()), f64::from(g) * f64::from(g))
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
@@ -453,8 +453,8 @@ impl MassSpring {
             .with_min_len(CHUNK)
             .filter(|&i| self.mode[i] == Mode::Free)
             .map(|i| {
-                let (a, _) = self.force_at_rest(&self.pos, i, inputs, contact, pressure, self.pos[i]);
-                let (b, _) = self.force_at_rest(&jittered, i, inputs, contact, pressure, self.pos[i]);
+                let (a, _) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
+                let (b, _) = self.force_at_rest(&jittered, i, inputs, contact, pressure);
                 f64::from((b - a).length_squared())
             })
             .sum();
@@ -463,7 +463,8 @@ impl MassSpring {
 
     /// Vertex `i`'s net force at rest with the body at `pos` (springs without damping,
     /// elements, `pressure` on its triangles, `contact`), and its gross force (the sum of the
-    /// terms' magnitudes); the floor holds it where it stands at `at`.
+    /// terms' magnitudes). Whether the floor holds it up is judged where the body stands now
+    /// (`self.pos`), so that `pos` may differ from it by a rounding without lifting it off.
     fn force_at_rest(
         &self,
         pos: &[Vec3],
@@ -471,7 +472,6 @@ impl MassSpring {
         inputs: &StepInputs,
         contact: &[Vec3],
         pressure: f32,
-        at: Vec3,
     ) -> (Vec3, f32) {
         let m = &self.material;
         let x = pos[i];
@@ -500,7 +500,7 @@ impl MassSpring {
             }
         }
         // A vertex held up by the floor is at rest whatever pushes it down.
-        if at.z <= inputs.floor && f.z < 0.0 {
+        if self.pos[i].z <= inputs.floor && f.z < 0.0 {
             f.z = 0.0;
         }
         (f, g)
