@@ -89,8 +89,8 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-/// The springs' block stepped on the GPU's implicit passes (`GpuWorld`) and on the CPU on every
-/// core, each from step 10 of the press on, step after step: a device's state cannot be set
+/// The springs' block and the Neo-Hookean one stepped on the GPU's implicit passes (`GpuWorld`)
+/// and on the CPU on every core, each from step 10 of the press on, step after step: a device's state cannot be set
 /// back cheaply, so each figure is a run of consecutive steps of the same trajectory (the two
 /// agree to the solve's tolerance, tests/implicit.rs), not the same step again and again.
 fn gpu(c: &mut Criterion) {
@@ -104,21 +104,23 @@ fn gpu(c: &mut Criterion) {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
     let mut group = c.benchmark_group("implicit_steps_20k");
     group.sample_size(10).measurement_time(Duration::from_secs(20));
-    let mut on_gpu = voxcollide_sim::GpuWorld::new(&ctx, block_world(false)).unwrap();
-    for _ in 0..10 {
-        on_gpu.step().unwrap();
-    }
-    eprintln!(
-        "springs on {}: {} CG iterations a step",
-        ctx.adapter_name(),
-        on_gpu.stats().map_or(0, |s| s[0].iterations)
-    );
-    group.bench_function("springs_gpu", |b| b.iter(|| on_gpu.step().unwrap()));
     let pool = rayon::ThreadPoolBuilder::new().num_threads(cores).build().unwrap();
-    let mut on_cpu = pool.install(|| block(false));
-    group.bench_function(format!("springs_cpu_{cores}_threads"), |b| {
-        b.iter(|| pool.install(|| on_cpu.step().unwrap()))
-    });
+    for (name, elements) in [("springs", false), ("neo_hookean", true)] {
+        let mut on_gpu = voxcollide_sim::GpuWorld::new(&ctx, block_world(elements)).unwrap();
+        for _ in 0..10 {
+            on_gpu.step().unwrap();
+        }
+        eprintln!(
+            "{name} on {}: {} CG iterations a step",
+            ctx.adapter_name(),
+            on_gpu.stats().map_or(0, |s| s[0].iterations)
+        );
+        group.bench_function(format!("{name}_gpu"), |b| b.iter(|| on_gpu.step().unwrap()));
+        let mut on_cpu = pool.install(|| block(elements));
+        group.bench_function(format!("{name}_cpu_{cores}_threads"), |b| {
+            b.iter(|| pool.install(|| on_cpu.step().unwrap()))
+        });
+    }
     group.finish();
 }
 

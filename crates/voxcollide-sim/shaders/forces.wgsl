@@ -1,6 +1,7 @@
 // Simulation pass 1: the force on every vertex of a body — its springs (nonlinear, damped),
 // viscous damping, the internal pressure on its surface triangles and its contact force —
-// summed per vertex in adjacency order, then divided by its mass. CPU twin:
+// summed per vertex in adjacency order (a body's tetrahedra after its springs: elements.wgsl),
+// then divided by its mass. CPU twin:
 // MassSpring::forces.
 
 @group(0) @binding(0) var<uniform> sim: SimParams;
@@ -13,6 +14,8 @@
 @group(0) @binding(7) var<storage, read> triangles: array<vec4<u32>>;
 @group(0) @binding(8) var<storage, read_write> acc: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read> fill: array<f32>;             // [0]: the pressure of a fill
+@group(0) @binding(10) var<storage, read> tet_index: array<u32>;       // elements.wgsl
+@group(0) @binding(11) var<storage, read> tet_rest: array<vec4<f32>>;
 
 fn spring_force(x: vec3<f32>, v: vec3<f32>, y: vec3<f32>, w: vec3<f32>, rest: f32, k: f32) -> vec3<f32> {
     let d = y - x;
@@ -41,6 +44,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         let j = adjacency[2u * e];
         let s = springs[adjacency[2u * e + 1u]];
         f += spring_force(x, v, pos[j].xyz, vel[j].xyz, s.x * sim.rest_scale, s.y);
+    }
+    if sim.tets > 0u {
+        f += elements_force(i);
     }
     var pressure = sim.pressure;
     if sim.fill_volume > 0.0 {

@@ -23,6 +23,10 @@ const PASS_UPDATE: u32 = 7u;        // x += α·p, r −= α·A·p, z = P·r, r�
 const PASS_DIRECTION: u32 = 8u;     // p = z + β·p
 const PASS_FARTHEST: u32 = 9u;      // the new velocity and the farthest move
 const PASS_MOVE: u32 = 10u;         // the update, the modes, the floor, the contacts' inelastic push
+const PASS_TANGENT: u32 = 11u;      // per tetrahedron: its projected stiffness at the step's start
+const PASS_PRODUCT_RHS: u32 = 12u;  // per tetrahedron: its −K·v and −K·Δv_held
+const PASS_PRODUCT_P: u32 = 13u;    // per tetrahedron: its −K·p
+const PASS_PRODUCT_X: u32 = 14u;    // per tetrahedron: its −K·x (the guess)
 const PASS_SCALARS_A: u32 = 20u;    // g·v, g·Δv_held, the residual's sums
 const PASS_SCALARS_B: u32 = 21u;    // |b|, |b − A·x|, whether the guess is used
 const PASS_SCALARS_C: u32 = 22u;    // r·z at the start
@@ -76,6 +80,10 @@ const S_USE_GUESS: u32 = 14u;
 const S_TARGET: u32 = 15u;
 const SCALARS: u32 = 16u;
 
+// Per tetrahedron in `tet_work`: its Tangent (9), then two products (3 each).
+const TET_WORK: u32 = 15u;
+const TET_PRODUCT: u32 = 9u;
+
 // Keep in sync with GpuImplicitParams in src/gpu_implicit.rs.
 struct ImplicitParams {
     h: f32,
@@ -102,6 +110,9 @@ struct ImplicitParams {
 @group(0) @binding(11) var<storage, read_write> work: array<vec4<f32>>;
 @group(0) @binding(12) var<storage, read_write> red: array<f32>;
 @group(0) @binding(13) var<storage, read_write> status: array<atomic<u32>, 2>;
+@group(0) @binding(14) var<storage, read> tet_index: array<u32>;          // elements.wgsl
+@group(0) @binding(15) var<storage, read> tet_rest: array<vec4<f32>>;
+@group(0) @binding(16) var<storage, read_write> tet_work: array<vec4<f32>>;
 
 var<workgroup> lanes: array<f32, 64>;
 
@@ -270,6 +281,14 @@ fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
     } else {
         r += (h * h * kc + h * contact_damping(i, kc)) * ui;
     }
+    if sim.tets > 0u {
+        // The tetrahedra's −K·u, their products made per tetrahedron by PASS_PRODUCT_*.
+        var h2 = h * h;
+        if stiff {
+            h2 = 1.0;
+        }
+        r += h2 * gather_product(i, 0u);
+    }
     if ip.fill_k > 0.0 {
         var h2 = h * h;
         if stiff {
@@ -312,6 +331,76 @@ fn finite3(v: vec3<f32>) -> bool {
     return is_finite_f32(v.x) && is_finite_f32(v.y) && is_finite_f32(v.z);
 }
 
+fn store_tangent(k: u32, t: Tangent) {
+    let b = TET_WORK * k;
+    tet_work[b] = vec4<f32>(t.u[0], t.plus.x);
+    tet_work[b + 1u] = vec4<f32>(t.u[1], t.plus.y);
+    tet_work[b + 2u] = vec4<f32>(t.u[2], t.plus.z);
+    tet_work[b + 3u] = vec4<f32>(t.v[0], t.minus.x);
+    tet_work[b + 4u] = vec4<f32>(t.v[1], t.minus.y);
+    tet_work[b + 5u] = vec4<f32>(t.v[2], t.minus.z);
+    tet_work[b + 6u] = vec4<f32>(t.stretch[0], 0.0);
+    tet_work[b + 7u] = vec4<f32>(t.stretch[1], 0.0);
+    tet_work[b + 8u] = vec4<f32>(t.stretch[2], 0.0);
+}
+
+fn load_tangent(k: u32) -> Tangent {
+    let b = TET_WORK * k;
+    let w = array<vec4<f32>, 9>(
+        tet_work[b], tet_work[b + 1u], tet_work[b + 2u], tet_work[b + 3u], tet_work[b + 4u],
+        tet_work[b + 5u], tet_work[b + 6u], tet_work[b + 7u], tet_work[b + 8u],
+    );
+    return Tangent(
+        mat3x3<f32>(w[0].xyz, w[1].xyz, w[2].xyz),
+        mat3x3<f32>(w[3].xyz, w[4].xyz, w[5].xyz),
+        mat3x3<f32>(w[6].xyz, w[7].xyz, w[8].xyz),
+        vec3<f32>(w[0].w, w[1].w, w[2].w),
+        vec3<f32>(w[3].w, w[4].w, w[5].w),
+    );
+}
+
+// Product `which` (0 or 1) of tetrahedron k.
+fn store_product(k: u32, which: u32, m: mat3x3<f32>) {
+    let b = TET_WORK * k + TET_PRODUCT + 3u * which;
+    tet_work[b] = vec4<f32>(m[0], 0.0);
+    tet_work[b + 1u] = vec4<f32>(m[1], 0.0);
+    tet_work[b + 2u] = vec4<f32>(m[2], 0.0);
+}
+
+// Vertex i's share of its tetrahedra's products `which`, in adjacency order: their −K·u.
+fn gather_product(i: u32, which: u32) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    let range = tet_range(i);
+    for (var e = range.x; e < range.y; e++) {
+        let kc = tet_index[e];
+        let b = TET_WORK * (kc / 4u) + TET_PRODUCT + 3u * which;
+        let h = mat3x3<f32>(tet_work[b].xyz, tet_work[b + 1u].xyz, tet_work[b + 2u].xyz);
+        sum += corner_of(h, kc % 4u);
+    }
+    return sum;
+}
+
+// The per-tetrahedron passes.
+fn pass_tetrahedron(k: u32) {
+    let t = tet_corners(k);
+    if PASS == PASS_TANGENT {
+        store_tangent(k, tangent_at(deformation(k, pos[t.x].xyz, pos[t.y].xyz, pos[t.z].xyz, pos[t.w].xyz)));
+        return;
+    }
+    let tangent = load_tangent(k);
+    if PASS == PASS_PRODUCT_RHS {
+        store_product(k, 0u, stiffness_product(tangent, k, vel[t.x].xyz, vel[t.y].xyz, vel[t.z].xyz, vel[t.w].xyz));
+        store_product(k, 1u, stiffness_product(
+            tangent, k, vget(SLOT_HELD, t.x), vget(SLOT_HELD, t.y), vget(SLOT_HELD, t.z), vget(SLOT_HELD, t.w)));
+    } else {
+        var s = SLOT_P;
+        if PASS == PASS_PRODUCT_X {
+            s = SLOT_X;
+        }
+        store_product(k, 0u, stiffness_product(tangent, k, vget(s, t.x), vget(s, t.y), vget(s, t.z), vget(s, t.w)));
+    }
+}
+
 fn pass_prepare(i: u32) -> vec2<f32> {
     let x = pos[i].xyz;
     let v = vel[i].xyz;
@@ -342,6 +431,18 @@ fn pass_prepare(i: u32) -> vec2<f32> {
         let t = spring_tension(x, y, s);
         rest_f += t;
         gross += sqrt(dot3(t, t));
+    }
+    if sim.tets > 0u {
+        var fe = vec3<f32>(0.0);
+        let tets = tet_range(i);
+        for (var e = tets.x; e < tets.y; e++) {
+            let kc = tet_index[e];
+            let t = tet_corner_force(kc / 4u, kc % 4u);
+            fe += t;
+            gross += sqrt(dot3(t, t));
+        }
+        f += fe;
+        rest_f += fe;
     }
     var g = vec3<f32>(0.0);
     let tris = vec2<u32>(offsets[i].y, offsets[i + 1u].y);
@@ -396,6 +497,13 @@ fn pass_rhs(i: u32) -> f32 {
     if ip.fill_k > 0.0 {
         b += (h * h * ip.fill_k) * outer(vget(SLOT_G, i));
     }
+    if sim.tets > 0u {
+        let tets = tet_range(i);
+        for (var e = tets.x; e < tets.y; e++) {
+            let kc = tet_index[e];
+            b += (h * h) * diagonal_block(load_tangent(kc / 4u), kc / 4u, kc % 4u);
+        }
+    }
     var inv = inverse3(b);
     if !(finite3(inv[0]) && finite3(inv[1]) && finite3(inv[2])) {
         let d = 1.0 / diagonal;
@@ -424,6 +532,10 @@ fn pass_rhs(i: u32) -> f32 {
             a_held += a * dh + (c * dot3(s.u, dh)) * s.u;
         }
         a_held += (1.0 / vel[i].w + h * sim.damping) * hi + (h * h * kc + h * cd) * hi;
+        if sim.tets > 0u {
+            kv += gather_product(i, 0u);
+            a_held += (h * h) * gather_product(i, 1u);
+        }
         if ip.fill_k > 0.0 {
             kv += (ip.fill_k * scalar(S_GV)) * vget(SLOT_G, i);
             a_held += (h * h * ip.fill_k * scalar(S_GHELD)) * vget(SLOT_G, i);
@@ -454,7 +566,12 @@ fn main(
     let i = item_index(gid, nwg);
     let wg = wid.x + wid.y * nwg.x;
     let live = i < sim.n;
-    if PASS == PASS_PREPARE {
+    if PASS >= PASS_TANGENT && PASS <= PASS_PRODUCT_X {
+        // One invocation per tetrahedron.
+        if i < sim.tets {
+            pass_tetrahedron(i);
+        }
+    } else if PASS == PASS_PREPARE {
         var terms = vec2<f32>(0.0);
         if live {
             terms = pass_prepare(i);

@@ -27,6 +27,10 @@ struct SimParams {
     fill_volume: f32,      // > 0: a fill of this volume (the pressure is the volume pass's)
     fill_bulk: f32,
     fill_hold: f32,        // > 0: per step, the held pressure's growth per relative deficit (over fill_bulk)
+    tets: u32,             // the body's tetrahedra (0: springs alone; elements.wgsl)
+    mu: f32,               // their Lamé μ, λ' = λ + μ and α = 1 + μ/λ'
+    lambda: f32,
+    alpha: f32,
     _pad1: u32,
 }
 

@@ -140,7 +140,7 @@ impl Elements {
     }
 
     /// `α = 1 + μ/λ'`.
-    fn alpha(&self) -> f32 {
+    pub(crate) fn alpha(&self) -> f32 {
         1.0 + self.mu / self.lambda
     }
 

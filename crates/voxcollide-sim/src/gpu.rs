@@ -24,8 +24,11 @@ use voxcollide::report::ContactReport;
 pub const SHADERS: [(&str, &str); 4] =
     [("accumulate", ACCUMULATE), ("volume", VOLUME), ("forces", FORCES), ("integrate", INTEGRATE)];
 /// Pass 1: forces over mass.
-pub const FORCES: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/forces.wgsl"));
+pub const FORCES: &str = concat!(
+    include_str!("../shaders/sim_common.wgsl"),
+    include_str!("../shaders/elements.wgsl"),
+    include_str!("../shaders/forces.wgsl")
+);
 /// Pass 2: integration.
 pub const INTEGRATE: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/integrate.wgsl"));
@@ -54,13 +57,20 @@ struct GpuSimParams {
     fill_volume: f32,
     fill_bulk: f32,
     fill_hold: f32,
+    /// The body's tetrahedra (0: springs alone), and their material (`shaders/elements.wgsl`).
+    tets: u32,
+    mu: f32,
+    lambda: f32,
+    alpha: f32,
     _pad: u32,
 }
-const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 128);
+const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 144);
 
 /// One body's device buffers.
 struct GpuBody {
     n: u32,
+    /// Tetrahedra (0: springs alone).
+    tets: u32,
     tri_base: u32,
     params: Buffer,
     pos: Buffer,
@@ -70,6 +80,10 @@ struct GpuBody {
     adjacency: Buffer,
     springs: Buffer,
     triangles: Buffer,
+    /// A body of finite elements' tetrahedra and their adjacency, and their rest shapes
+    /// (`shaders/elements.wgsl`); 16 bytes each for springs alone.
+    tet_index: Buffer,
+    tet_rest: Buffer,
     acc: Buffer,
     status: Buffer,
     /// A fill's pressure and volume, written by the `volume` pass.
@@ -103,8 +117,21 @@ impl GpuBody {
         adjacency.extend(&body.tri_adjacency);
         let springs: Vec<[f32; 2]> = body.springs.iter().map(|s| [s.rest, s.k]).collect();
         let triangles: Vec<[u32; 4]> = body.surface.triangles.iter().map(|t| [t[0], t[1], t[2], 0]).collect();
+        let (tet_index, tet_rest) = body.elements.as_ref().map_or_else(Default::default, |e| {
+            let mut index: Vec<u32> = e.tets.iter().flatten().copied().collect();
+            index.extend(&e.offsets);
+            index.extend(e.adjacency.iter().map(|[k, c]| 4 * k + c));
+            let rest: Vec<Vec4> = e
+                .dm_inv
+                .iter()
+                .zip(&e.volume)
+                .flat_map(|(m, v)| [m.x_axis.extend(*v), m.y_axis.extend(0.0), m.z_axis.extend(0.0)])
+                .collect();
+            (index, rest)
+        });
         GpuBody {
             n: body.len() as u32,
+            tets: body.elements.as_ref().map_or(0, |e| e.tets.len() as u32),
             tri_base,
             params: init(
                 "sim params",
@@ -118,6 +145,8 @@ impl GpuBody {
             adjacency: init("sim adjacency", bytemuck::cast_slice(&adjacency), storage),
             springs: init("sim springs", bytemuck::cast_slice(&springs), storage),
             triangles: init("sim triangles", bytemuck::cast_slice(&triangles), storage),
+            tet_index: init("sim tetrahedra", bytemuck::cast_slice(&tet_index), storage),
+            tet_rest: init("sim tetrahedra rest", bytemuck::cast_slice(&tet_rest), storage),
             acc: init("sim acc", &vec![0; 16 * body.len()], storage),
             status: init("sim status", &[0; 8], storage),
             fill: init("sim fill", &[0; 16], storage),
@@ -151,6 +180,10 @@ impl GpuBody {
             fill_volume: inputs.fill_volume,
             fill_bulk: inputs.fill_bulk,
             fill_hold: inputs.fill_hold,
+            tets: body.elements.as_ref().map_or(0, |e| e.tets.len() as u32),
+            mu: body.elements.as_ref().map_or(0.0, |e| e.mu),
+            lambda: body.elements.as_ref().map_or(0.0, |e| e.lambda),
+            alpha: body.elements.as_ref().map_or(0.0, crate::fem::Elements::alpha),
             _pad: 0,
         }
     }
@@ -234,14 +267,6 @@ impl GpuWorld {
     /// passes).
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
-        if let Some(k) = world.bodies.iter().position(|b| b.elements.is_some()) {
-            return Err(Error::Invalid {
-                what: "material",
-                value: format!("neo-hookean ({})", world.names[k]),
-                rule: "the GPU world steps spring lattices only: finite elements step on the CPU (CpuWorld)"
-                    .into(),
-            });
-        }
         if let Some(c) = world.contacts.iter().position(|c| c.surface.is_some()) {
             let pair = &world.contacts[c];
             return Err(Error::Invalid {
@@ -303,7 +328,7 @@ impl GpuWorld {
                     device,
                     "voxcollide forces",
                     FORCES,
-                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite, Read],
+                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite, Read, Read, Read],
                 ),
                 Kernel::new(
                     device,
@@ -539,6 +564,8 @@ impl GpuWorld {
                     &b.triangles,
                     &b.acc,
                     &b.fill,
+                    &b.tet_index,
+                    &b.tet_rest,
                 ],
             ));
             volume.push(self.volume.bind(device, &[&b.params, &b.pos, &b.triangles, &b.fill]));
@@ -564,11 +591,14 @@ impl GpuWorld {
                     contact,
                     fill: &b.fill,
                     status: &b.status,
+                    tet_index: &b.tet_index,
+                    tet_rest: &b.tet_rest,
                 };
                 implicit_bodies.push(ImplicitBody::new(
                     device,
                     &imp.kernels,
                     b.n,
+                    b.tets,
                     self.max_per_dim,
                     &buffers,
                     &penalties,

@@ -30,8 +30,11 @@ use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
 
 /// The implicit passes' WGSL, composed with `sim_common.wgsl`.
-pub const IMPLICIT: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit.wgsl"));
+pub const IMPLICIT: &str = concat!(
+    include_str!("../shaders/sim_common.wgsl"),
+    include_str!("../shaders/elements.wgsl"),
+    include_str!("../shaders/implicit.wgsl")
+);
 /// The contact stiffness pass's WGSL.
 pub const IMPLICIT_CONTACT: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit_contact.wgsl"));
@@ -58,12 +61,22 @@ const SCALARS_GP: usize = 14;
 const SCALARS_ALPHA: usize = 15;
 const SCALARS_BETA: usize = 16;
 const SCALARS_FAR: usize = 17;
+const TANGENT: usize = 18;
+const PRODUCT_RHS: usize = 19;
+const PRODUCT_P: usize = 20;
+const PRODUCT_X: usize = 21;
 /// Each pass's `PASS` constant, in the order above.
-const PASS_IDS: [u32; 18] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 20, 21, 22, 23, 24, 25, 26];
+const PASS_IDS: [u32; 22] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 20, 21, 22, 23, 24, 25, 26, 11, 12, 13, 14];
 /// Whether each pass is one workgroup (the scalars) rather than one invocation per vertex.
 const fn single(pass: usize) -> bool {
-    pass >= SCALARS_A
+    pass >= SCALARS_A && pass <= SCALARS_FAR
 }
+/// Whether each pass is one invocation per tetrahedron.
+const fn per_tetrahedron(pass: usize) -> bool {
+    pass >= TANGENT
+}
+/// `vec4`s per tetrahedron in `tet_work` (`TET_WORK` in implicit.wgsl).
+const TET_WORK: u64 = 15;
 
 /// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's.
 const SLOTS: u64 = 15;
@@ -105,7 +118,7 @@ impl ImplicitKernels {
         use Slot::{Read, ReadWrite, Uniform};
         let slots = [
             Uniform, Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read, Read, Read, ReadWrite,
-            ReadWrite, ReadWrite,
+            ReadWrite, ReadWrite, Read, Read, ReadWrite,
         ];
         let passes = PASS_IDS
             .iter()
@@ -130,7 +143,10 @@ pub(crate) struct ImplicitBody {
     params: Buffer,
     work: Buffer,
     red: Buffer,
+    /// Per tetrahedron: its stiffness and two products (`TET_WORK`).
+    _tet_work: Buffer,
     n: u32,
+    tets: u32,
     groups: u32,
     /// One bind group per pass.
     groups_of: Vec<wgpu::BindGroup>,
@@ -151,6 +167,8 @@ pub(crate) struct BodyBuffers<'a> {
     pub contact: &'a Buffer,
     pub fill: &'a Buffer,
     pub status: &'a Buffer,
+    pub tet_index: &'a Buffer,
+    pub tet_rest: &'a Buffer,
 }
 
 impl ImplicitBody {
@@ -160,6 +178,7 @@ impl ImplicitBody {
         device: &wgpu::Device,
         kernels: &ImplicitKernels,
         n: u32,
+        tets: u32,
         max_per_dim: u32,
         b: &BodyBuffers,
         penalties: &[(&Buffer, f32)],
@@ -182,6 +201,7 @@ impl ImplicitBody {
         );
         let work = buffer("implicit work", 16 * SLOTS * u64::from(n), storage);
         let red = buffer("implicit sums", 4 * (SCALARS + COLUMNS * u64::from(groups)), storage);
+        let tet_work = buffer("implicit tetrahedra", 16 * TET_WORK * u64::from(tets), storage);
         let groups_of = kernels
             .passes
             .iter()
@@ -203,6 +223,9 @@ impl ImplicitBody {
                         &work,
                         &red,
                         b.status,
+                        b.tet_index,
+                        b.tet_rest,
+                        &tet_work,
                     ],
                 )
             })
@@ -221,7 +244,7 @@ impl ImplicitBody {
                 (p, group)
             })
             .collect();
-        ImplicitBody { params, work, red, n, groups, groups_of, contacts }
+        ImplicitBody { params, work, red, _tet_work: tet_work, n, tets, groups, groups_of, contacts }
     }
 
     fn write(&self, queue: &wgpu::Queue, p: &GpuImplicitParams) {
@@ -283,6 +306,8 @@ fn record(
         for &p in passes {
             if single(p) {
                 kernels.passes[p].dispatch_one(&mut pass, &body.groups_of[p]);
+            } else if per_tetrahedron(p) {
+                kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.tets, max_per_dim);
             } else {
                 kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.n, max_per_dim);
             }
@@ -322,12 +347,20 @@ pub(crate) fn solve(
     }
     let all: Vec<usize> = (0..bodies.len()).collect();
     let fill = |k: usize| inputs[k].fill_volume > 0.0;
+    let elements = |k: usize| bodies[k].tets > 0;
     let guessing = setup.guess_scale > 0.0;
     for &k in &all {
-        let mut passes = vec![PREPARE, FLOOR, SCALARS_A, RHS];
+        let mut passes = vec![PREPARE, FLOOR, SCALARS_A];
+        if elements(k) {
+            passes.extend([TANGENT, PRODUCT_RHS]);
+        }
+        passes.push(RHS);
         if guessing {
             if fill(k) {
                 passes.extend([GP, SCALARS_GP]);
+            }
+            if elements(k) {
+                passes.push(PRODUCT_X);
             }
             passes.push(GUESS);
         }
@@ -335,9 +368,12 @@ pub(crate) fn solve(
         record(&mut encoder, kernels, bodies, &[k], &passes, max_per_dim);
     }
     let iteration = |k: usize| -> Vec<usize> {
-        let mut p = Vec::with_capacity(7);
+        let mut p = Vec::with_capacity(8);
         if fill(k) {
             p.extend([GP, SCALARS_GP]);
+        }
+        if elements(k) {
+            p.push(PRODUCT_P);
         }
         p.extend([APPLY, SCALARS_ALPHA, UPDATE, SCALARS_BETA, DIRECTION]);
         p

@@ -188,13 +188,3 @@ fn what_the_elements_do_not_take_yet_is_refused_by_key() {
         assert!(e.contains("block.toml") && e.contains(key) && e.contains(words), "{e}");
     }
 }
-
-#[test]
-fn the_gpu_world_refuses_elements_by_name() {
-    use voxcollide_sim::build::build_world;
-    use voxcollide_sim::scene_file::SceneFile;
-    let built = build_world(&SceneFile::parse("block.toml", BLOCK).unwrap()).unwrap();
-    let Some(ctx) = common::gpu() else { return };
-    let Err(e) = GpuWorld::new(&ctx, built.world) else { panic!("the GPU world took finite elements") };
-    assert!(e.to_string().contains("neo-hookean"), "{e}");
-}

@@ -436,3 +436,60 @@ fn a_step_that_outruns_its_largest_move_is_taken_in_parts_along_the_schedule() {
     );
     assert_eq!(one.1, two.1);
 }
+
+/// The press with the block's tetrahedra (`model = "neo-hookean"`, ν = 0.45) in place of its
+/// springs.
+fn neo_hookean_press(integrator: &str) -> String {
+    PRESS
+        .replace("material = { young_kpa", "material = { model = \"neo-hookean\", poisson = 0.45, young_kpa")
+        .replace("integrator = \"implicit\"", &format!("integrator = \"{integrator}\""))
+}
+
+#[test]
+fn the_gpu_world_presses_a_ball_into_neo_hookean_tetrahedra_as_the_cpu_does() {
+    // The elements' forces, their projected stiffness per tetrahedron (an SVD of each F in
+    // f32 on the device, f64 on the CPU), its diagonal blocks in the preconditioner and its
+    // products in every iteration, under the voxel model's penalty.
+    let text = neo_hookean_press("implicit");
+    let world = implicit_world(&text);
+    let tets = world.bodies[0].elements.as_ref().map_or(0, |e| e.tets.len());
+    assert!(tets > 1000, "{tets} tetrahedra");
+    let steps = build_world(&SceneFile::parse("p.toml", &text).unwrap()).unwrap().steps;
+    let Some((cpu, gpu, gaps)) = on_both(world, steps, 0) else { return };
+    let (dc, dg) = (dent(&cpu.world), dent(&gpu.world));
+    assert!(dc > 1.0, "the ball pressed the block {dc} mm");
+    assert!((dg - dc).abs() < 0.02 * dc, "dent {dc} mm (CPU), {dg} mm (GPU)");
+    assert!(gaps[..7].iter().all(|g| *g < 1e-3), "CPU and GPU apart by {gaps:?} mm");
+    let (c, g) = (cpu.stats[0], gpu.stats().unwrap()[0]);
+    assert!(
+        g.iterations > 0 && g.relative_residual <= ImplicitSettings::default().tolerance,
+        "{g:?} against {c:?}"
+    );
+    eprintln!(
+        "{tets} tetrahedra: dent {dc} mm (CPU), {dg} mm (GPU); apart by {gaps:?} mm; solves {c:?} (CPU), {g:?} (GPU)"
+    );
+}
+
+#[test]
+fn the_gpu_world_steps_neo_hookean_tetrahedra_explicitly_as_the_cpu_does() {
+    // The explicit step's forces pass gathers each vertex's tetrahedra after its springs.
+    let text = neo_hookean_press("explicit")
+        .replace("settle = true\n", "")
+        .replace("duration = 0.2", "duration = 0.02");
+    let built = build_world(&SceneFile::parse("p.toml", &text).unwrap()).unwrap();
+    assert_eq!(built.world.integrator, Integrator::Explicit);
+    let Some(ctx) = common::gpu() else { return };
+    let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
+    let mut gpu = GpuWorld::new(&ctx, built.world).unwrap();
+    let steps = built.steps.min(400);
+    for _ in 0..steps {
+        cpu.step().unwrap();
+        gpu.step().unwrap();
+    }
+    gpu.sync().unwrap();
+    let moved = dent(&cpu.world);
+    assert!(moved > 0.05, "the ball pressed the block {moved} mm in {steps} steps");
+    let gap = apart(&cpu.world, &gpu.world);
+    eprintln!("after {steps} steps: dent {moved} mm, CPU and GPU apart by {gap} mm");
+    assert!(gap <= 1e-4 * moved, "CPU and GPU apart by {gap} mm after {steps} steps ({moved} mm dent)");
+}
