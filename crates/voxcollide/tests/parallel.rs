@@ -146,3 +146,57 @@ fn piles_on_either_side_of_the_32_bit_accumulators_match_the_reference() {
         }
     }
 }
+
+#[test]
+fn crowded_voxels_and_ties_probed_in_lanes_match_the_reference() {
+    // The neighbour search probes B in groups of lanes along a row of voxels: groups that end
+    // mid-voxel, at a row's end and at a vertex outside the grid, crowds of B in one voxel,
+    // and A vertices at the same distance from a B vertex (the lower index wins in every lane).
+    use voxcollide::glam::Vec3;
+    let mut a = Vec::new();
+    for z in 0..6 {
+        for y in 0..6 {
+            for x in 0..12 {
+                let p = Vec3::new(x as f32, y as f32, z as f32) * 1.0;
+                a.push(p);
+                a.push(p); // a twin: every distance ties
+            }
+        }
+    }
+    let grid = Initializer::new(1.0).build(&a).unwrap();
+    let mut b = Vec::new();
+    // A crowd of 30 in one voxel, on its faces and corners too.
+    for k in 0..30 {
+        let t = k as f32 / 29.0;
+        b.push(Vec3::new(3.0 + t, 2.0 + (1.0 - t) * 0.999, 2.5));
+    }
+    // Every voxel of a few rows, with some left empty and one vertex outside the grid.
+    for z in [0.5f32, 2.5, 5.5] {
+        for y in [0.5f32, 3.5, 5.5] {
+            for x in 0..12 {
+                if x % 5 == 3 {
+                    continue;
+                }
+                b.push(Vec3::new(x as f32 + 0.5, y, z));
+            }
+            b.push(Vec3::new(40.0, y, z));
+        }
+    }
+    // Halfway between two A vertices along each axis (exact ties across voxels).
+    b.extend([Vec3::new(4.5, 1.0, 1.0), Vec3::new(4.0, 1.5, 1.0), Vec3::new(4.0, 1.0, 1.5)]);
+    for radius in [0.72f32, 0.9, 1.0] {
+        for magnitude in [1.0f32, 1e-3] {
+            let params = ContactParams {
+                magnitude,
+                search: Search::Neighbours { radius },
+                direction: Direction::Pairwise,
+                anchor: Anchor::Fixed,
+            };
+            let expected = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+            let actual = ParallelCpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+            let what = format!("radius {radius}, magnitude {magnitude}");
+            assert!(expected.colliding_b.len() > 20, "{what}: {} colliding", expected.colliding_b.len());
+            assert_eq!(common::compare(&what, &expected, &actual, 0.0), 0, "{what}");
+        }
+    }
+}
