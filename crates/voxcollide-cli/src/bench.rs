@@ -36,7 +36,9 @@ pub struct BenchRow {
     /// Vertices per body.
     pub vertices: usize,
     /// `cpu_reference`, `parallel_cpu`, `gpu_resident`, `gpu_step`, or the baseline
-    /// (`kdtree_kiddo`, `voxel_hashmap`).
+    /// (`kdtree_kiddo`, `voxel_hashmap`); and the resident step in the order the adapter does
+    /// not use by default (`voxcollide::gpu::sorts_b_by_default`): `gpu_resident_b_as_given`
+    /// (B's sort skipped) or `gpu_resident_b_sorted`.
     pub backend: String,
     /// Median milliseconds per step.
     pub median_ms: f64,
@@ -370,24 +372,42 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     Ok(gpu.borrow_mut().step(&w.a, &w.b)?.colliding_b.len())
                 }));
                 let nb = w.b.len() as u32;
-                contenders.push(Contender::new("gpu_resident", &ctx.adapter_name(), 0, move || {
-                    let (device, queue) = (ctx.device(), ctx.queue());
-                    let mut encoder = device.create_command_encoder(&Default::default());
-                    gpu.borrow_mut().record(&mut encoder, ba, n as u32, bb, nb)?;
-                    queue.submit([encoder.finish()]);
-                    device
-                        .poll(wgpu::PollType::wait_indefinitely())
-                        .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
-                    Ok(0)
-                }));
+                // The resident step as it runs on this adapter, and in the other order: B sorted
+                // by A's slots, or probed as it comes in (whether the sort pays for itself).
+                let default = voxcollide::gpu::sorts_b_by_default(ctx);
+                let other = if default { "gpu_resident_b_as_given" } else { "gpu_resident_b_sorted" };
+                for (backend, sort_b) in [("gpu_resident", default), (other, !default)] {
+                    contenders.push(Contender::new(backend, &ctx.adapter_name(), 0, move || {
+                        let (device, queue) = (ctx.device(), ctx.queue());
+                        let mut encoder = device.create_command_encoder(&Default::default());
+                        let mut gpu = gpu.borrow_mut();
+                        gpu.set_sort_b(sort_b);
+                        let recorded = gpu.record(&mut encoder, ba, n as u32, bb, nb);
+                        gpu.set_sort_b(default);
+                        recorded?;
+                        queue.submit([encoder.finish()]);
+                        device
+                            .poll(wgpu::PollType::wait_indefinitely())
+                            .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
+                        Ok(0)
+                    }));
+                }
             }
             let mut measured = interleaved(config.samples, contenders)?;
             if let Some((gpu, ctx)) = &gpu {
                 let gpu = &mut *gpu.borrow_mut();
-                // The resident step's own contacts, read back after the timing.
-                let c = gpu.read_report()?.colliding_b.len();
-                if let Some(m) = measured.iter_mut().find(|m| m.backend == "gpu_resident") {
-                    m.colliding = c;
+                // The resident steps' own contacts: one more step in each order, read back after
+                // the timing.
+                if let Some((ba, bb)) = &resident {
+                    let default = voxcollide::gpu::sorts_b_by_default(ctx);
+                    for m in measured.iter_mut().filter(|m| m.backend.starts_with("gpu_resident")) {
+                        gpu.set_sort_b(if m.backend == "gpu_resident" { default } else { !default });
+                        let mut encoder = ctx.device().create_command_encoder(&Default::default());
+                        gpu.record(&mut encoder, ba, n as u32, bb, w.b.len() as u32)?;
+                        ctx.queue().submit([encoder.finish()]);
+                        m.colliding = gpu.read_report()?.colliding_b.len();
+                    }
+                    gpu.set_sort_b(default);
                 }
                 // Per pass, in steps of their own: profiling splits the step into timed passes.
                 if let (true, Some((ba, bb))) = (config.passes, &resident)
@@ -501,7 +521,7 @@ pub fn voxel_hashmap(w: &Workload) -> usize {
 #[must_use]
 pub fn table(rows: &[BenchRow]) -> String {
     let mut out = format!(
-        "{:<14} {:>9} {:<14} {:>11} {:>12} {:>11} {:>13} {:>9} {:>8} {:>8}  {}\n",
+        "{:<14} {:>9} {:<23} {:>11} {:>12} {:>11} {:>13} {:>9} {:>8} {:>8}  {}\n",
         "workload",
         "vertices",
         "backend",
@@ -517,7 +537,7 @@ pub fn table(rows: &[BenchRow]) -> String {
     for r in rows {
         let threads = if r.threads == 0 { "-".to_string() } else { r.threads.to_string() };
         out += &format!(
-            "{:<14} {:>9} {:<14} {:>11.3} {:>12.3e} {:>10.2}x {:>13} {:>9} {:>8} {:>8}  {}\n",
+            "{:<14} {:>9} {:<23} {:>11.3} {:>12.3e} {:>10.2}x {:>13} {:>9} {:>8} {:>8}  {}\n",
             r.workload,
             r.vertices,
             r.backend,

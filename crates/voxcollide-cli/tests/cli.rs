@@ -100,6 +100,11 @@ fn bench_prints_every_backend_and_writes_json() {
         for backend in ["gpu_step", "gpu_resident"] {
             assert!(stdout.contains(backend), "no {backend} in:\n{stdout}");
         }
+        // And the resident step in the order of B its adapter does not use by default.
+        assert!(
+            stdout.contains("gpu_resident_b_as_given") || stdout.contains("gpu_resident_b_sorted"),
+            "no resident step in the other order in:\n{stdout}"
+        );
     }
     let rows: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let rows = rows.as_array().unwrap();

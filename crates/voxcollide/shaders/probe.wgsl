@@ -5,7 +5,8 @@
 
 @group(0) @binding(0) var<uniform> params: Params;
 @group(0) @binding(1) var<storage, read_write> state: State;
-// B in A's slot order (passes bin_b to sort_b): (position bits, index in B).
+// B in A's slot order (passes bin_b to sort_b): (position bits, index in B); or, where
+// SORTED_B is false, B's own positions as given (their bits; the index is the invocation's).
 @group(0) @binding(2) var<storage, read> sorted_b: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read> start: array<u32>;
 // A in slot order: (position bits, index in A). A walk reads positions here, and A's force
@@ -25,6 +26,8 @@ override SEARCH: u32 = SEARCH_VOXEL;
 override DIRECTION: u32 = DIRECTION_PAIRWISE;
 // Equals params.dense != 0u: with a slot per voxel, no slot holds another voxel's vertices.
 override DENSE: bool = false;
+// False: B is probed in the order it comes in, its sort skipped (GpuCollision::set_sort_b).
+override SORTED_B: bool = true;
 
 // The nearest candidates so far, in (d2, index) order; only the first `n` are valid. `at`:
 // where each sits in `sorted` (its position there, and its force accumulator).
@@ -138,9 +141,14 @@ fn main(
     // sorted, and their forces stay cleared.
     let k = item_index(gid, nwg);
     var hit = false;
-    if k < atomicLoad(&state.binned_b) {
-        let entry = sorted_b[k];
-        hit = probe(entry.w, bitcast<vec3<f32>>(entry.xyz));
+    if SORTED_B {
+        if k < atomicLoad(&state.binned_b) {
+            let entry = sorted_b[k];
+            hit = probe(entry.w, bitcast<vec3<f32>>(entry.xyz));
+        }
+    } else if k < params.n_b {
+        // (A vertex outside the grid gets a cleared force, as the sort would leave it.)
+        hit = probe(k, bitcast<vec3<f32>>(sorted_b[k].xyz));
     }
     if hit {
         atomicAdd(&wg_colliding, 1u);

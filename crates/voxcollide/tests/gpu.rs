@@ -357,3 +357,54 @@ fn a_walk_the_driver_cuts_short_is_an_error_not_a_missed_contact() {
         }
     }
 }
+
+#[test]
+fn b_probed_as_given_matches_the_cpu_in_every_order_and_table() {
+    // `set_sort_b(false)` skips B's counting sort and probes B in its own order: the same
+    // reports, for every search and direction, dense and hashed tables, the workloads' three
+    // orders, and bodies with vertices off the grid and not finite; and back again.
+    let Some(ctx) = gpu() else { return };
+    let default = GpuCollision::new(
+        &ctx,
+        workload::lattice(8, 1).unwrap().grid,
+        workload::lattice(8, 1).unwrap().params,
+    )
+    .unwrap()
+    .sort_b();
+    assert_eq!(default, gpu::sorts_b_by_default(&ctx));
+    // A software adapter probes B as given (docs/performance-notes.md §38).
+    assert_eq!(default, !exact_adapter(&ctx), "{}", ctx.adapter_name());
+    let (a, b, voxel, built) = bodies(22, 20_000);
+    let wide = VoxelGrid::new(built.center(), voxel, built.dims() * 8).unwrap();
+    type Case = (String, Vec<Vec3>, Vec<Vec3>, VoxelGrid, ContactParams);
+    let mut cases: Vec<Case> = Vec::new();
+    for (grid, what) in [(built, "dense"), (wide, "hashed")] {
+        for params in all_params(1.0, 0.9 * voxel) {
+            cases.push((format!("{what} {params:?}"), a.clone(), b.clone(), grid, params));
+        }
+    }
+    for w in [
+        workload::lattice(40_000, 5).unwrap(),
+        workload::z_fastest(40_000, 6).unwrap(),
+        workload::shuffled(40_000, 7).unwrap(),
+        workload::paper(40_000, 8).unwrap(),
+    ] {
+        cases.push((format!("workload {:?}", w.params), w.a, w.b, w.grid, w.params));
+    }
+    let mut inexact = 0;
+    for (what, a, b, grid, params) in cases {
+        let cpu = CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap();
+        let mut backend = GpuCollision::new(&ctx, grid, params).unwrap();
+        backend.set_sort_b(false);
+        assert!(!backend.sort_b());
+        let given = backend.step(&a, &b).unwrap();
+        assert!(cpu.colliding_b.len() > 1000, "{what}: {}", cpu.colliding_b.len());
+        inexact += compare(&format!("{what}, B as given"), &cpu, &given, 1e-5 * params.magnitude);
+        backend.set_sort_b(true);
+        let sorted = backend.step(&a, &b).unwrap();
+        inexact += compare(&format!("{what}, B sorted"), &cpu, &sorted, 1e-5 * params.magnitude);
+    }
+    if exact_adapter(&ctx) {
+        assert_eq!(inexact, 0, "{}: force components differ in their bits", ctx.adapter_name());
+    }
+}

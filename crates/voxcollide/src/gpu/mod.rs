@@ -2,8 +2,8 @@
 //!
 //! A step is fourteen passes recorded into one command encoder — bounds (FollowA only), frame, a
 //! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), the same of B by
-//! A's slots (bin_b … sort_b, so that the probe's speed does not depend on B's order), probe,
-//! resolve —
+//! A's slots (bin_b … sort_b, so that the probe's speed does not depend on B's order; skipped
+//! where B is probed as it comes in, [`GpuCollision::set_sort_b`]), probe, resolve —
 //! with every intermediate in device buffers that are created once and reused while the sizes
 //! fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
 //! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
@@ -37,6 +37,17 @@ use crate::voxel_data::{dense_slots, hashed_slots};
 /// lavapipe: docs/performance-notes.md). Keep in sync with `WORKGROUP_SIZE` in
 /// `shaders/common.wgsl`.
 pub const WORKGROUP_SIZE: u32 = 64;
+/// Whether a new [`GpuCollision`] on `ctx` sorts B by A's slots before each probe
+/// ([`GpuCollision::set_sort_b`]). Not on a software adapter (a CPU device such as Mesa's
+/// llvmpipe): there B's sort cost more than it saved in 14 of the 15 workloads and sizes
+/// measured (skipping it took 0.68–0.87 of the step's time), all but `shuffled(1M)`, where
+/// sorting was 1.15× quicker (docs/performance-notes.md §38). On a hardware GPU, where a
+/// warp's scattered reads cost most, it sorts until a real device has been measured.
+#[must_use]
+pub fn sorts_b_by_default(ctx: &GpuContext) -> bool {
+    ctx.adapter_info().is_none_or(|info| info.device_type != wgpu::DeviceType::Cpu)
+}
+
 /// Bytes per vertex position and per force: `vec4<f32>`.
 const VEC4: u64 = 16;
 
@@ -60,6 +71,9 @@ pub(crate) struct Kernels {
     sort_b: Kernel,
     probe_hashed: Kernel,
     probe_dense: Kernel,
+    /// The probes of B as given (`SORTED_B = false`): [`GpuCollision::set_sort_b`].
+    probe_hashed_given: Kernel,
+    probe_dense_given: Kernel,
     resolve: Kernel,
 }
 
@@ -67,7 +81,7 @@ impl Kernels {
     /// The kernels for `params`: the probe is specialised to its search and direction.
     fn new(device: &Device, params: &GpuParams) -> Kernels {
         use Slot::{Read, ReadWrite, Uniform};
-        let probe = |dense: bool| {
+        let probe = |dense: bool, sorted_b: bool| {
             Kernel::with_constants(
                 device,
                 if dense { "voxcollide probe (dense)" } else { "voxcollide probe (hashed)" },
@@ -77,6 +91,7 @@ impl Kernels {
                     ("SEARCH", f64::from(params.search)),
                     ("DIRECTION", f64::from(params.direction)),
                     ("DENSE", f64::from(u8::from(dense))),
+                    ("SORTED_B", f64::from(u8::from(sorted_b))),
                 ],
             )
         };
@@ -122,8 +137,10 @@ impl Kernels {
                 &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
                 &[("BODY", 1.0)],
             ),
-            probe_hashed: probe(false),
-            probe_dense: probe(true),
+            probe_hashed: probe(false, true),
+            probe_dense: probe(true, true),
+            probe_hashed_given: probe(false, false),
+            probe_dense_given: probe(true, false),
             resolve: Kernel::new(
                 device,
                 "voxcollide resolve",
@@ -234,6 +251,8 @@ struct Bound {
     sort_b: wgpu::BindGroup,
     /// Hashed, dense.
     probe: [wgpu::BindGroup; 2],
+    /// The probes of B as given, which read B's own positions.
+    probe_given: [wgpu::BindGroup; 2],
     resolve: wgpu::BindGroup,
 }
 
@@ -321,6 +340,8 @@ pub struct GpuCollision {
     dense: Option<bool>,
     bind_group_builds: u32,
     profile: Option<Profile>,
+    /// Whether B is sorted by A's slots before the probe ([`set_sort_b`](Self::set_sort_b)).
+    sort_b: bool,
     // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
     upload: Option<(Buffer, Buffer)>,
     staging: Option<Buffer>,
@@ -362,10 +383,25 @@ impl GpuCollision {
             dense: None,
             bind_group_builds: 0,
             profile: None,
+            sort_b: sorts_b_by_default(ctx),
             upload: None,
             staging: None,
             scratch: Vec::new(),
         })
+    }
+
+    /// Whether B is sorted by A's slots before each probe (`true`) or probed in the order it
+    /// comes in (`false`: the five passes of B's counting sort are skipped). The reports are
+    /// the same either way, to the bit; only the speed differs. The default is measured per
+    /// kind of adapter ([`sorts_b_by_default`]).
+    pub fn set_sort_b(&mut self, on: bool) {
+        self.sort_b = on;
+    }
+
+    /// See [`set_sort_b`](Self::set_sort_b).
+    #[must_use]
+    pub fn sort_b(&self) -> bool {
+        self.sort_b
     }
 
     /// The most vertices either body may have on this device: the smaller of
@@ -527,6 +563,12 @@ impl GpuCollision {
                         ],
                     )
                 }),
+                probe_given: [&k.probe_hashed_given, &k.probe_dense_given].map(|probe| {
+                    probe.bind(
+                        &device,
+                        &[&bufs.params, &bufs.state, b, &sa.start, &sa.sorted, &bufs.fixed, &bufs.force_b],
+                    )
+                }),
                 resolve: k
                     .resolve
                     .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &sa.sorted, &bufs.force_a]),
@@ -547,7 +589,17 @@ impl GpuCollision {
         encoder.clear_buffer(&bufs.force_a, 0, Some(VEC4 * u64::from(n_a)));
         encoder.clear_buffer(&bufs.fixed, 0, Some(32 * u64::from(n_a)));
         let k = &self.kernels;
-        let probe = if dense { &k.probe_dense } else { &k.probe_hashed };
+        let sort_b = self.sort_b;
+        let probe = match (dense, sort_b) {
+            (true, true) => &k.probe_dense,
+            (false, true) => &k.probe_hashed,
+            (true, false) => &k.probe_dense_given,
+            (false, false) => &k.probe_hashed_given,
+        };
+        let probe_group =
+            if sort_b { &bound.probe[usize::from(dense)] } else { &bound.probe_given[usize::from(dense)] };
+        // B's sort, or nothing where B is probed as given.
+        let b_items = |items: u32| Some(if sort_b { items } else { 0 });
         let follow = self.params.anchor == Anchor::FollowA;
         // The step's dispatches in order (one invocation per item, or one workgroup): a fixed
         // array, so that recording allocates nothing of its own.
@@ -560,12 +612,12 @@ impl GpuCollision {
             (&k.scan_carry, &bound.scan_carry, None),
             (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
             (&k.sort, &bound.sort, Some(n_a)),
-            (&k.bin_b, &bound.bin_b, Some(n_b)),
-            (&k.scan, &bound.scan_b, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
-            (&k.scan_carry, &bound.scan_carry_b, None),
-            (&k.scan_add, &bound.scan_add_b, Some(scan_slots(slots) / 4)),
-            (&k.sort_b, &bound.sort_b, Some(n_b)),
-            (probe, &bound.probe[usize::from(dense)], Some(n_b)),
+            (&k.bin_b, &bound.bin_b, b_items(n_b)),
+            (&k.scan, &bound.scan_b, b_items(scan_blocks(slots) * WORKGROUP_SIZE)),
+            (&k.scan_carry, &bound.scan_carry_b, if sort_b { None } else { Some(0) }),
+            (&k.scan_add, &bound.scan_add_b, b_items(scan_slots(slots) / 4)),
+            (&k.sort_b, &bound.sort_b, b_items(n_b)),
+            (probe, probe_group, Some(n_b)),
             (&k.resolve, &bound.resolve, Some(n_a)),
         ];
         let dispatch =
