@@ -1,5 +1,6 @@
 // The Neo-Hookean tetrahedra of a body (DESIGN §12, `model = "neo-hookean"`), written in the same
-// order as their CPU twin (src/fem.rs): each tetrahedron's force on a corner, and the implicit
+// order as their CPU twin (src/fem.rs), each product rounded as the CPU rounds it (`unfused`), so
+// that the explicit step's forces equal the CPU's to the bit: each tetrahedron's force on a corner, and the implicit
 // integrator's projected stiffness (`Tangent`) with its product. A shader that composes this file
 // declares `pos`, `tet_index` and `tet_rest`:
 //
@@ -30,9 +31,33 @@ fn tet_range(i: u32) -> vec2<u32> {
     return vec2<u32>(tet_index[base + i], tet_index[base + i + 1u]) + vec2<u32>(base + sim.n + 1u);
 }
 
-// glam's `Mat3 * Vec3`: `x_axis·v.x + y_axis·v.y + z_axis·v.z`, in that order.
+// A product, kept from being fused into the sum it feeds. A fused multiply-add rounds once where
+// the CPU rounds twice, and llvmpipe fuses these matrix expressions (measured: a tetrahedron's
+// `V₀·D_s`, gathered, differed from the CPU's in the last bit; `D_s` alone did not). A select on
+// a condition the compiler cannot know (no body has 2³² − 1 tetrahedra) stands between them.
+fn unfused3(v: vec3<f32>) -> vec3<f32> {
+    return select(v, vec3<f32>(0.0), sim.tets == 0xffffffffu);
+}
+
+fn unfused(x: f32) -> f32 {
+    return select(x, 0.0, sim.tets == 0xffffffffu);
+}
+
+// glam's `Vec3::dot`, each product rounded.
+fn dot_unfused(u: vec3<f32>, v: vec3<f32>) -> f32 {
+    return unfused(u.x * v.x) + unfused(u.y * v.y) + unfused(u.z * v.z);
+}
+
+// glam's `Vec3::cross`, each product rounded.
+fn cross_unfused(u: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
+    return unfused3(vec3<f32>(u.y * v.z, u.z * v.x, u.x * v.y))
+        - unfused3(vec3<f32>(u.z * v.y, u.x * v.z, u.y * v.x));
+}
+
+// glam's `Mat3 * Vec3`: `x_axis·v.x + y_axis·v.y + z_axis·v.z`, in that order, each product
+// rounded.
 fn mv3(m: mat3x3<f32>, v: vec3<f32>) -> vec3<f32> {
-    return m[0] * v.x + m[1] * v.y + m[2] * v.z;
+    return unfused3(m[0] * v.x) + unfused3(m[1] * v.y) + unfused3(m[2] * v.z);
 }
 
 // glam's `Mat3 * Mat3`, column by column.
@@ -42,7 +67,7 @@ fn mm3(a: mat3x3<f32>, b: mat3x3<f32>) -> mat3x3<f32> {
 
 // glam's `Mat3::determinant`: `x·(y × z)`.
 fn det3(m: mat3x3<f32>) -> f32 {
-    return dot3(m[0], cross3(m[1], m[2]));
+    return dot_unfused(m[0], cross_unfused(m[1], m[2]));
 }
 
 // `F` of tetrahedron k with its corners at `p`.
@@ -65,9 +90,18 @@ fn tet_corner_force(k: u32, c: u32) -> vec3<f32> {
     let f = deformation(k, pos[t.x].xyz, pos[t.y].xyz, pos[t.z].xyz, pos[t.w].xyz);
     let j = det3(f);
     // cof F = J F⁻ᵀ, written without the inverse so that it is defined at J = 0.
-    let cof = mat3x3<f32>(cross3(f[1], f[2]), cross3(f[2], f[0]), cross3(f[0], f[1]));
-    let stress = sim.mu * f + (sim.lambda * (j - sim.alpha)) * cof;
-    let h = -tet_volume(k) * mm3(stress, transpose(tet_dm_inv(k)));
+    let cof = mat3x3<f32>(cross_unfused(f[1], f[2]), cross_unfused(f[2], f[0]), cross_unfused(f[0], f[1]));
+    // μF + λ'(J − α)·cof F, each term rounded before the sum.
+    let a = sim.mu * f;
+    let b = (sim.lambda * (j - sim.alpha)) * cof;
+    let stress = mat3x3<f32>(
+        unfused3(a[0]) + unfused3(b[0]),
+        unfused3(a[1]) + unfused3(b[1]),
+        unfused3(a[2]) + unfused3(b[2]),
+    );
+    let m = mm3(stress, transpose(tet_dm_inv(k)));
+    let v = -tet_volume(k);
+    let h = mat3x3<f32>(unfused3(v * m[0]), unfused3(v * m[1]), unfused3(v * m[2]));
     return corner_of(h, c);
 }
 
