@@ -33,6 +33,24 @@ fn run(d: &Path, name: &str, scene: &str) -> (String, serde_json::Value) {
     (stdout, summary)
 }
 
+/// Runs `scene` on the GPU; its stdout and summary.json, or `None` where there is no adapter
+/// (a skip, unless VOXCOLLIDE_REQUIRE_GPU makes that a failure).
+fn run_gpu(d: &Path, name: &str, scene: &str) -> Option<(String, serde_json::Value)> {
+    let output = run_on(d, name, scene, "gpu");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    if !output.status.success()
+        && stderr.contains("adapter")
+        && std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() != Ok("1")
+    {
+        return None;
+    }
+    let stdout = String::from_utf8_lossy(&output.stdout).into_owned();
+    assert!(output.status.success(), "{stdout}\n{stderr}");
+    let summary =
+        serde_json::from_str(&std::fs::read_to_string(d.join(name).join("summary.json")).unwrap()).unwrap();
+    Some((stdout, summary))
+}
+
 const BALLOON: &str = r#"units = "mm"
 [time]
 duration = 0.3
@@ -124,21 +142,10 @@ fn a_ball_pressed_in_rests_where_the_explicit_integrator_puts_it() {
 fn the_gpu_backend_steps_the_implicit_integrator_to_the_cpus_rest() {
     let d = dir("gpu");
     let scene = BALLOON.replace("INTEGRATOR", "implicit");
-    let output = run_on(&d, "gpu", &scene, "gpu");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    // (Skips without an adapter, unless VOXCOLLIDE_REQUIRE_GPU makes that a failure.)
-    if !output.status.success()
-        && stderr.contains("adapter")
-        && std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() != Ok("1")
-    {
-        return;
-    }
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "{stdout}\n{stderr}");
+    let Some((stdout, gpu)) = run_gpu(&d, "gpu", &scene) else { return };
     let read = |name: &str| -> serde_json::Value {
         serde_json::from_str(&std::fs::read_to_string(d.join(name).join("summary.json")).unwrap()).unwrap()
     };
-    let gpu = read("gpu");
     let (_, cpu) = run(&d, "cpu", &scene);
     assert_eq!((gpu["backend"].as_str(), gpu["integrator"].as_str()), (Some("gpu"), Some("implicit")));
     assert_eq!(gpu["settled"], true, "{stdout}");
@@ -193,18 +200,7 @@ fn the_gpu_backend_presses_neo_hookean_tetrahedra_as_the_cpu_does() {
         .replace("settle = true\n", "")
         .replace("duration = 0.4", "duration = 0.12")
         .replace("t = 0.3, position = [0, 0, 11]", "t = 0.1, position = [0, 0, 12]");
-    let output = run_on(&d, "gpu", &scene, "gpu");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    if !output.status.success()
-        && stderr.contains("adapter")
-        && std::env::var("VOXCOLLIDE_REQUIRE_GPU").as_deref() != Ok("1")
-    {
-        return;
-    }
-    let stdout = String::from_utf8_lossy(&output.stdout);
-    assert!(output.status.success(), "{stdout}\n{stderr}");
-    let gpu: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(d.join("gpu").join("summary.json")).unwrap()).unwrap();
+    let Some((_, gpu)) = run_gpu(&d, "gpu", &scene) else { return };
     let (_, cpu) = run(&d, "cpu", &scene);
     assert_eq!(gpu["backend"], "gpu");
     assert_eq!(gpu["steps"], cpu["steps"]);
