@@ -87,6 +87,64 @@ fn bench(c: &mut Criterion) {
         }
     }
     group.finish();
+    paired_ratio(cores);
+}
+
+/// The ratio of one thread's step to every core's, measured in pairs: the same step from the
+/// same state on one thread and then on every core (or the other way round, every other pair),
+/// so that both halves of a pair see the same moment of a shared machine. Criterion's two
+/// figures above come from runs a minute apart, and this machine's speed moves by more than
+/// the ratio's margin over that time. Prints the median of the pairs' ratios and its quartiles.
+fn paired_ratio(cores: usize) {
+    if cores < 2 {
+        return;
+    }
+    let pairs = std::env::var("VOXCOLLIDE_PAIRS").ok().and_then(|s| s.parse().ok()).unwrap_or(41);
+    for (name, elements) in [("springs", false), ("neo_hookean", true)] {
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let all = rayon::ThreadPoolBuilder::new().num_threads(cores).build().unwrap();
+        let mut w = all.install(|| block(elements));
+        let (pos, vel, guess) =
+            (w.world.bodies[0].pos.clone(), w.world.bodies[0].vel.clone(), w.guess.clone());
+        let mut time = |pool: &rayon::ThreadPool| {
+            w.world.bodies[0].pos.clone_from(&pos);
+            w.world.bodies[0].vel.clone_from(&vel);
+            w.guess.clone_from(&guess);
+            let start = std::time::Instant::now();
+            pool.install(|| w.step().unwrap());
+            start.elapsed().as_secs_f64()
+        };
+        // Warm both pools and the pages.
+        time(&one);
+        time(&all);
+        let mut ratios = Vec::with_capacity(pairs);
+        let (mut t1, mut tn) = (Vec::with_capacity(pairs), Vec::with_capacity(pairs));
+        for k in 0..pairs {
+            let (a, b) = if k % 2 == 0 {
+                let a = time(&one);
+                (a, time(&all))
+            } else {
+                let b = time(&all);
+                (time(&one), b)
+            };
+            ratios.push(a / b);
+            t1.push(a);
+            tn.push(b);
+        }
+        let median = |v: &mut Vec<f64>, q: f64| {
+            v.sort_by(f64::total_cmp);
+            v[((v.len() - 1) as f64 * q).round() as usize]
+        };
+        eprintln!(
+            "implicit_step_20k/{name}: {cores} threads against 1, {pairs} interleaved pairs: \
+             median {:.2}× (quartiles {:.2}–{:.2}×); medians {:.1} / {:.1} ms",
+            median(&mut ratios, 0.5),
+            median(&mut ratios, 0.25),
+            median(&mut ratios, 0.75),
+            median(&mut t1, 0.5) * 1e3,
+            median(&mut tn, 0.5) * 1e3,
+        );
+    }
 }
 
 /// The springs' block and the Neo-Hookean one stepped on the GPU's implicit passes (`GpuWorld`)
