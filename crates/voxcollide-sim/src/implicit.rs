@@ -46,7 +46,7 @@ use rayon::prelude::*;
 
 use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
 use crate::contact::{POINT_VERTICES, Stencil, entries};
-use crate::fem::{Tangent, corner_of};
+use crate::fem::{TetStiffness, corner_of};
 use voxcollide::math::cross;
 
 /// Vertices per parallel task; also the chunk of every dot product's fixed-order sum.
@@ -196,7 +196,7 @@ struct System {
     free: Vec<bool>,
     /// Per tetrahedron of a body of finite elements: its material's projected stiffness
     /// (empty for springs).
-    tangents: Vec<Tangent>,
+    tangents: Vec<TetStiffness>,
     /// Per vertex: the block-Jacobi preconditioner's inverse block.
     precondition: Vec<Mat3>,
     /// The elements' products of one `apply`, kept from one to the next (a fresh one every
@@ -219,7 +219,7 @@ impl System {
                 (0..e.tets.len())
                     .into_par_iter()
                     .with_min_len(CHUNK)
-                    .map(|k| e.stiffness_product(&self.tangents[k], k, e.tets[k].map(|v| u[v as usize]))),
+                    .map(|k| self.tangents[k].product(e.tets[k].map(|v| u[v as usize]))),
             );
         }
         let elements = &*elements;
@@ -357,14 +357,9 @@ impl MassSpring {
             .map(|(kc, c)| h * h * *kc + h * *c)
             .collect();
         // The elements' stiffness at the start of the step, and its diagonal blocks.
-        let tangents = self.elements.as_ref().map_or_else(Vec::new, |e| e.tangents(&self.pos));
-        let element_blocks: Vec<[Mat3; 4]> = self.elements.as_ref().map_or_else(Vec::new, |e| {
-            (0..e.tets.len())
-                .into_par_iter()
-                .with_min_len(CHUNK)
-                .map(|k| e.diagonal_blocks(&tangents[k], k))
-                .collect()
-        });
+        let tangents = self.elements.as_ref().map_or_else(Vec::new, |e| e.stiffnesses(&self.pos));
+        let element_blocks: Vec<[Mat3; 4]> =
+            tangents.par_iter().with_min_len(CHUNK).map(TetStiffness::diagonal_blocks).collect();
         let precondition: Vec<Mat3> = (0..n)
             .into_par_iter()
             .with_min_len(CHUNK)
