@@ -240,18 +240,21 @@ fn rotation_svd(f: mat3x3<f32>) -> Svd {
     return Svd(mat3x3<f32>(u0, u1, u2), vec3<f32>(s0, s1, s2), v);
 }
 
-// A tetrahedron's projected stiffness (CPU: `fem::Tangent`): U and V, the 3×3 block on the
-// stretches, and per pair of shears (1,2), (0,2), (0,1) the eigenvalues on δF̂_ij + δF̂_ji and
-// δF̂_ij − δF̂_ji, all clamped at 0.
+// A tetrahedron's projected stiffness with its rest shape folded in (CPU: `fem::TetStiffness`):
+// U, W = D_m⁻¹·V, V₀ times the 3×3 block on the stretches, and V₀ times the shears' weights
+// per pair (1,2), (0,2), (0,1): T(d)_ij = a·d_ij + b·d_ji off the diagonal, with a and b the
+// half sum and half difference of the pair's eigenvalues on δF̂_ij + δF̂_ji and δF̂_ij − δF̂_ji,
+// each clamped at 0.
 struct Tangent {
     u: mat3x3<f32>,
-    v: mat3x3<f32>,
+    w: mat3x3<f32>,
     stretch: mat3x3<f32>,
-    plus: vec3<f32>,
-    minus: vec3<f32>,
+    a: vec3<f32>,
+    b: vec3<f32>,
 }
 
-fn tangent_at(f: mat3x3<f32>) -> Tangent {
+// Tetrahedron k's stiffness at its deformation f.
+fn tangent_at(f: mat3x3<f32>, k: u32) -> Tangent {
     let svd = rotation_svd(f);
     let sigma = svd.sigma;
     let mu = sim.mu;
@@ -276,42 +279,37 @@ fn tangent_at(f: mat3x3<f32>) -> Tangent {
     stretch = mm3(ql, transpose(q));
     let plus = max(mu - s * sigma, vec3<f32>(0.0));
     let minus = max(mu + s * sigma, vec3<f32>(0.0));
-    return Tangent(svd.u, svd.v, stretch, plus, minus);
+    let v0 = tet_volume(k);
+    let half = 0.5 * v0;
+    return Tangent(svd.u, mm3(tet_dm_inv(k), svd.v), v0 * stretch, half * (plus + minus), half * (plus - minus));
 }
 
-// δP = ∂P/∂F : δF (CPU: `Tangent::apply`).
-fn tangent_apply(t: Tangent, df: mat3x3<f32>) -> mat3x3<f32> {
-    let d = mm3(mm3(transpose(t.u), df), t.v);   // d[j][i] = D_ij
+// `V₀·δP·D_m⁻ᵀ` of a tetrahedron for its corners' displacements: `U·T(Uᵀ·D_s·W)·Wᵀ` (CPU:
+// `TetStiffness::product`).
+fn stiffness_product(t: Tangent, u0: vec3<f32>, u1: vec3<f32>, u2: vec3<f32>, u3: vec3<f32>) -> mat3x3<f32> {
+    let d = mm3(transpose(t.u), mm3(mat3x3<f32>(u1 - u0, u2 - u0, u3 - u0), t.w));   // d[j][i] = D_ij
     let diag = mv3(t.stretch, vec3<f32>(d[0][0], d[1][1], d[2][2]));
     var p = mat3x3<f32>(vec3<f32>(diag.x, 0.0, 0.0), vec3<f32>(0.0, diag.y, 0.0), vec3<f32>(0.0, 0.0, diag.z));
     let pairs = array<vec2<u32>, 3>(vec2<u32>(1u, 2u), vec2<u32>(0u, 2u), vec2<u32>(0u, 1u));
     for (var k = 0u; k < 3u; k++) {
         let i = pairs[k].x;
         let j = pairs[k].y;
-        let sym = 0.5 * (d[j][i] + d[i][j]);
-        let anti = 0.5 * (d[j][i] - d[i][j]);
-        p[j][i] = t.plus[k] * sym + t.minus[k] * anti;
-        p[i][j] = t.plus[k] * sym - t.minus[k] * anti;
+        p[j][i] = t.a[k] * d[j][i] + t.b[k] * d[i][j];
+        p[i][j] = t.a[k] * d[i][j] + t.b[k] * d[j][i];
     }
-    return mm3(mm3(t.u, p), transpose(t.v));
+    return mm3(mm3(t.u, p), transpose(t.w));
 }
 
-// `V₀·δP·D_m⁻ᵀ` of tetrahedron k for its corners' displacements (CPU: `stiffness_product`).
-fn stiffness_product(t: Tangent, k: u32, u0: vec3<f32>, u1: vec3<f32>, u2: vec3<f32>, u3: vec3<f32>) -> mat3x3<f32> {
-    let dm_inv = tet_dm_inv(k);
-    let dp = tangent_apply(t, mm3(mat3x3<f32>(u1 - u0, u2 - u0, u3 - u0), dm_inv));
-    return tet_volume(k) * mm3(dp, transpose(dm_inv));
-}
-
-// The diagonal block of `−K` of tetrahedron k at its corner c (CPU: `diagonal_blocks`).
-fn diagonal_block(t: Tangent, k: u32, c: u32) -> mat3x3<f32> {
+// The diagonal block of `−K` of a tetrahedron at its corner c (CPU:
+// `TetStiffness::diagonal_blocks`).
+fn diagonal_block(t: Tangent, c: u32) -> mat3x3<f32> {
     var cols: array<vec3<f32>, 3>;
     for (var a = 0u; a < 3u; a++) {
         var e = vec3<f32>(0.0);
         e[a] = 1.0;
         var u = array<vec3<f32>, 4>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
         u[c] = e;
-        cols[a] = corner_of(stiffness_product(t, k, u[0], u[1], u[2], u[3]), c);
+        cols[a] = corner_of(stiffness_product(t, u[0], u[1], u[2], u[3]), c);
     }
     return mat3x3<f32>(cols[0], cols[1], cols[2]);
 }

@@ -333,12 +333,12 @@ fn finite3(v: vec3<f32>) -> bool {
 
 fn store_tangent(k: u32, t: Tangent) {
     let b = TET_WORK * k;
-    tet_work[b] = vec4<f32>(t.u[0], t.plus.x);
-    tet_work[b + 1u] = vec4<f32>(t.u[1], t.plus.y);
-    tet_work[b + 2u] = vec4<f32>(t.u[2], t.plus.z);
-    tet_work[b + 3u] = vec4<f32>(t.v[0], t.minus.x);
-    tet_work[b + 4u] = vec4<f32>(t.v[1], t.minus.y);
-    tet_work[b + 5u] = vec4<f32>(t.v[2], t.minus.z);
+    tet_work[b] = vec4<f32>(t.u[0], t.a.x);
+    tet_work[b + 1u] = vec4<f32>(t.u[1], t.a.y);
+    tet_work[b + 2u] = vec4<f32>(t.u[2], t.a.z);
+    tet_work[b + 3u] = vec4<f32>(t.w[0], t.b.x);
+    tet_work[b + 4u] = vec4<f32>(t.w[1], t.b.y);
+    tet_work[b + 5u] = vec4<f32>(t.w[2], t.b.z);
     tet_work[b + 6u] = vec4<f32>(t.stretch[0], 0.0);
     tet_work[b + 7u] = vec4<f32>(t.stretch[1], 0.0);
     tet_work[b + 8u] = vec4<f32>(t.stretch[2], 0.0);
@@ -384,20 +384,20 @@ fn gather_product(i: u32, which: u32) -> vec3<f32> {
 fn pass_tetrahedron(k: u32) {
     let t = tet_corners(k);
     if PASS == PASS_TANGENT {
-        store_tangent(k, tangent_at(deformation(k, pos[t.x].xyz, pos[t.y].xyz, pos[t.z].xyz, pos[t.w].xyz)));
+        store_tangent(k, tangent_at(deformation(k, pos[t.x].xyz, pos[t.y].xyz, pos[t.z].xyz, pos[t.w].xyz), k));
         return;
     }
     let tangent = load_tangent(k);
     if PASS == PASS_PRODUCT_RHS {
-        store_product(k, 0u, stiffness_product(tangent, k, vel[t.x].xyz, vel[t.y].xyz, vel[t.z].xyz, vel[t.w].xyz));
+        store_product(k, 0u, stiffness_product(tangent, vel[t.x].xyz, vel[t.y].xyz, vel[t.z].xyz, vel[t.w].xyz));
         store_product(k, 1u, stiffness_product(
-            tangent, k, vget(SLOT_HELD, t.x), vget(SLOT_HELD, t.y), vget(SLOT_HELD, t.z), vget(SLOT_HELD, t.w)));
+            tangent, vget(SLOT_HELD, t.x), vget(SLOT_HELD, t.y), vget(SLOT_HELD, t.z), vget(SLOT_HELD, t.w)));
     } else {
         var s = SLOT_P;
         if PASS == PASS_PRODUCT_X {
             s = SLOT_X;
         }
-        store_product(k, 0u, stiffness_product(tangent, k, vget(s, t.x), vget(s, t.y), vget(s, t.z), vget(s, t.w)));
+        store_product(k, 0u, stiffness_product(tangent, vget(s, t.x), vget(s, t.y), vget(s, t.z), vget(s, t.w)));
     }
 }
 
@@ -501,7 +501,7 @@ fn pass_rhs(i: u32) -> f32 {
         let tets = tet_range(i);
         for (var e = tets.x; e < tets.y; e++) {
             let kc = tet_index[e];
-            b += (h * h) * diagonal_block(load_tangent(kc / 4u), kc / 4u, kc % 4u);
+            b += (h * h) * diagonal_block(load_tangent(kc / 4u), kc % 4u);
         }
     }
     var inv = inverse3(b);
