@@ -695,19 +695,40 @@ impl ContactChecks {
             // The first time beyond the bound is the time to warn.
             let first = s.held;
             s.held = false;
+            // Before the first step the scene itself placed them so: no push of the contact's
+            // made it, and none may undo it (a push starts at the partner's surface).
+            let placed = step == 0;
             if s.worst_depth.is_none_or(|w| depth > w) {
                 s.worst_depth = Some(depth);
                 s.worst_frame = Some(frame);
                 s.worst_step = Some(step);
-                s.failure = Some(format!(
-                    "{} and {} went {depth:.3} {u} deep into each other at step {step} (frame {frame}), beyond the contact's bound of {:.3} {u} (its voxel size)",
+                s.failure = Some(if placed {
+                    format!(
+                        "the scene places {} and {} {depth:.3} {u} deep in each other before the first step, beyond the contact's bound of {:.3} {u} (its voxel size): move them apart",
+                        s.a,
+                        s.b,
+                        s.bound,
+                        u = summary.units
+                    )
+                } else {
+                    format!(
+                        "{} and {} went {depth:.3} {u} deep into each other at step {step} (frame {frame}), beyond the contact's bound of {:.3} {u} (its voxel size)",
+                        s.a,
+                        s.b,
+                        s.bound,
+                        u = summary.units
+                    )
+                });
+            }
+            if first && placed {
+                note(&format!(
+                    "warning: contact {} – {} did not hold: the scene places them {depth:.3} {u} deep in each other before the first step, beyond the bound of {:.3} {u}; move them apart (their `position`s) and run again: this run's numbers are not a result",
                     s.a,
                     s.b,
                     s.bound,
                     u = summary.units
                 ));
-            }
-            if first {
+            } else if first {
                 note(&format!(
                     "warning: contact {} – {} did not hold: {depth:.3} {u} deep at step {step} (frame {frame}), beyond the bound of {:.3} {u}; this run's numbers are not a result",
                     s.a,

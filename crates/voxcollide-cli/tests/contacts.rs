@@ -445,3 +445,26 @@ fn a_schedule_longer_than_max_steps_is_said_before_the_run() {
     );
     assert_eq!(s["steps"], 50);
 }
+
+#[test]
+fn bodies_placed_inside_each_other_are_said_to_start_so() {
+    let d = dir("placed");
+    // The ball's bottom at 0, 5 mm below the block's top (beyond the contact's 4 mm voxel),
+    // and left there: the scene, not a push, put it there. (Under the explicit integrator the
+    // block's first step from there outruns its speed limit: the warning comes first.)
+    let scene = probe_scene(0.0, "")
+        .replace("[0, 0, 13]", "[0, 0, 8]")
+        .replace("duration = 0.3", "duration = 0.02\nintegrator = \"implicit\"");
+    assert_eq!(scene.matches("[0, 0, 8]").count(), 3, "{scene}");
+    let (stdout, stderr, s) = run(&d, &scene);
+    let c = contact(&s);
+    assert_eq!(c["held"], false, "{c}");
+    assert_eq!(c["worst_step"], 0, "{c}");
+    assert!(c["failure"].as_str().unwrap().contains("places ball and block"), "{c}");
+    let said = format!("{stdout}\n{stderr}");
+    let warning = said
+        .lines()
+        .find(|l| l.contains("warning: contact ball – block") && l.contains("before the first step"))
+        .unwrap_or_else(|| panic!("{said}"));
+    assert!(warning.contains("move them apart"), "{warning}");
+}
