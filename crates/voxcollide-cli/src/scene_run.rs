@@ -441,8 +441,15 @@ pub fn run_scene(
     let mut checks = ContactChecks::new(world.contacts.len());
     let mut stall = Stall::default();
     if file.time.settle && planned > file.time.max_steps {
+        // The explicit step is bound by stability (a stiff or nearly incompressible body's is
+        // small): the implicit integrator's is not.
+        let or_implicit = if built.world.integrator == Integrator::Explicit {
+            ", or step with [time] integrator = \"implicit\", whose step is not bound by stability"
+        } else {
+            ""
+        };
         note(&format!(
-            "warning: the schedule needs {planned} steps (dt {:.3e} s), more than max_steps = {}: the run will stop before it ends; raise [time] max_steps or shorten the schedule",
+            "warning: the schedule needs {planned} steps (dt {:.3e} s), more than max_steps = {}: the run will stop before it ends; raise [time] max_steps or shorten the schedule{or_implicit}",
             built.dt, file.time.max_steps
         ));
     }

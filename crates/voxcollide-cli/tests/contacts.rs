@@ -438,6 +438,8 @@ fn a_schedule_longer_than_max_steps_is_said_before_the_run() {
     let line =
         said.lines().find(|l| l.contains("warning: the schedule needs")).unwrap_or_else(|| panic!("{said}"));
     assert!(line.contains("max_steps = 50"), "{line}");
+    // The probe's scene steps explicitly: the way out of the bound is offered.
+    assert!(line.contains("integrator = \"implicit\""), "{line}");
     // Said before it ran: ahead of the run's table.
     assert!(
         stderr.contains("warning: the schedule needs") || said.find(line) < said.find("steps  "),
