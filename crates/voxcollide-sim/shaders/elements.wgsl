@@ -6,8 +6,9 @@
 //
 // - `tet_index: array<u32>`: the corners of every tetrahedron (4 each), then per vertex the
 //   offsets of its (tetrahedron, corner) pairs (`sim.n + 1`), then the pairs, each `4·k + c`;
-// - `tet_rest: array<vec4<f32>>`: per tetrahedron the columns of `D_m⁻¹` (3 each), its rest
-//   volume in the first column's `w`.
+// - `tet_rest: array<vec4<f32>>`: per tetrahedron the columns of `D_m⁻¹` (3 each), its weight
+//   (its rest volume times its modulus over the material's, CPU: `Elements::weight`) in the
+//   first column's `w`.
 //
 // The material is `sim.mu`, `sim.lambda` (`λ' = λ + μ`) and `sim.alpha`; `sim.tets` counts them
 // (0: a body of springs).
@@ -21,7 +22,8 @@ fn tet_dm_inv(k: u32) -> mat3x3<f32> {
     return mat3x3<f32>(tet_rest[3u * k].xyz, tet_rest[3u * k + 1u].xyz, tet_rest[3u * k + 2u].xyz);
 }
 
-fn tet_volume(k: u32) -> f32 {
+// Its rest volume times its modulus over the material's: what its energy is scaled by.
+fn tet_weight(k: u32) -> f32 {
     return tet_rest[3u * k].w;
 }
 
@@ -100,7 +102,7 @@ fn tet_corner_force(k: u32, c: u32) -> vec3<f32> {
         unfused3(a[2]) + unfused3(b[2]),
     );
     let m = mm3(stress, transpose(tet_dm_inv(k)));
-    let v = -tet_volume(k);
+    let v = -tet_weight(k);
     let h = mat3x3<f32>(unfused3(v * m[0]), unfused3(v * m[1]), unfused3(v * m[2]));
     return corner_of(h, c);
 }
@@ -279,7 +281,7 @@ fn tangent_at(f: mat3x3<f32>, k: u32) -> Tangent {
     stretch = mm3(ql, transpose(q));
     let plus = max(mu - s * sigma, vec3<f32>(0.0));
     let minus = max(mu + s * sigma, vec3<f32>(0.0));
-    let v0 = tet_volume(k);
+    let v0 = tet_weight(k);
     let half = 0.5 * v0;
     return Tangent(svd.u, mm3(tet_dm_inv(k), svd.v), v0 * stretch, half * (plus + minus), half * (plus - minus));
 }

@@ -246,13 +246,6 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
             ),
         ));
     }
-    if neo_hookean && !spec.layers.is_empty() {
-        return Err(file.body_error(
-            index,
-            "layers",
-            "layers of another modulus are springs' for now: a \"neo-hookean\" body has one material",
-        ));
-    }
     // A mesh's own tetrahedra, for the elements.
     let mut mesh_tets: Option<Vec<[u32; 4]>> = None;
     let (mut body, kspring) = match spec.kind {
@@ -451,9 +444,9 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         };
     }
     // Layers: a spring with both ends in a layer's region takes its stiffness, in proportion
-    // to the one the body's material gave it.
+    // to the one the body's material gave it (the elements' layers are below).
     let given: Vec<f32> = body.springs.iter().map(|s| s.k).collect();
-    for layer in &spec.layers {
+    for layer in spec.layers.iter().filter(|_| !neo_hookean) {
         let ratio = (layer.young_kpa / m.young_kpa) as f32;
         let region = [layer.region];
         let inside: Vec<bool> = body.rest_pos.iter().map(|p| held(&region, *p, lo, hi)).collect();
@@ -475,13 +468,39 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         let h = h.unwrap_or(1.0);
         let tets = mesh_tets.unwrap_or_else(|| crate::fem::lattice_tets(&body.rest_pos, h));
         let young = m.young_kpa * 1e3 * s;
-        let elements = crate::fem::Elements::new(&body.rest_pos, &tets, young, m.poisson)
+        let mut elements = crate::fem::Elements::new(&body.rest_pos, &tets, young, m.poisson)
             .map_err(|e| file.body_error(index, "material.model", e.to_string()))?;
         note.remarks.push(format!(
             "neo-hookean: {} tetrahedra, poisson = {} (the springs keep only their damping)",
             elements.tets.len(),
             m.poisson
         ));
+        // Layers: a tetrahedron whose centre is in a layer's region takes its modulus (at the
+        // body's Poisson ratio), as a finite-element code assigns a material to an element set.
+        for (l, layer) in spec.layers.iter().enumerate() {
+            let region = [layer.region];
+            let ratio = (layer.young_kpa / m.young_kpa) as f32;
+            let mut count = 0usize;
+            for (k, t) in elements.tets.iter().enumerate() {
+                let centre = t.iter().map(|&v| body.rest_pos[v as usize]).sum::<Vec3>() / 4.0;
+                if held(&region, centre, lo, hi) {
+                    elements.modulus[k] = ratio;
+                    count += 1;
+                }
+            }
+            if count == 0 {
+                return Err(file.body_error(
+                    index,
+                    &format!("layers[{l}]"),
+                    "the layer's region holds no tetrahedron's centre: a \"neo-hookean\" body's layer takes the tetrahedra whose centres are in it, so it must be about as deep as they are; widen the region",
+                ));
+            }
+            note.remarks.push(format!(
+                "a layer of {} kPa: {count} of {} tetrahedra (by their centres)",
+                layer.young_kpa,
+                elements.tets.len()
+            ));
+        }
         body.elements = Some(elements);
         body.springs.iter_mut().for_each(|s| s.k = 0.0);
     } else if spec.kind != BodyKind::Rigid && (m.poisson - 0.25).abs() > 1e-9 {

@@ -45,6 +45,10 @@ pub struct Elements {
     pub dm_inv: Vec<Mat3>,
     /// Each tetrahedron's rest volume.
     pub volume: Vec<f32>,
+    /// Each tetrahedron's Young's modulus over the material's (`mu`, `lambda`): 1, or a layer's
+    /// over the body's ([`Elements::weight`]). Poisson's ratio is the body's throughout, so
+    /// `μ`, `λ` and the energy scale by it and `α` does not.
+    pub modulus: Vec<f32>,
     /// Lamé's `μ` (internal stress units).
     pub mu: f32,
     /// `λ' = λ + μ` of the energy.
@@ -128,15 +132,25 @@ impl Elements {
             }
         }
         let (mu, lambda) = lame(e, nu);
+        let modulus = vec![1.0; out.len()];
         Ok(Elements {
             tets: out,
             dm_inv,
             volume,
+            modulus,
             mu: mu as f32,
             lambda: (lambda + mu) as f32,
             offsets,
             adjacency,
         })
+    }
+
+    /// Tetrahedron `k`'s rest volume times its [`modulus`](Elements::modulus): its energy
+    /// is that times `Ψ(F)` of the material, so its forces and stiffness scale by it. (With a
+    /// modulus of 1, the volume itself, to the bit.)
+    #[must_use]
+    pub fn weight(&self, k: usize) -> f32 {
+        self.volume[k] * self.modulus[k]
     }
 
     /// `α = 1 + μ/λ'`.
@@ -156,7 +170,7 @@ impl Elements {
         let cof =
             Mat3::from_cols(f.y_axis.cross(f.z_axis), f.z_axis.cross(f.x_axis), f.x_axis.cross(f.y_axis));
         let stress = self.mu * f + (self.lambda * (j - self.alpha())) * cof;
-        let h = -self.volume[k] * (stress * self.dm_inv[k].transpose());
+        let h = -self.weight(k) * (stress * self.dm_inv[k].transpose());
         match corner {
             0 => -(h.x_axis + h.y_axis + h.z_axis),
             1 => h.x_axis,
@@ -186,7 +200,7 @@ impl Elements {
             let grads = [-(g.x_axis + g.y_axis + g.z_axis), g.x_axis, g.y_axis, g.z_axis];
             let sum: f32 = grads.iter().map(|g| g.length()).sum();
             for (c, &v) in t.iter().enumerate() {
-                bound[v as usize] += 2.0 * p_wave * self.volume[k] * grads[c].length() * sum;
+                bound[v as usize] += 2.0 * p_wave * self.weight(k) * grads[c].length() * sum;
             }
         }
         bound
@@ -353,10 +367,11 @@ pub struct TetStiffness {
 }
 
 impl TetStiffness {
-    /// Folds tetrahedron `k`'s `D_m⁻¹` and rest volume into `tangent`.
+    /// Folds tetrahedron `k`'s `D_m⁻¹` and [weight](Elements::weight) (its rest volume times its
+    /// modulus) into `tangent`.
     #[must_use]
     pub fn new(elements: &Elements, k: usize, tangent: &Tangent) -> TetStiffness {
-        let v0 = elements.volume[k];
+        let v0 = elements.weight(k);
         let mut a = [[0.0f32; 3]; 3]; // [column][row]
         let mut b = [[0.0f32; 3]; 3];
         for (pair, (i, j)) in [(1usize, 2usize), (0, 2), (0, 1)].into_iter().enumerate() {

@@ -121,11 +121,13 @@ impl GpuBody {
             let mut index: Vec<u32> = e.tets.iter().flatten().copied().collect();
             index.extend(&e.offsets);
             index.extend(e.adjacency.iter().map(|[k, c]| 4 * k + c));
+            // Each tetrahedron's weight (its rest volume times its modulus) where the shaders
+            // read its volume.
             let rest: Vec<Vec4> = e
                 .dm_inv
                 .iter()
-                .zip(&e.volume)
-                .flat_map(|(m, v)| [m.x_axis.extend(*v), m.y_axis.extend(0.0), m.z_axis.extend(0.0)])
+                .enumerate()
+                .flat_map(|(k, m)| [m.x_axis.extend(e.weight(k)), m.y_axis.extend(0.0), m.z_axis.extend(0.0)])
                 .collect();
             (index, rest)
         });

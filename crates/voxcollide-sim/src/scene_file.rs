@@ -420,7 +420,9 @@ pub enum Fixed {
 /// A region of a soft body with its own stiffness, bonded to the rest: skin over fat, a
 /// gland in fat. `layers = [{ region = { above = { z = 39 } }, young_kpa = 12 }]`: the
 /// springs with both ends in `region` (selected as `fixed` selects vertices, at rest) take
-/// that Young's modulus; later layers override earlier ones.
+/// that Young's modulus; later layers override earlier ones. In a `"neo-hookean"` body the
+/// tetrahedra whose centres are in `region` take it, at the body's Poisson ratio; a region
+/// that holds no tetrahedron's centre (thinner than a cell) is refused.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Layer {

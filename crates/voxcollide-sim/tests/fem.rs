@@ -166,12 +166,13 @@ fn what_the_elements_do_not_take_yet_is_refused_by_key() {
             "soft body",
         ),
         (
+            // The top cell's tetrahedra have their centres at most 4.375 mm up: none is in it.
             BLOCK.replace(
                 "fixed =",
-                "layers = [{ region = { above = { z = 2 } }, young_kpa = 30.0 }]\nfixed =",
+                "layers = [{ region = { above = { z = 4.5 } }, young_kpa = 30.0 }]\nfixed =",
             ),
-            "layers",
-            "one material",
+            "layers[0]",
+            "no tetrahedron's centre",
         ),
         (
             BLOCK.replace(
@@ -187,4 +188,57 @@ fn what_the_elements_do_not_take_yet_is_refused_by_key() {
         let e = build_world(&file).unwrap_err().to_string();
         assert!(e.contains("block.toml") && e.contains(key) && e.contains(words), "{e}");
     }
+}
+
+#[test]
+fn a_neo_hookean_layer_scales_its_tetrahedra_by_its_modulus() {
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::scene_file::SceneFile;
+    let build = |text: &str| build_world(&SceneFile::parse("block.toml", text).unwrap()).unwrap();
+    let layered = |region: &str, kpa: f64| {
+        BLOCK.replace("fixed =", &format!("layers = [{{ region = {region}, young_kpa = {kpa} }}]\nfixed ="))
+    };
+    // A layer over the whole block at twice its modulus is the block at twice its modulus:
+    // the same forces at any deformation, the same step.
+    let whole = build(&layered("{ above = { z = -10 } }", 6.0));
+    let stiff = build(&BLOCK.replace("young_kpa = 3.0", "young_kpa = 6.0"));
+    assert_eq!(whole.dt, stiff.dt);
+    let (a, b) = (&whole.world.bodies[0], &stiff.world.bodies[0]);
+    let (ea, eb) = (a.elements.as_ref().unwrap(), b.elements.as_ref().unwrap());
+    assert!(ea.modulus.iter().all(|m| *m == 2.0) && eb.modulus.iter().all(|m| *m == 1.0));
+    let bent: Vec<Vec3> = a
+        .rest_pos
+        .iter()
+        .map(|p| *p + Vec3::new(0.05 * p.z * p.z, 0.02 * p.x, -0.03 * p.x * p.y.sin()))
+        .collect();
+    let mut largest = 0.0f32;
+    for i in 0..a.len() {
+        let (fa, fb) = (ea.force_on(&bent, i), eb.force_on(&bent, i));
+        largest = largest.max(fb.length());
+        assert!((fa - fb).length() <= 1e-5 * fb.length().max(1e-3), "vertex {i}: {fa} against {fb}");
+    }
+    assert!(largest > 1e-3, "the deformation loads the block ({largest})");
+    // The top half at 30 kPa: the tetrahedra whose centres are above z = 0, half of them,
+    // ten times as stiff, and said so.
+    let half = build(&layered("{ above = { z = 0 } }", 30.0));
+    let e = half.world.bodies[0].elements.as_ref().unwrap();
+    let (rest, top) = (&half.world.bodies[0].rest_pos, e.modulus.iter().filter(|m| **m == 10.0).count());
+    assert_eq!(top, e.tets.len() / 2);
+    for (k, t) in e.tets.iter().enumerate() {
+        let centre = t.iter().map(|&v| rest[v as usize]).sum::<Vec3>() / 4.0;
+        assert_eq!(e.modulus[k], if centre.z > 0.0 { 10.0 } else { 1.0 }, "{centre}");
+    }
+    let remarks = &half.notes[0].remarks;
+    assert!(
+        remarks.iter().any(|r| r.contains("a layer of 30 kPa") && r.contains("tetrahedra")),
+        "{remarks:?}"
+    );
+    assert!(half.dt < stiff.dt, "a stiffer layer shortens the explicit step");
+    // Pulled by the same stretch, the layered block pushes back harder than the plain one.
+    let plain = build(BLOCK);
+    let e0 = plain.world.bodies[0].elements.as_ref().unwrap();
+    let stretched: Vec<Vec3> = rest.iter().map(|p| *p * Vec3::new(1.0, 1.0, 1.05)).collect();
+    let top_vertex = (0..rest.len()).max_by(|&i, &j| rest[i].z.total_cmp(&rest[j].z)).unwrap();
+    let (f_layered, f_plain) = (e.force_on(&stretched, top_vertex).z, e0.force_on(&stretched, top_vertex).z);
+    assert!(f_plain < 0.0 && f_layered < 5.0 * f_plain, "{f_layered} against {f_plain}");
 }

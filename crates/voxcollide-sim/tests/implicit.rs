@@ -475,11 +475,16 @@ fn the_gpu_world_steps_neo_hookean_tetrahedra_explicitly_as_the_cpu_does() {
     // The explicit step's forces pass gathers each vertex's tetrahedra after its springs, each
     // product rounded as on the CPU: the same positions and velocities to the bit on llvmpipe
     // (elsewhere a driver may fuse a product into a sum: within 1e-4 of the dent).
+    // The block's top half is a layer of 4 times its modulus: each tetrahedron's weight (its
+    // volume times its modulus) reaches the device with it.
     let text = neo_hookean_press("explicit")
         .replace("settle = true\n", "")
-        .replace("duration = 0.2", "duration = 0.02");
+        .replace("duration = 0.2", "duration = 0.02")
+        .replace("fixed = [", "layers = [{ region = { above = { z = 0 } }, young_kpa = 12.0 }]\nfixed = [");
     let built = build_world(&SceneFile::parse("p.toml", &text).unwrap()).unwrap();
     assert_eq!(built.world.integrator, Integrator::Explicit);
+    let e = built.world.bodies[0].elements.as_ref().unwrap();
+    assert!(e.modulus.contains(&4.0) && e.modulus.contains(&1.0), "{text}");
     let Some(ctx) = common::gpu() else { return };
     let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
     let mut gpu = GpuWorld::new(&ctx, built.world).unwrap();
