@@ -163,6 +163,36 @@ pub struct CylinderShape {
     pub layers: u32,
 }
 
+/// The tetrahedra of a [`cylinder`]'s polar lattice (its vertices numbered as `cylinder`
+/// numbers them): each layer's cells are triangles about the center line and quads between
+/// rings, each quad cut along its diagonal from `(ring m, segment s)` to `(m + 1, s + 1)`; each
+/// triangle with the one above it is a prism, split by [`prism_tets`](crate::fem::prism_tets)
+/// so that neighbours share faces.
+#[must_use]
+pub fn cylinder_tets(shape: &CylinderShape) -> Vec<[u32; 4]> {
+    let CylinderShape { rings, segments, layers, .. } = *shape;
+    let per_layer = 1 + rings * segments;
+    let idx = |l: u32, m: u32, s: u32| {
+        l * per_layer + if m == 0 { 0 } else { 1 + (m - 1) * segments + s % segments }
+    };
+    let mut prisms = Vec::with_capacity(((layers - 1) * segments * (2 * rings - 1)) as usize);
+    for l in 0..layers.saturating_sub(1) {
+        for s in 0..segments {
+            let mut triangles = vec![[(0, 0), (1, s), (1, s + 1)]];
+            for m in 1..rings {
+                triangles.push([(m, s), (m + 1, s), (m + 1, s + 1)]);
+                triangles.push([(m, s), (m + 1, s + 1), (m, s + 1)]);
+            }
+            for t in triangles {
+                let [a, b, c] = t.map(|(m, s)| idx(l, m, s));
+                let [d, e, f] = t.map(|(m, s)| idx(l + 1, m, s));
+                prisms.push([a, b, c, d, e, f]);
+            }
+        }
+    }
+    crate::fem::prism_tets(&prisms)
+}
+
 /// A solid cylinder along +z as a polar lattice of `rings` rings of `segments` vertices around a
 /// center line, in `layers` layers; springs along rings, radii, layers and the diagonals of every
 /// cell. Its top layer is driven, the rest free.

@@ -274,11 +274,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         layers: ((height / h).round() as u32).max(2) + 1,
                     };
                     if neo_hookean {
-                        return Err(file.body_error(
-                            index,
-                            "material.model",
-                            "a solid cylinder is a polar lattice, which has no tetrahedra yet: give it as a mesh (.vtu, .msh or a closed surface) for \"neo-hookean\"",
-                        ));
+                        mesh_tets = Some(crate::bodies::cylinder_tets(&shape));
                     }
                     (cylinder(shape, kspring, material)?, kspring)
                 }

@@ -207,6 +207,32 @@ impl Elements {
     }
 }
 
+/// Three tetrahedra per triangular prism, `[a, b, c, d, e, f]` with `abc` and `def` its two
+/// triangles and `ad`, `be`, `cf` its three other edges, so that each quad face is cut along
+/// the diagonal through its smallest vertex index (Dompierre, Labbé, Vallet and Camarero
+/// 1999): two prisms that share a quad face cut it alike, so the tetrahedra of a mesh of
+/// prisms share whole faces.
+#[must_use]
+pub fn prism_tets(prisms: &[[u32; 6]]) -> Vec<[u32; 4]> {
+    let mut out = Vec::with_capacity(3 * prisms.len());
+    for p in prisms {
+        // Relabel so that the smallest index is `a`: the other triangle first if it is there,
+        // then a turn of both triangles.
+        let m = (0..6).min_by_key(|&i| p[i]).unwrap_or(0);
+        let q = if m < 3 { *p } else { [p[3], p[4], p[5], p[0], p[1], p[2]] };
+        let r = m % 3;
+        let [a, b, c, d, e, f] =
+            [q[r], q[(r + 1) % 3], q[(r + 2) % 3], q[3 + r], q[3 + (r + 1) % 3], q[3 + (r + 2) % 3]];
+        // The faces at `a` are cut through it (a–e, a–f); the face bcfe through its smallest.
+        if b.min(f) < c.min(e) {
+            out.extend([[a, b, c, f], [a, b, f, e], [a, e, f, d]]);
+        } else {
+            out.extend([[a, b, c, e], [a, e, c, f], [a, e, f, d]]);
+        }
+    }
+    out
+}
+
 /// The tetrahedra of a lattice of spacing `h` whose vertices sit at `rest`: six per cube whose
 /// eight corners are all vertices (the Freudenthal split along each cube's main diagonal, so
 /// that neighbouring cubes share their faces' diagonals).

@@ -174,14 +174,6 @@ fn what_the_elements_do_not_take_yet_is_refused_by_key() {
             "layers[0]",
             "no tetrahedron's centre",
         ),
-        (
-            BLOCK.replace(
-                "shape = { box = [20, 20, 10] }",
-                "shape = { cylinder = { radius = 10, height = 10 } }",
-            ),
-            "material",
-            "polar lattice",
-        ),
     ];
     for (text, key, words) in cases {
         let file = SceneFile::parse("block.toml", &text).unwrap();
@@ -241,4 +233,55 @@ fn a_neo_hookean_layer_scales_its_tetrahedra_by_its_modulus() {
     let top_vertex = (0..rest.len()).max_by(|&i, &j| rest[i].z.total_cmp(&rest[j].z)).unwrap();
     let (f_layered, f_plain) = (e.force_on(&stretched, top_vertex).z, e0.force_on(&stretched, top_vertex).z);
     assert!(f_plain < 0.0 && f_layered < 5.0 * f_plain, "{f_layered} against {f_plain}");
+}
+
+#[test]
+fn a_neo_hookean_cylinder_is_tetrahedra_that_fill_it_and_share_whole_faces() {
+    use std::collections::HashMap;
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::scene_file::SceneFile;
+    let text = BLOCK
+        .replace("shape = { box = [20, 20, 10] }", "shape = { cylinder = { radius = 10, height = 10 } }");
+    let built = build_world(&SceneFile::parse("cylinder.toml", &text).unwrap()).unwrap();
+    let body = &built.world.bodies[0];
+    let e = body.elements.as_ref().expect("elements");
+    let rest = &body.rest_pos;
+    // Its polar lattice: 4 rings of 24 segments, 5 layers (a 2.5 mm spacing), as prisms of
+    // three tetrahedra each, 7 triangles a segment (one at the centre, two a quad).
+    let (rings, segments, layers) = (4usize, 24usize, 5usize);
+    assert_eq!(rest.len(), layers * (1 + rings * segments));
+    assert_eq!(e.tets.len(), 3 * (layers - 1) * segments * (2 * rings - 1));
+    // They fill the lattice's prism: a 24-gon of radius 10, 10 high.
+    let polygon = 0.5 * segments as f32 * 100.0 * (std::f32::consts::TAU / segments as f32).sin();
+    let volume: f32 = e.volume.iter().sum();
+    assert!((volume - 10.0 * polygon).abs() < 1e-4 * volume, "{volume} against {}", 10.0 * polygon);
+    // Every face is shared by two of them, or is on the boundary, whose area is the prism's.
+    let mut faces: HashMap<[u32; 3], u32> = HashMap::new();
+    for t in &e.tets {
+        for skip in 0..4 {
+            let mut f: Vec<u32> = (0..4).filter(|&c| c != skip).map(|c| t[c]).collect();
+            f.sort_unstable();
+            *faces.entry([f[0], f[1], f[2]]).or_default() += 1;
+        }
+    }
+    assert!(faces.values().all(|&n| n <= 2), "a face of more than two tetrahedra");
+    let boundary: f32 = faces
+        .iter()
+        .filter(|(_, n)| **n == 1)
+        .map(|(f, _)| {
+            let [a, b, c] = f.map(|v| rest[v as usize]);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .sum();
+    let perimeter = segments as f32 * 20.0 * (std::f32::consts::PI / segments as f32).sin();
+    let want = 2.0 * polygon + 10.0 * perimeter;
+    assert!((boundary - want).abs() < 1e-4 * want, "boundary {boundary} against {want}");
+    // It steps, and stays at rest where nothing loads it.
+    let mut w = CpuWorld::new(built.world).unwrap();
+    for _ in 0..50 {
+        w.step().unwrap();
+    }
+    let b = &w.world.bodies[0];
+    let moved = b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    assert!(moved < 1e-4, "an unloaded cylinder moved {moved}");
 }
