@@ -46,6 +46,26 @@ pub struct BodySummary {
     /// What building it found worth saying.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub remarks: Vec<String>,
+    /// What it is made of, as the run used it (a scene file's soft bodies and shells).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub material: Option<MaterialSummary>,
+}
+
+/// A body's material in `summary.json` (DESIGN §12).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct MaterialSummary {
+    /// `springs` (the paper's lattice) or `neo-hookean` (tetrahedra).
+    pub model: String,
+    /// Young's modulus, kPa (the body's; a layer's own is in `remarks`).
+    pub young_kpa: f64,
+    /// The file's Poisson ratio.
+    pub poisson: f64,
+    /// Whether the body has that ratio: true for tetrahedra; false for springs, whose lattice
+    /// has its own (1/4 for a cubic one).
+    pub poisson_honoured: bool,
+    /// Its tetrahedra (`neo-hookean`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tetrahedra: Option<usize>,
 }
 
 /// A contact in `summary.json`.
@@ -396,6 +416,13 @@ pub fn run_scene(
                 vertices: body.len(),
                 coverage: n.coverage.map(|(c, _)| c),
                 remarks: n.remarks.clone(),
+                material: (spec.kind != BodyKind::Rigid).then(|| MaterialSummary {
+                    model: if body.elements.is_some() { "neo-hookean" } else { "springs" }.into(),
+                    young_kpa: spec.material.young_kpa,
+                    poisson: spec.material.poisson,
+                    poisson_honoured: body.elements.is_some(),
+                    tetrahedra: body.elements.as_ref().map(|e| e.tets.len()),
+                }),
                 ..BodySummary::default()
             })
             .collect(),

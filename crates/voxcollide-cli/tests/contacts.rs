@@ -470,3 +470,27 @@ fn bodies_placed_inside_each_other_are_said_to_start_so() {
         .unwrap_or_else(|| panic!("{said}"));
     assert!(warning.contains("move them apart"), "{warning}");
 }
+
+#[test]
+fn summary_json_says_what_each_body_is_made_of() {
+    let d = dir("material");
+    let scene =
+        probe_scene(1.0, "").replace("duration = 0.3", "duration = 0.01\nintegrator = \"implicit\"").replace(
+            "material = { young_kpa = 3.0",
+            "material = { model = \"neo-hookean\", poisson = 0.45, young_kpa = 3.0",
+        );
+    assert!(scene.contains("neo-hookean"), "{scene}");
+    let (_, _, s) = run(&d, &scene);
+    let m = &s["bodies"][0]["material"];
+    assert_eq!(m["model"], "neo-hookean", "{s}");
+    assert_eq!((m["young_kpa"].as_f64(), m["poisson"].as_f64()), (Some(3.0), Some(0.45)));
+    assert_eq!(m["poisson_honoured"], true);
+    assert!(m["tetrahedra"].as_u64().unwrap() > 1000, "{m}");
+    // A rigid body has none.
+    assert!(s["bodies"][1].get("material").is_none(), "{}", s["bodies"][1]);
+    // Springs say that the file's ratio is not theirs.
+    let (_, _, s) = run(&d, &probe_scene(1.0, "").replace("duration = 0.3", "duration = 0.01"));
+    let m = &s["bodies"][0]["material"];
+    assert_eq!((m["model"].as_str(), m["poisson_honoured"].as_bool()), (Some("springs"), Some(false)), "{m}");
+    assert!(m.get("tetrahedra").is_none(), "{m}");
+}
