@@ -473,12 +473,20 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         ));
         // Layers: a tetrahedron whose centre is in a layer's region takes its modulus (at the
         // body's Poisson ratio), as a finite-element code assigns a material to an element set.
+        let centres: Vec<Vec3> = if spec.layers.is_empty() {
+            Vec::new()
+        } else {
+            elements
+                .tets
+                .iter()
+                .map(|t| t.iter().map(|&v| body.rest_pos[v as usize]).sum::<Vec3>() / 4.0)
+                .collect()
+        };
         for (l, layer) in spec.layers.iter().enumerate() {
             let region = [layer.region];
             let ratio = (layer.young_kpa / m.young_kpa) as f32;
             let mut count = 0usize;
-            for (k, t) in elements.tets.iter().enumerate() {
-                let centre = t.iter().map(|&v| body.rest_pos[v as usize]).sum::<Vec3>() / 4.0;
+            for (k, &centre) in centres.iter().enumerate() {
                 if held(&region, centre, lo, hi) {
                     elements.modulus[k] = ratio;
                     count += 1;

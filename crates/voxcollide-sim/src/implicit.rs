@@ -196,7 +196,7 @@ struct System {
     free: Vec<bool>,
     /// Per tetrahedron of a body of finite elements: its material's projected stiffness
     /// (empty for springs).
-    tangents: Vec<TetStiffness>,
+    element_stiffness: Vec<TetStiffness>,
     /// Per vertex: the block-Jacobi preconditioner's inverse block.
     precondition: Vec<Mat3>,
     /// The elements' products of one `apply`, kept from one to the next (a fresh one every
@@ -214,12 +214,12 @@ impl System {
         // The elements' `−K·u`, per tetrahedron, gathered per vertex below.
         let mut elements = self.element_products.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         elements.clear();
-        if let Some(e) = body.elements.as_ref().filter(|_| !self.tangents.is_empty()) {
+        if let Some(e) = body.elements.as_ref().filter(|_| !self.element_stiffness.is_empty()) {
             elements.par_extend(
                 (0..e.tets.len())
                     .into_par_iter()
                     .with_min_len(CHUNK)
-                    .map(|k| self.tangents[k].product(e.tets[k].map(|v| u[v as usize]))),
+                    .map(|k| self.element_stiffness[k].product(e.tets[k].map(|v| u[v as usize]))),
             );
         }
         let elements = &*elements;
@@ -357,9 +357,9 @@ impl MassSpring {
             .map(|(kc, c)| h * h * *kc + h * *c)
             .collect();
         // The elements' stiffness at the start of the step, and its diagonal blocks.
-        let tangents = self.elements.as_ref().map_or_else(Vec::new, |e| e.stiffnesses(&self.pos));
+        let element_stiffness = self.elements.as_ref().map_or_else(Vec::new, |e| e.stiffnesses(&self.pos));
         let element_blocks: Vec<[Mat3; 4]> =
-            tangents.par_iter().with_min_len(CHUNK).map(TetStiffness::diagonal_blocks).collect();
+            element_stiffness.par_iter().with_min_len(CHUNK).map(TetStiffness::diagonal_blocks).collect();
         let precondition: Vec<Mat3> = (0..n)
             .into_par_iter()
             .with_min_len(CHUNK)
@@ -395,7 +395,7 @@ impl MassSpring {
             fill_g,
             fill_k,
             free,
-            tangents,
+            element_stiffness,
             precondition,
             element_products: std::sync::Mutex::new(Vec::new()),
             h,

@@ -118,6 +118,16 @@ fn the_spring_lattice_keeps_its_own_quarter() {
     assert!((measured - 0.25).abs() < 0.03, "springs gave ν {measured}");
 }
 
+/// How far the first body's farthest vertex moves from rest in 50 steps of `world`.
+fn moved_unloaded(world: World) -> f32 {
+    let mut w = CpuWorld::new(world).unwrap();
+    for _ in 0..50 {
+        w.step().unwrap();
+    }
+    let b = &w.world.bodies[0];
+    b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max)
+}
+
 const BLOCK: &str = "units = \"mm\"\n[time]\nduration = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [20, 20, 10] }\nspacing = 2.5\nmaterial = { model = \"neo-hookean\", young_kpa = 3.0, poisson = 0.45, density = 1000.0, damping = 0.5 }\nfixed = [{ below = { z = -4.9 } }]\n";
 
 #[test]
@@ -143,12 +153,7 @@ fn a_scene_files_neo_hookean_block_is_tetrahedra_at_the_files_ratio() {
     .unwrap();
     assert!(built.dt < springs.dt, "{} against the lattice's {}", built.dt, springs.dt);
     // It steps, and stays at rest where nothing loads it.
-    let mut w = CpuWorld::new(built.world).unwrap();
-    for _ in 0..50 {
-        w.step().unwrap();
-    }
-    let b = &w.world.bodies[0];
-    let moved = b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    let moved = moved_unloaded(built.world);
     assert!(moved < 1e-4, "an unloaded block moved {moved}");
 }
 
@@ -277,11 +282,6 @@ fn a_neo_hookean_cylinder_is_tetrahedra_that_fill_it_and_share_whole_faces() {
     let want = 2.0 * polygon + 10.0 * perimeter;
     assert!((boundary - want).abs() < 1e-4 * want, "boundary {boundary} against {want}");
     // It steps, and stays at rest where nothing loads it.
-    let mut w = CpuWorld::new(built.world).unwrap();
-    for _ in 0..50 {
-        w.step().unwrap();
-    }
-    let b = &w.world.bodies[0];
-    let moved = b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    let moved = moved_unloaded(built.world);
     assert!(moved < 1e-4, "an unloaded cylinder moved {moved}");
 }
