@@ -190,21 +190,29 @@ pub struct FileRunConfig {
 }
 
 /// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
-/// does: the implicit integrator, whose solve waits on the device every few iterations. On
-/// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121
-/// (`--backend gpu` steps it on the device).
+/// does: the implicit integrator, whose solve waits on the device every few iterations (on
+/// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
+/// contact, whose search runs on the host and makes each GPU step wait for the positions
+/// (`--backend gpu` steps either on the device).
 pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
-    cpu_only(world).or((world.integrator != Integrator::Explicit).then_some(
-        "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
-    ))
+    cpu_only(world)
+        .or((world.integrator != Integrator::Explicit).then_some(
+            "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
+        ))
+        .or(world.contacts.iter().any(|c| c.surface.is_some()).then_some(
+            "contact response = \"surface\" (the default: its search runs on the host, each GPU step waiting for the positions; --backend gpu runs it)",
+        ))
 }
 
-/// Why `world` steps on the CPU only, if it does: a contact with `response = "surface"` (its
-/// WGSL passes are not built yet). Both integrators step on the GPU, with springs or
-/// `"neo-hookean"` tetrahedra.
+/// Why `world` steps on the CPU only, if it does: a contact with `response = "surface"` under
+/// the implicit integrator (the device's solve does not couple two bodies yet). Both
+/// integrators step on the GPU otherwise, with springs or `"neo-hookean"` tetrahedra, and a
+/// surface contact under the explicit one.
 pub(crate) fn cpu_only(world: &World) -> Option<&'static str> {
-    if world.contacts.iter().any(|c| c.surface.is_some()) {
-        Some("contact response = \"surface\" (the default)")
+    if world.integrator != Integrator::Explicit && world.contacts.iter().any(|c| c.surface.is_some()) {
+        Some(
+            "contact response = \"surface\" (the default) under [time] integrator = \"implicit\" (the GPU's implicit solve does not couple two bodies yet)",
+        )
     } else {
         None
     }
@@ -361,7 +369,7 @@ pub fn run_scene(
             what: "backend",
             value: "gpu".into(),
             rule: format!(
-                "{}: {why} steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu",
+                "{}: {why} steps on the CPU only; use --backend auto or cpu",
                 config.path.display()
             ),
         });

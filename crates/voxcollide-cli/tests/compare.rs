@@ -338,20 +338,32 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
     let two = run_on(&d2, &scene(12.0), three, Backend::Cpu, 2).unwrap();
     assert_eq!(one.candidates.len(), 3);
     assert_eq!(one.candidates, two.candidates);
-    // And on the GPU (stepped there even on a software adapter), with the voxel model's
-    // penalty (the surface response steps on the CPU only): the same as the CPU, to the bit.
+    // And on the GPU (stepped there even on a software adapter): with the voxel model's
+    // penalty, and with the surface response (its search on the host, over the positions
+    // read back each step), the same as the CPU, to the bit.
     if common::gpu().is_some() {
+        let d5 = dir("surface-on-the-gpu");
+        let gpu = run_on(&d5, &scene(12.0), three, Backend::Gpu, 1).unwrap();
+        assert_eq!(one.candidates, gpu.candidates);
         let penalty = scene(12.0)
             .replace("direction = \"plane-normal\"", "direction = \"plane-normal\"\nresponse = \"penalty\"");
         let (d3, d4) = (dir("on-the-gpu"), dir("penalty-on-the-cpu"));
         let gpu = run_on(&d3, &penalty, three, Backend::Gpu, 1).unwrap();
         let cpu = run_on(&d4, &penalty, three, Backend::Cpu, 1).unwrap();
         assert_eq!(cpu.candidates, gpu.candidates);
-        // The surface response is refused there by name.
-        let e = run_on(&d3, &scene(12.0), three, Backend::Gpu, 1).unwrap_err().to_string();
-        assert!(e.contains("response = \"surface\"") && e.contains("--backend auto or cpu"), "{e}");
+        // The surface response under the implicit integrator is refused there by name.
+        let implicit = scene(12.0).replace("[time]", "[time]\nintegrator = \"implicit\"");
+        assert_ne!(implicit, scene(12.0));
+        let e = run_on(&d3, &implicit, three, Backend::Gpu, 1).unwrap_err().to_string();
+        assert!(
+            e.contains("response = \"surface\"")
+                && e.contains("implicit")
+                && e.contains("--backend auto or cpu"),
+            "{e}"
+        );
         std::fs::remove_dir_all(&d3).unwrap();
         std::fs::remove_dir_all(&d4).unwrap();
+        std::fs::remove_dir_all(&d5).unwrap();
     }
     std::fs::remove_dir_all(&d1).unwrap();
     std::fs::remove_dir_all(&d2).unwrap();

@@ -3,12 +3,21 @@
 //! step, with nothing read back until a frame is wanted. Under the implicit integrator the
 //! step's solve is [`crate::gpu_implicit`]'s passes instead, which read back a few numbers
 //! (has the solve converged, how far would a vertex move) where the host must decide.
+//!
+//! **A surface contact** (`response = "surface"`, [`SurfaceContact`]) steps here under the
+//! explicit integrator with its search on the host: each step reads back the positions of the
+//! two bodies, finds the pushes as the CPU world does (the same code, the same positions, so the
+//! same bits), and uploads the two force buffers that the `forces` pass reads as it reads a
+//! collision's. Its nearest-triangle search has no WGSL passes yet, and the implicit solve
+//! on the device does not couple two bodies (docs/integrator.md, "On the GPU"): a surface
+//! contact under the implicit integrator is refused by name.
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
+use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::cpu::{Parts, Stepper, after_implicit_step};
 use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup};
 use crate::implicit::{ImplicitSettings, Residual, StepStats};
@@ -212,6 +221,25 @@ enum ContactSource {
     Sum(Buffer, Vec<(usize, bool, Buffer)>),
 }
 
+/// A contact as a [`GpuWorld`] steps it.
+enum DeviceContact {
+    /// The voxel model's collision passes (through the embedding API).
+    Voxel(GpuCollision),
+    /// A surface contact, found on the host.
+    Surface(Box<HostSurface>),
+}
+
+/// A surface contact's host side in a [`GpuWorld`]: its search over the positions read back
+/// each step, and the device buffers its forces are uploaded to.
+struct HostSurface {
+    contact: SurfaceContact,
+    forces: SurfaceForces,
+    stats: SurfaceStats,
+    /// The forces on `a`'s and `b`'s vertices, as the `forces` pass reads a collision's.
+    force_a: Buffer,
+    force_b: Buffer,
+}
+
 /// A world stepping entirely on the GPU: every contact's collision passes (through the
 /// embedding API), each body's contact forces summed where it has several, then `forces` and
 /// `integrate` for every body — one command encoder and one submit a step, nothing read back
@@ -221,7 +249,10 @@ pub struct GpuWorld {
     /// [`sync`](Self::sync).
     pub world: World,
     ctx: GpuContext,
-    collisions: Vec<GpuCollision>,
+    /// Per contact, in the world's order.
+    collisions: Vec<DeviceContact>,
+    /// Whether a contact is found on the host (its bodies' positions then read back each step).
+    on_host: bool,
     forces: Kernel,
     integrate: Kernel,
     accumulate: Kernel,
@@ -264,25 +295,53 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`]; [`Error::Invalid`] for a world with finite elements or a surface
-    /// contact (both integrators step here: the implicit one in [`crate::gpu_implicit`]'s
-    /// passes).
+    /// [`GpuCollision::new`] and [`SurfaceContact::new`]; [`Error::Invalid`] for a surface
+    /// contact under the implicit integrator (both integrators step here, the implicit one in
+    /// [`crate::gpu_implicit`]'s passes, and a surface contact under the explicit one).
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
-        if let Some(c) = world.contacts.iter().position(|c| c.surface.is_some()) {
+        if world.integrator != Integrator::Explicit
+            && let Some(c) = world.contacts.iter().position(|c| c.surface.is_some())
+        {
             let pair = &world.contacts[c];
             return Err(Error::Invalid {
                 what: "contact response",
                 value: format!("surface ({} – {})", world.names[pair.a], world.names[pair.b]),
-                rule: "the GPU world steps the voxel model's responses only: a surface contact steps on the CPU (CpuWorld)".into(),
+                rule: "the GPU world's implicit solve does not couple two bodies yet: a surface contact under the implicit integrator steps on the CPU (CpuWorld); under the explicit one it steps here".into(),
             });
         }
         let device = ctx.device();
         let collisions = world
             .contacts
             .iter()
-            .map(|c| GpuCollision::new(ctx, c.grid, c.params).and_then(|g| g.with_response(c.response)))
+            .map(|c| match c.surface {
+                None => GpuCollision::new(ctx, c.grid, c.params)
+                    .and_then(|g| g.with_response(c.response))
+                    .map(DeviceContact::Voxel),
+                Some(penalty) => {
+                    let (a, b) = (&world.bodies[c.a], &world.bodies[c.b]);
+                    let contact = SurfaceContact::new(penalty, a, b)?;
+                    let buffer = |n: usize| {
+                        scoped(device, || {
+                            device.create_buffer(&wgpu::BufferDescriptor {
+                                label: Some("sim surface contact forces"),
+                                size: 16 * n.max(1) as u64,
+                                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                                mapped_at_creation: false,
+                            })
+                        })
+                    };
+                    Ok(DeviceContact::Surface(Box::new(HostSurface {
+                        contact,
+                        forces: SurfaceForces::default(),
+                        stats: SurfaceStats::default(),
+                        force_a: buffer(a.len())?,
+                        force_b: buffer(b.len())?,
+                    })))
+                }
+            })
             .collect::<Result<Vec<_>, _>>()?;
+        let on_host = collisions.iter().any(|c| matches!(c, DeviceContact::Surface(_)));
         use Slot::{Read, ReadWrite, Uniform};
         let contacts_of = world.contacts_of();
         let (forces, integrate, accumulate, volume, bodies, sources) = scoped(device, || {
@@ -363,6 +422,7 @@ impl GpuWorld {
             max_per_dim: device.limits().max_compute_workgroups_per_dimension,
             ctx: ctx.clone(),
             collisions,
+            on_host,
             forces,
             integrate,
             accumulate,
@@ -417,11 +477,26 @@ impl GpuWorld {
                 bytemuck::bytes_of(&gpu.params(body, inputs, self.world.v_max, self.step)),
             );
         }
+        if self.on_host {
+            self.read_positions()?;
+        }
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
         for (collision, pair) in self.collisions.iter_mut().zip(&self.world.contacts) {
-            let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
-            collision.record(&mut encoder, &a.pos, a.n, &b.pos, b.n)?;
+            match collision {
+                DeviceContact::Voxel(collision) => {
+                    let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
+                    collision.record(&mut encoder, &a.pos, a.n, &b.pos, b.n)?;
+                }
+                DeviceContact::Surface(s) => {
+                    let (a, b) = (&self.world.bodies[pair.a], &self.world.bodies[pair.b]);
+                    s.stats = s.contact.step(a, b, &mut s.forces);
+                    let padded =
+                        |f: &[glam::Vec3]| -> Vec<Vec4> { f.iter().map(|f| f.extend(0.0)).collect() };
+                    queue.write_buffer(&s.force_a, 0, bytemuck::cast_slice(&padded(&s.forces.force_a)));
+                    queue.write_buffer(&s.force_b, 0, bytemuck::cast_slice(&padded(&s.forces.force_b)));
+                }
+            }
         }
         if self.bound.is_none() {
             let (bound, implicit_bodies) = self.bind(&device)?;
@@ -528,11 +603,13 @@ impl GpuWorld {
 
     /// The bind groups, once the collisions have their force buffers.
     fn bind(&self, device: &wgpu::Device) -> Result<(Bound, Vec<ImplicitBody>), Error> {
-        let force_buffer = |c: usize, as_a: bool| {
-            let collision = &self.collisions[c];
-            if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
-                Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
-            })
+        let force_buffer = |c: usize, as_a: bool| match &self.collisions[c] {
+            DeviceContact::Voxel(collision) => {
+                if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
+                    Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
+                })
+            }
+            DeviceContact::Surface(s) => Ok(if as_a { &s.force_a } else { &s.force_b }),
         };
         let mut accumulate = Vec::with_capacity(self.bodies.len());
         let mut forces = Vec::with_capacity(self.bodies.len());
@@ -610,6 +687,40 @@ impl GpuWorld {
         Ok((Bound { accumulate, volume, forces, integrate }, implicit_bodies))
     }
 
+    /// Per contact, what its surface contact found at the last step (the default for a contact
+    /// of the voxel model), as [`CpuWorld::surface_stats`](crate::CpuWorld::surface_stats).
+    #[must_use]
+    pub fn surface_stats(&self) -> Vec<SurfaceStats> {
+        self.collisions
+            .iter()
+            .map(|c| match c {
+                DeviceContact::Voxel(_) => SurfaceStats::default(),
+                DeviceContact::Surface(s) => s.stats,
+            })
+            .collect()
+    }
+
+    /// Reads the positions of the bodies in a surface contact back into
+    /// [`world`](Self::world), for the host's search.
+    fn read_positions(&mut self) -> Result<(), Error> {
+        let mut wanted = vec![false; self.bodies.len()];
+        for (c, pair) in self.collisions.iter().zip(&self.world.contacts) {
+            if matches!(c, DeviceContact::Surface(_)) {
+                wanted[pair.a] = true;
+                wanted[pair.b] = true;
+            }
+        }
+        let which: Vec<usize> = (0..wanted.len()).filter(|&k| wanted[k]).collect();
+        let parts: Vec<(&Buffer, u64)> =
+            which.iter().map(|&k| (&self.bodies[k].pos, 16 * u64::from(self.bodies[k].n))).collect();
+        let bytes = voxcollide::gpu::read_buffers(&self.ctx, &parts)?;
+        for (&k, bytes) in which.iter().zip(&bytes) {
+            let pos: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
+            self.world.bodies[k].pos = pos.iter().map(|p| p.truncate()).collect();
+        }
+        Ok(())
+    }
+
     /// Reads every body's positions, velocities and held fill pressure back into
     /// [`world`](Self::world), checks
     /// for a blow-up, and returns the last step's report of every contact.
@@ -619,7 +730,22 @@ impl GpuWorld {
     /// body and the vertex), and the readback's device errors.
     pub fn sync(&mut self) -> Result<Vec<ContactReport>, Error> {
         let reports = if self.step > 0 {
-            self.collisions.iter_mut().map(GpuCollision::read_report).collect::<Result<Vec<_>, _>>()?
+            self.collisions
+                .iter_mut()
+                .zip(&self.world.contacts)
+                .map(|(c, pair)| match c {
+                    DeviceContact::Voxel(collision) => collision.read_report(),
+                    // As the CPU world reports it.
+                    DeviceContact::Surface(s) => Ok(ContactReport {
+                        force_a: s.forces.force_a.clone(),
+                        force_b: s.forces.force_b.clone(),
+                        colliding_b: s.forces.touching_b.clone(),
+                        binned_a: self.world.bodies[pair.a].len() as u32,
+                        discarded_a: 0,
+                        grid_center: pair.grid.center(),
+                    }),
+                })
+                .collect::<Result<Vec<_>, _>>()?
         } else {
             vec![ContactReport::default(); self.collisions.len()]
         };

@@ -1,7 +1,8 @@
 //! Contacts measured to the partner's surface (`response = "surface"`, `SurfaceContact`): both
 //! sides pushed, where the voxel model pushes only one; the force continuous across the
 //! partner's edges and equal to the penalty's depth law; Newton's third law; the same bits on
-//! any number of threads; and the GPU world's refusal by name.
+//! any number of threads; the same bits on the GPU world under the explicit integrator (the search
+//! on the host), and its refusal under the implicit one by name.
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
@@ -153,13 +154,99 @@ fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {
     }
 }
 
+/// A rigid ball pressed 2 mm into a soft sphere: a lattice that carries the sphere's surface,
+/// which the contact meets (its points' forces shared by their cells' corners).
+const DOME: &str = r#"
+units = "mm"
+[time]
+steps = 300
+[[body]]
+name = "dome"
+kind = "soft"
+shape = { sphere = 10 }
+spacing = 3
+material = { young_kpa = 10 }
+fixed = [{ below = { z = -5 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 4 }
+spacing = 2
+position = [1, 0.5, 15]
+motion = [{ t = 0.0, position = [1, 0.5, 15] }, { t = 0.006, position = [1, 0.5, 12] }]
+[[contact]]
+a = "ball"
+b = "dome"
+"#;
+
+fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
+    v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
 #[test]
-fn the_gpu_world_refuses_a_surface_contact_by_name() {
+fn under_the_explicit_integrator_a_surface_contact_steps_the_same_bits_on_cpu_and_gpu() {
+    // Its search runs on the host over the positions read back each step: the same code on
+    // the same positions, so the device's forces and integration give the CPU's bits, on a
+    // lattice's own surface (the block) and on the surface a lattice carries (the dome).
     let Some(ctx) = common::gpu() else { return };
-    let built = build_world(&SceneFile::parse("press.toml", PRESS).unwrap()).unwrap();
+    for (name, text, steps) in [("press.toml", PRESS, 400), ("dome.toml", DOME, 300)] {
+        let built = build_world(&SceneFile::parse(name, text).unwrap()).unwrap();
+        assert!(built.world.contacts[0].surface.is_some(), "{name}: the default response is the surface one");
+        if name == "dome.toml" {
+            assert!(built.world.bodies[0].embedded.is_some(), "the dome carries its sphere");
+        }
+        let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
+        let mut gpu = GpuWorld::new(&ctx, built.world).unwrap();
+        let (mut pushed, mut deepest) = (0, 0.0f32);
+        for step in 1..=steps {
+            cpu.step().unwrap();
+            gpu.step().unwrap();
+            let (c, g) = (cpu.surface_stats[0], gpu.surface_stats()[0]);
+            assert_eq!(c, g, "{name}: step {step}");
+            pushed += g.a_pushed + g.b_pushed;
+            deepest = deepest.max(g.deepest);
+            if step % 100 == 0 || step == steps {
+                let reports = gpu.sync().unwrap();
+                for (k, (c, g)) in cpu.world.bodies.iter().zip(&gpu.world.bodies).enumerate() {
+                    assert_eq!(bits(&c.pos), bits(&g.pos), "{name}: body {k} at step {step}");
+                    assert_eq!(bits(&c.vel), bits(&g.vel), "{name}: body {k} at step {step}");
+                }
+                let (c, g) = (&cpu.reports[0], &reports[0]);
+                assert_eq!(
+                    (bits(&c.force_a), bits(&c.force_b)),
+                    (bits(&g.force_a), bits(&g.force_b)),
+                    "{name}"
+                );
+                assert_eq!(c.colliding_b, g.colliding_b, "{name}: step {step}");
+            }
+        }
+        assert!(pushed > 100 && deepest > 0.0, "{name}: the ball never pressed ({pushed} pushes)");
+        // The dome was pressed down where the ball came in.
+        let lowered = gpu.world.bodies[0]
+            .pos
+            .iter()
+            .zip(&gpu.world.bodies[0].rest_pos)
+            .map(|(p, r)| r.z - p.z)
+            .fold(0.0f32, f32::max);
+        assert!(lowered > 0.5, "{name}: the soft body moved down at most {lowered}");
+    }
+}
+
+#[test]
+fn the_gpu_world_refuses_a_surface_contact_under_the_implicit_integrator_by_name() {
+    let Some(ctx) = common::gpu() else { return };
+    let implicit = PRESS.replace("[time]", "[time]\nintegrator = \"implicit\"");
+    let built = build_world(&SceneFile::parse("press.toml", &implicit).unwrap()).unwrap();
+    assert_ne!(built.world.integrator, Integrator::Explicit);
     let Err(e) = GpuWorld::new(&ctx, built.world) else { panic!("the GPU world took a surface contact") };
     let text = e.to_string();
-    assert!(text.contains("surface") && text.contains("ball – block") && text.contains("CpuWorld"), "{text}");
+    assert!(
+        text.contains("surface")
+            && text.contains("ball – block")
+            && text.contains("implicit")
+            && text.contains("CpuWorld"),
+        "{text}"
+    );
 }
 
 #[test]

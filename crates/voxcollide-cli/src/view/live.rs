@@ -355,9 +355,7 @@ impl Live {
                     return Err(Error::Invalid {
                         what: "backend",
                         value: "gpu".into(),
-                        rule: format!(
-                            "{why} steps on the CPU (its WGSL passes are not built yet); use --backend auto or cpu"
-                        ),
+                        rule: format!("{why} steps on the CPU only; use --backend auto or cpu"),
                     });
                 }
                 note(&format!("{why} steps on the CPU"));
