@@ -224,7 +224,7 @@ enum ContactSource {
 /// A contact as a [`GpuWorld`] steps it.
 enum DeviceContact {
     /// The voxel model's collision passes (through the embedding API).
-    Voxel(GpuCollision),
+    Voxel(Box<GpuCollision>),
     /// A surface contact, found on the host.
     Surface(Box<HostSurface>),
 }
@@ -317,7 +317,7 @@ impl GpuWorld {
             .map(|c| match c.surface {
                 None => GpuCollision::new(ctx, c.grid, c.params)
                     .and_then(|g| g.with_response(c.response))
-                    .map(DeviceContact::Voxel),
+                    .map(|g| DeviceContact::Voxel(Box::new(g))),
                 Some(penalty) => {
                     let (a, b) = (&world.bodies[c.a], &world.bodies[c.b]);
                     let contact = SurfaceContact::new(penalty, a, b)?;
