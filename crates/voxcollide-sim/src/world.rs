@@ -45,7 +45,8 @@ pub struct ContactPair {
     pub response: Response,
     /// `Some`: the pair's forces are measured to each other's surface triangles, on both sides
     /// ([`crate::contact::SurfaceContact`]), instead of coming from the voxel model's report;
-    /// the grid then gives only the contact's bound (its voxel size). CPU only.
+    /// the grid then gives only the contact's bound (its voxel size). Found on the host: the
+    /// GPU world steps it under the explicit integrator only.
     pub surface: Option<SurfacePenalty>,
 }
 
