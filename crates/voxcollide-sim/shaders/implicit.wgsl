@@ -1,14 +1,17 @@
-// The implicit integrator's passes (DESIGN §12, `integrator = "implicit"`) for one body of
-// springs whose contacts are the voxel model's: backward Euler linearised once per step and
-// solved matrix-free by a block-Jacobi preconditioned conjugate gradient, as the CPU does it
-// (src/implicit.rs, `integrate_implicit_together`), term by term. One shader, built once per
-// pass with the pipeline-overridable constant `PASS`; every pass shares one binding layout.
+// The implicit integrator's passes (DESIGN §12, `integrator = "implicit"`) for a world of
+// bodies of springs or tetrahedra whose contacts are the voxel model's: backward Euler
+// linearised once per step and solved matrix-free by a block-Jacobi preconditioned conjugate
+// gradient over every body at once, as the CPU does it (src/implicit.rs,
+// `integrate_implicit_together`), term by term. One shader, built once per pass with the
+// pipeline-overridable constant `PASS`; every pass shares one binding layout.
 //
-// Every per-vertex vector of the solve lives in `work`, `n` entries per slot (SLOT_*). Dot
-// products are summed per workgroup (a tree over its 64 lanes) into `red`'s columns of `groups`
-// partials, and the partials by one workgroup (PASS_SCALARS_*) into `red`'s scalars (S_*): a
+// Every per-vertex vector of a body's solve lives in its `work`, `n` entries per slot (SLOT_*).
+// Dot products are summed per workgroup (a tree over its 64 lanes) into `red`'s columns of
+// `groups` partials, and the partials by one workgroup (PASS_SCALARS_*) into `red`'s scalars: a
 // fixed order, so the same answer every time on one device (not the CPU's `f64` sums: the two
-// agree to the solve's tolerance, not bit for bit).
+// agree to the solve's tolerance, not bit for bit). `red` is the world's: each body's partials
+// are its range of every column (from `base`, `own` of them), so the solve's scalars (S_*) are
+// the joint system's; a body's own (B_*: its fill's products, its residual) follow them.
 
 override PASS: u32;
 
@@ -62,9 +65,7 @@ const COL_FAR: u32 = 6u;
 const COL_LEFT: u32 = 7u;
 const COLUMNS: u32 = 8u;
 
-const S_GV: u32 = 0u;
-const S_GHELD: u32 = 1u;
-const S_GP: u32 = 2u;
+// The joint solve's scalars (slots 0–2 and 10–11 unused: a body's own below).
 const S_ALPHA: u32 = 3u;
 const S_BETA: u32 = 4u;
 const S_RR: u32 = 5u;
@@ -72,13 +73,18 @@ const S_RZ: u32 = 6u;
 const S_DONE: u32 = 7u;
 const S_ITERATIONS: u32 = 8u;
 const S_NORM_B2: u32 = 9u;
-const S_NET2: u32 = 10u;
-const S_GROSS2: u32 = 11u;
 const S_FARTHEST: u32 = 12u;
 const S_LEFT2: u32 = 13u;
 const S_USE_GUESS: u32 = 14u;
 const S_TARGET: u32 = 15u;
 const SCALARS: u32 = 16u;
+// Each body's own scalars, after the joint ones (`BODY_SCALARS` per body).
+const B_GV: u32 = 0u;
+const B_GHELD: u32 = 1u;
+const B_GP: u32 = 2u;
+const B_NET2: u32 = 3u;
+const B_GROSS2: u32 = 4u;
+const BODY_SCALARS: u32 = 8u;
 
 // Per tetrahedron in `tet_work`: its Tangent (9), then two products (3 each).
 const TET_WORK: u32 = 15u;
@@ -92,7 +98,11 @@ struct ImplicitParams {
     tolerance: f32,
     scale: f32,              // the velocity's scale (PASS_MOVE)
     max_iterations: f32,
-    groups: u32,             // partials per column
+    groups: u32,             // partials per column, over every body
+    base: u32,               // this body's first partial in each column
+    own: u32,                // this body's partials
+    body: u32,               // this body's index (its own scalars)
+    bodies: u32,
     _pad: u32,
 }
 
@@ -128,7 +138,8 @@ fn vput(s: u32, i: u32, v: vec3<f32>) {
     work[slot(s, i)] = vec4<f32>(v, 0.0);
 }
 
-// `red` holds the scalars first (read back from offset 0), then the columns of partials.
+// `red` holds the joint scalars first (read back from offset 0), then each body's own, then
+// the columns of partials.
 fn scalar(k: u32) -> f32 {
     return red[k];
 }
@@ -137,8 +148,22 @@ fn set_scalar(k: u32, v: f32) {
     red[k] = v;
 }
 
+fn body_scalar(k: u32) -> f32 {
+    return red[SCALARS + BODY_SCALARS * ip.body + k];
+}
+
+fn set_body_scalar(k: u32, v: f32) {
+    red[SCALARS + BODY_SCALARS * ip.body + k] = v;
+}
+
+// Partial `j` of a column, counted over every body.
+fn part_at(column: u32, j: u32) -> u32 {
+    return SCALARS + BODY_SCALARS * ip.bodies + column * ip.groups + j;
+}
+
+// This body's workgroup `wg`'s partial.
 fn part(column: u32, wg: u32) -> u32 {
-    return SCALARS + column * ip.groups + wg;
+    return part_at(column, ip.base + wg);
 }
 
 fn is_free(i: u32) -> bool {
@@ -193,21 +218,30 @@ fn partial_max(column: u32, wg: u32, lane: u32, value: f32) {
     }
 }
 
-// A column's partials summed by one workgroup (lane j takes partials j, j + 64, …, then the
-// lanes pairwise): the total, on every lane.
+// A column's partials over every body summed by one workgroup (lane j takes partials j,
+// j + 64, …, then the lanes pairwise): the total, on every lane.
 fn column_sum(column: u32, lane: u32) -> f32 {
     var s = 0.0;
     for (var j = lane; j < ip.groups; j += 64u) {
+        s += red[part_at(column, j)];
+    }
+    return lanes_total(lane, s, false);
+}
+
+// This body's partials of a column alone, summed as above.
+fn own_sum(column: u32, lane: u32) -> f32 {
+    var s = 0.0;
+    for (var j = lane; j < ip.own; j += 64u) {
         s += red[part(column, j)];
     }
     return lanes_total(lane, s, false);
 }
 
-// The largest of a column's partials.
+// The largest of a column's partials over every body.
 fn column_max(column: u32, lane: u32) -> f32 {
     var s = 0.0;
     for (var j = lane; j < ip.groups; j += 64u) {
-        s = max(s, red[part(column, j)]);
+        s = max(s, red[part_at(column, j)]);
     }
     return lanes_total(lane, s, true);
 }
@@ -537,8 +571,8 @@ fn pass_rhs(i: u32) -> f32 {
             a_held += (h * h) * gather_product(i, 1u);
         }
         if ip.fill_k > 0.0 {
-            kv += (ip.fill_k * scalar(S_GV)) * vget(SLOT_G, i);
-            a_held += (h * h * ip.fill_k * scalar(S_GHELD)) * vget(SLOT_G, i);
+            kv += (ip.fill_k * body_scalar(B_GV)) * vget(SLOT_G, i);
+            a_held += (h * h * ip.fill_k * body_scalar(B_GHELD)) * vget(SLOT_G, i);
         }
         rhs = h * (vget(SLOT_F, i) - cd * v - h * kv) - a_held;
         if ip.guess_scale > 0.0 {
@@ -598,12 +632,12 @@ fn main(
         }
         partial_sum(COL_RR, wg, lane, bb);
     } else if PASS == PASS_GUESS {
-        // Needs g·x for a fill: taken as the scalar S_GP, written by PASS_SCALARS_GP over x.
+        // Needs g·x for a fill: taken as the body's B_GP, written by PASS_SCALARS_GP over x.
         var left2 = 0.0;
         if live {
             var ax = vec3<f32>(0.0);
             if is_free(i) {
-                ax = filtered(i, apply_row(i, SLOT_X, scalar(S_GP), false));
+                ax = filtered(i, apply_row(i, SLOT_X, body_scalar(B_GP), false));
             }
             let left = filtered(i, vget(SLOT_B, i)) - ax;
             vput(SLOT_R, i, left);
@@ -642,7 +676,7 @@ fn main(
         if live {
             var ap = vec3<f32>(0.0);
             if is_free(i) {
-                ap = filtered(i, apply_row(i, SLOT_P, scalar(S_GP), false));
+                ap = filtered(i, apply_row(i, SLOT_P, body_scalar(B_GP), false));
             }
             vput(SLOT_AP, i, ap);
             pap = dot3(vget(SLOT_P, i), ap);
@@ -729,18 +763,20 @@ fn pass_move(i: u32) {
     }
 }
 
-// The single-workgroup passes: the partials summed into the solve's scalars.
+// The single-workgroup passes: the partials summed into the solve's scalars. PASS_SCALARS_A
+// and PASS_SCALARS_GP sum one body's partials into its own scalars (run per body); the others
+// sum every body's into the joint solve's (run once).
 fn scalars(lane: u32) {
     if PASS == PASS_SCALARS_A {
-        let gv = column_sum(COL_GP, lane);
-        let gh = column_sum(COL_PAP, lane);
-        let net = column_sum(COL_NET, lane);
-        let gross = column_sum(COL_GROSS, lane);
+        let gv = own_sum(COL_GP, lane);
+        let gh = own_sum(COL_PAP, lane);
+        let net = own_sum(COL_NET, lane);
+        let gross = own_sum(COL_GROSS, lane);
         if lane == 0u {
-            set_scalar(S_GV, gv);
-            set_scalar(S_GHELD, gh);
-            set_scalar(S_NET2, net);
-            set_scalar(S_GROSS2, gross);
+            set_body_scalar(B_GV, gv);
+            set_body_scalar(B_GHELD, gh);
+            set_body_scalar(B_NET2, net);
+            set_body_scalar(B_GROSS2, gross);
             // PASS_GP reads x while S_DONE is negative (the guess's g·x).
             set_scalar(S_DONE, -1.0);
         }
@@ -768,9 +804,9 @@ fn scalars(lane: u32) {
             set_scalar(S_RZ, rz);
         }
     } else if PASS == PASS_SCALARS_GP {
-        let gp = column_sum(COL_GP, lane);
+        let gp = own_sum(COL_GP, lane);
         if lane == 0u {
-            set_scalar(S_GP, gp);
+            set_body_scalar(B_GP, gp);
         }
     } else if PASS == PASS_SCALARS_ALPHA {
         let pap = column_sum(COL_PAP, lane);

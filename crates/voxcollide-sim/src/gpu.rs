@@ -19,7 +19,7 @@ use wgpu::{Buffer, BufferUsages};
 use crate::body::{MassSpring, StepInputs};
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::cpu::{Parts, Stepper, after_implicit_step};
-use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup};
+use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup, Sums};
 use crate::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
@@ -270,8 +270,10 @@ pub struct GpuWorld {
 struct Implicit {
     settings: ImplicitSettings,
     kernels: ImplicitKernels,
-    /// Per body, made with the bind groups (after the first collision step).
+    /// Per body, made with the bind groups (after the first collision step), and the world's
+    /// sums, which make their solves one.
     bodies: Vec<ImplicitBody>,
+    sums: Option<Sums>,
     /// The last step's `h` (0: none yet), whose answer the next solve starts from.
     guess_h: f32,
     dt_scale: f32,
@@ -409,6 +411,7 @@ impl GpuWorld {
                 settings,
                 kernels: scoped(device, || ImplicitKernels::new(device))?,
                 bodies: Vec::new(),
+                sums: None,
                 guess_h: 0.0,
                 dt_scale: 1.0,
                 accelerate_to: 1.0,
@@ -499,10 +502,11 @@ impl GpuWorld {
             }
         }
         if self.bound.is_none() {
-            let (bound, implicit_bodies) = self.bind(&device)?;
+            let (bound, implicit_bodies, sums) = self.bind(&device)?;
             self.bound = Some(bound);
             if let Some(imp) = self.implicit.as_mut() {
                 imp.bodies = implicit_bodies;
+                imp.sums = sums;
             }
         }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bound above") };
@@ -602,7 +606,7 @@ impl GpuWorld {
     }
 
     /// The bind groups, once the collisions have their force buffers.
-    fn bind(&self, device: &wgpu::Device) -> Result<(Bound, Vec<ImplicitBody>), Error> {
+    fn bind(&self, device: &wgpu::Device) -> Result<(Bound, Vec<ImplicitBody>, Option<Sums>), Error> {
         let force_buffer = |c: usize, as_a: bool| match &self.collisions[c] {
             DeviceContact::Voxel(collision) => {
                 if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
@@ -616,6 +620,11 @@ impl GpuWorld {
         let mut integrate = Vec::with_capacity(self.bodies.len());
         let mut volume = Vec::with_capacity(self.bodies.len());
         let mut implicit_bodies = Vec::new();
+        let sums = self.implicit.as_ref().map(|_| {
+            let n: Vec<u32> = self.bodies.iter().map(|b| b.n).collect();
+            Sums::new(device, &n, self.max_per_dim)
+        });
+        let mut base = 0;
         let contacts_of = self.world.contacts_of();
         for (k, b) in self.bodies.iter().enumerate() {
             let mut groups = Vec::new();
@@ -650,7 +659,7 @@ impl GpuWorld {
             volume.push(self.volume.bind(device, &[&b.params, &b.pos, &b.triangles, &b.fill]));
             integrate
                 .push(self.integrate.bind(device, &[&b.params, &b.pos, &b.vel, &b.info, &b.acc, &b.status]));
-            if let Some(imp) = self.implicit.as_ref() {
+            if let (Some(imp), Some(sums)) = (self.implicit.as_ref(), sums.as_ref()) {
                 // Each penalty contact's force on this body, and its stiffness.
                 let mut penalties = Vec::new();
                 for &(c, as_a) in &contacts_of[k] {
@@ -673,7 +682,7 @@ impl GpuWorld {
                     tet_index: &b.tet_index,
                     tet_rest: &b.tet_rest,
                 };
-                implicit_bodies.push(ImplicitBody::new(
+                let body = ImplicitBody::new(
                     device,
                     &imp.kernels,
                     b.n,
@@ -681,10 +690,14 @@ impl GpuWorld {
                     self.max_per_dim,
                     &buffers,
                     &penalties,
-                ));
+                    sums,
+                    (k as u32, base),
+                );
+                base += body.groups();
+                implicit_bodies.push(body);
             }
         }
-        Ok((Bound { accumulate, volume, forces, integrate }, implicit_bodies))
+        Ok((Bound { accumulate, volume, forces, integrate }, implicit_bodies, sums))
     }
 
     /// Per contact, what its surface contact found at the last step (the default for a contact
@@ -795,11 +808,13 @@ impl Stepper for GpuWorld {
             tolerance: settings.tolerance,
             max_iterations: settings.max_iterations,
         };
+        let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
         let solved = crate::gpu_implicit::solve(
             &self.ctx,
             encoder,
             &imp.kernels,
             &imp.bodies,
+            sums,
             inputs,
             &setup,
             self.max_per_dim,
@@ -813,6 +828,7 @@ impl Stepper for GpuWorld {
                 &self.ctx,
                 &imp.kernels,
                 &imp.bodies,
+                sums,
                 inputs,
                 &setup,
                 scale,

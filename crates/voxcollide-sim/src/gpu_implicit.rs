@@ -9,15 +9,15 @@
 //! batch of [`BATCH`] iterations (has every body's solve converged?) and once at the end (how
 //! far would the farthest vertex move?).
 //!
+//! **One solve over every body**, as on the CPU: each body's passes write its own range of
+//! every column of partial sums in one buffer (`red`), and the scalar passes sum every body's,
+//! so `α`, `β`, the start from the last answer and the stopping test `|r| ≤ tol·|b|` are the
+//! joint system's, and every body reports the joint solve in its [`StepStats`]. A fill's
+//! products (`g·v`, `g·p`) and a body's residual at rest are its own.
+//!
 //! **What differs from the CPU.** The dot products are `f32` trees per workgroup on the device,
-//! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. Each
-//! body is solved on its own (the CPU solves every body in one system: with the voxel model's
-//! contacts, which push from a partner standing still, the systems do not couple, and the
-//! answers agree to the tolerance). So each body reports its own solve in its
-//! [`StepStats`] (the CPU reports the joint one to every body), and each stops at its own
-//! `|r| ≤ tol·|b|`, stricter for a lightly loaded body than the CPU's over all of them: with
-//! several bodies free to move, the settling step, which watches the solves, may take another
-//! path to the same rest. A step that would carry a vertex farther than
+//! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. A
+//! step that would carry a vertex farther than
 //! [`ImplicitSettings::max_move`](crate::ImplicitSettings::max_move) is taken in parts, or
 //! scaled, as on the CPU ([`crate::Parts`]).
 
@@ -81,17 +81,19 @@ const TET_WORK: u64 = 15;
 /// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's.
 const SLOTS: u64 = 15;
 const SLOT_KC0: u32 = 5;
-/// Columns of partials and scalars in `red`.
+/// Columns of partials, the joint scalars and each body's own in `red`.
 const COLUMNS: u64 = 8;
 const SCALARS: u64 = 16;
-// The scalars read back (`S_*` in implicit.wgsl).
+const BODY_SCALARS: u64 = 8;
+// The joint scalars read back (`S_*` in implicit.wgsl).
 const S_DONE: usize = 7;
 const S_ITERATIONS: usize = 8;
 const S_RR: usize = 5;
 const S_NORM_B2: usize = 9;
-const S_NET2: usize = 10;
-const S_GROSS2: usize = 11;
 const S_FARTHEST: usize = 12;
+// A body's own (`B_*`).
+const B_NET2: usize = 3;
+const B_GROSS2: usize = 4;
 
 /// Keep in sync with `ImplicitParams` in `shaders/implicit.wgsl`.
 #[repr(C)]
@@ -103,9 +105,16 @@ struct GpuImplicitParams {
     tolerance: f32,
     scale: f32,
     max_iterations: f32,
+    /// Partials per column over every body; this body's first and its count.
     groups: u32,
+    base: u32,
+    own: u32,
+    /// This body's index, and the bodies'.
+    body: u32,
+    bodies: u32,
     _pad: u32,
 }
+const _: () = assert!(std::mem::size_of::<GpuImplicitParams>() == 48);
 
 /// The kernels of the implicit passes, built once per world.
 pub(crate) struct ImplicitKernels {
@@ -138,16 +147,49 @@ impl ImplicitKernels {
     }
 }
 
+/// The world's buffer of partial sums and scalars (`red` in implicit.wgsl), which every body's
+/// passes share: one solve over every body.
+pub(crate) struct Sums {
+    red: Buffer,
+    /// Partials per column over every body.
+    groups: u32,
+    bodies: u32,
+}
+
+impl Sums {
+    /// The buffer for bodies of `n` vertices each.
+    pub(crate) fn new(device: &wgpu::Device, n: &[u32], max_per_dim: u32) -> Sums {
+        let groups: u32 = n.iter().map(|&n| own_groups(n, max_per_dim)).sum();
+        let bodies = n.len() as u32;
+        let size = 4 * (SCALARS + BODY_SCALARS * u64::from(bodies) + COLUMNS * u64::from(groups));
+        let red = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("implicit sums"),
+            size: size.max(16),
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Sums { red, groups, bodies }
+    }
+}
+
+/// A body's workgroups in a pass over its vertices.
+fn own_groups(n: u32, max_per_dim: u32) -> u32 {
+    let (x, y) = workgroups(n.max(1), max_per_dim);
+    x * y
+}
+
 /// One body's device buffers for the implicit passes, and its bind groups.
 pub(crate) struct ImplicitBody {
     params: Buffer,
     work: Buffer,
-    red: Buffer,
     /// Per tetrahedron: its stiffness and two products (`TET_WORK`).
     _tet_work: Buffer,
     n: u32,
     tets: u32,
+    /// Its workgroups, the first of them among every body's, and its index.
     groups: u32,
+    base: u32,
+    body: u32,
     /// One bind group per pass.
     groups_of: Vec<wgpu::BindGroup>,
     /// Per contact that pushes this body with a penalty: its params and bind group.
@@ -172,8 +214,10 @@ pub(crate) struct BodyBuffers<'a> {
 }
 
 impl ImplicitBody {
+    /// Body `body` of the world whose sums are `sums`, its partials from `base` on.
     /// `penalties`: the force buffer and stiffness of each of the body's penalty contacts, in
     /// contact order.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new(
         device: &wgpu::Device,
         kernels: &ImplicitKernels,
@@ -182,9 +226,10 @@ impl ImplicitBody {
         max_per_dim: u32,
         b: &BodyBuffers,
         penalties: &[(&Buffer, f32)],
+        sums: &Sums,
+        (body, base): (u32, u32),
     ) -> ImplicitBody {
-        let (x, y) = workgroups(n.max(1), max_per_dim);
-        let groups = x * y;
+        let groups = own_groups(n, max_per_dim);
         let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
         let buffer = |label, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor {
@@ -200,7 +245,6 @@ impl ImplicitBody {
             BufferUsages::UNIFORM | BufferUsages::COPY_DST,
         );
         let work = buffer("implicit work", 16 * SLOTS * u64::from(n), storage);
-        let red = buffer("implicit sums", 4 * (SCALARS + COLUMNS * u64::from(groups)), storage);
         let tet_work = buffer("implicit tetrahedra", 16 * TET_WORK * u64::from(tets), storage);
         let groups_of = kernels
             .passes
@@ -221,7 +265,7 @@ impl ImplicitBody {
                         b.contact,
                         b.fill,
                         &work,
-                        &red,
+                        &sums.red,
                         b.status,
                         b.tet_index,
                         b.tet_rest,
@@ -244,7 +288,12 @@ impl ImplicitBody {
                 (p, group)
             })
             .collect();
-        ImplicitBody { params, work, red, _tet_work: tet_work, n, tets, groups, groups_of, contacts }
+        ImplicitBody { params, work, _tet_work: tet_work, n, tets, groups, base, body, groups_of, contacts }
+    }
+
+    /// Its workgroups in a pass over its vertices (its partials in each column).
+    pub(crate) fn groups(&self) -> u32 {
+        self.groups
     }
 
     fn write(&self, queue: &wgpu::Queue, p: &GpuImplicitParams) {
@@ -260,7 +309,7 @@ pub(crate) struct Setup {
     pub max_iterations: u32,
 }
 
-fn params(inputs: &StepInputs, s: &Setup, groups: u32, scale: f32) -> GpuImplicitParams {
+fn params(inputs: &StepInputs, s: &Setup, body: &ImplicitBody, sums: &Sums, scale: f32) -> GpuImplicitParams {
     GpuImplicitParams {
         h: s.h,
         fill_k: if inputs.fill_volume > 0.0 { inputs.fill_bulk / inputs.fill_volume } else { 0.0 },
@@ -268,7 +317,11 @@ fn params(inputs: &StepInputs, s: &Setup, groups: u32, scale: f32) -> GpuImplici
         tolerance: s.tolerance,
         scale,
         max_iterations: s.max_iterations as f32,
-        groups,
+        groups: sums.groups,
+        base: body.base,
+        own: body.groups,
+        body: body.body,
+        bodies: sums.bodies,
         _pad: 0,
     }
 }
@@ -282,56 +335,64 @@ pub(crate) struct Solved {
     pub residual: Residual,
 }
 
-fn read_scalars(ctx: &voxcollide::GpuContext, bodies: &[ImplicitBody]) -> Result<Vec<[f32; 16]>, Error> {
-    let parts: Vec<(&Buffer, u64)> = bodies.iter().map(|b| (&b.red, 4 * SCALARS)).collect();
-    let bytes = voxcollide::gpu::read_buffers(ctx, &parts)?;
-    Ok(bytes.iter().map(|b| bytemuck::pod_read_unaligned::<[f32; 16]>(b)).collect())
+/// The joint scalars, and each body's own.
+fn read_scalars(ctx: &voxcollide::GpuContext, sums: &Sums) -> Result<([f32; 16], Vec<[f32; 8]>), Error> {
+    let size = 4 * (SCALARS + BODY_SCALARS * u64::from(sums.bodies));
+    let bytes = voxcollide::gpu::read_buffers(ctx, &[(&sums.red, size)])?;
+    let words: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes[0]);
+    let joint: [f32; 16] = words[..16].try_into().unwrap_or([0.0; 16]);
+    let own = words[16..].chunks_exact(8).map(|c| c.try_into().unwrap_or([0.0; 8])).collect();
+    Ok((joint, own))
 }
 
-/// Records `passes` for every body listed in `which`, in one compute pass.
+/// Records `items`, each a pass of one body (`(body, pass)`), in order, in one compute pass.
+/// A pass over the joint scalars is recorded once, with any body's bindings.
 fn record(
     encoder: &mut wgpu::CommandEncoder,
     kernels: &ImplicitKernels,
     bodies: &[ImplicitBody],
-    which: &[usize],
-    passes: &[usize],
+    items: &[(usize, usize)],
     max_per_dim: u32,
 ) {
     let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
         label: Some("voxcollide implicit"),
         timestamp_writes: None,
     });
-    for &k in which {
+    for &(k, p) in items {
         let body = &bodies[k];
-        for &p in passes {
-            if single(p) {
-                kernels.passes[p].dispatch_one(&mut pass, &body.groups_of[p]);
-            } else if per_tetrahedron(p) {
-                kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.tets, max_per_dim);
-            } else {
-                kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.n, max_per_dim);
-            }
+        if single(p) {
+            kernels.passes[p].dispatch_one(&mut pass, &body.groups_of[p]);
+        } else if per_tetrahedron(p) {
+            kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.tets, max_per_dim);
+        } else {
+            kernels.passes[p].dispatch(&mut pass, &body.groups_of[p], body.n, max_per_dim);
         }
     }
 }
 
-/// The solve of one implicit step for every body, after the collisions and the fills'
-/// pressures are recorded in `encoder`: the contact stiffness, the system, the conjugate
-/// gradient to each body's tolerance, and the farthest move. Returns each body's solve; the
-/// update is [`finish`]'s.
+/// `passes` for every body in turn, as `(body, pass)` items.
+fn each(bodies: usize, passes: impl Fn(usize) -> Vec<usize>) -> Vec<(usize, usize)> {
+    (0..bodies).flat_map(|k| passes(k).into_iter().map(move |p| (k, p))).collect()
+}
+
+/// The solve of one implicit step over every body, after the collisions and the fills'
+/// pressures are recorded in `encoder`: the contact stiffness, the system, one conjugate
+/// gradient over every body to the joint tolerance, and the farthest move. Returns each body's
+/// solve (the joint one's figures, with its own residual at rest); the update is [`finish`]'s.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     ctx: &voxcollide::GpuContext,
     mut encoder: wgpu::CommandEncoder,
     kernels: &ImplicitKernels,
     bodies: &[ImplicitBody],
+    sums: &Sums,
     inputs: &[StepInputs],
     setup: &Setup,
     max_per_dim: u32,
 ) -> Result<Vec<Solved>, Error> {
     let queue = ctx.queue();
     for (b, inputs) in bodies.iter().zip(inputs) {
-        b.write(queue, &params(inputs, setup, b.groups, 1.0));
+        b.write(queue, &params(inputs, setup, b, sums, 1.0));
         encoder.clear_buffer(&b.work, 16 * u64::from(SLOT_KC0) * u64::from(b.n), Some(32 * u64::from(b.n)));
     }
     {
@@ -345,11 +406,12 @@ pub(crate) fn solve(
             }
         }
     }
-    let all: Vec<usize> = (0..bodies.len()).collect();
+    let count = bodies.len();
     let fill = |k: usize| inputs[k].fill_volume > 0.0;
     let elements = |k: usize| bodies[k].tets > 0;
     let guessing = setup.guess_scale > 0.0;
-    for &k in &all {
+    // Each body's system and right-hand side, then the joint start.
+    let mut start = each(count, |k| {
         let mut passes = vec![PREPARE, FLOOR, SCALARS_A];
         if elements(k) {
             passes.extend([TANGENT, PRODUCT_RHS]);
@@ -364,52 +426,59 @@ pub(crate) fn solve(
             }
             passes.push(GUESS);
         }
-        passes.extend([SCALARS_B, START, SCALARS_C]);
-        record(&mut encoder, kernels, bodies, &[k], &passes, max_per_dim);
-    }
-    let iteration = |k: usize| -> Vec<usize> {
-        let mut p = Vec::with_capacity(8);
+        passes
+    });
+    start.push((0, SCALARS_B));
+    start.extend(each(count, |_| vec![START]));
+    start.push((0, SCALARS_C));
+    record(&mut encoder, kernels, bodies, &start, max_per_dim);
+    // One iteration: each body's `A·p`, the joint `α`, each body's update, the joint `β`, each
+    // body's new direction.
+    let mut iteration = each(count, |k| {
+        let mut p = Vec::with_capacity(4);
         if fill(k) {
             p.extend([GP, SCALARS_GP]);
         }
         if elements(k) {
             p.push(PRODUCT_P);
         }
-        p.extend([APPLY, SCALARS_ALPHA, UPDATE, SCALARS_BETA, DIRECTION]);
+        p.push(APPLY);
         p
-    };
-    let mut running = all.clone();
+    });
+    iteration.push((0, SCALARS_ALPHA));
+    iteration.extend(each(count, |_| vec![UPDATE]));
+    iteration.push((0, SCALARS_BETA));
+    iteration.extend(each(count, |_| vec![DIRECTION]));
+    let batch: Vec<(usize, usize)> = (0..BATCH).flat_map(|_| iteration.iter().copied()).collect();
     let mut recorded = 0;
     loop {
-        for &k in &running {
-            let one = iteration(k);
-            let passes: Vec<usize> = (0..BATCH).flat_map(|_| one.iter().copied()).collect();
-            record(&mut encoder, kernels, bodies, &[k], &passes, max_per_dim);
-        }
+        record(&mut encoder, kernels, bodies, &batch, max_per_dim);
         recorded += BATCH;
         queue.submit([encoder.finish()]);
-        let scalars = read_scalars(ctx, bodies)?;
-        running.retain(|&k| scalars[k][S_DONE] == 0.0);
+        let (joint, _) = read_scalars(ctx, sums)?;
         encoder = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("voxcollide implicit solve"),
         });
         // (The cap is the solve's own, checked on the device; this only stops the host.)
-        if running.is_empty() || recorded > setup.max_iterations + BATCH {
+        if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
             break;
         }
     }
-    record(&mut encoder, kernels, bodies, &all, &[FARTHEST, SCALARS_FAR], max_per_dim);
+    let mut far = each(count, |_| vec![FARTHEST]);
+    far.push((0, SCALARS_FAR));
+    record(&mut encoder, kernels, bodies, &far, max_per_dim);
     queue.submit([encoder.finish()]);
-    let scalars = read_scalars(ctx, bodies)?;
-    Ok(scalars
+    let (joint, own) = read_scalars(ctx, sums)?;
+    let relative = if joint[S_NORM_B2] > 0.0 { (joint[S_RR] / joint[S_NORM_B2]).sqrt() } else { 0.0 };
+    Ok(own
         .iter()
-        .map(|s| Solved {
-            iterations: s[S_ITERATIONS] as u32,
-            relative_residual: if s[S_NORM_B2] > 0.0 { (s[S_RR] / s[S_NORM_B2]).sqrt() } else { 0.0 },
-            farthest: s[S_FARTHEST],
+        .map(|o| Solved {
+            iterations: joint[S_ITERATIONS] as u32,
+            relative_residual: relative,
+            farthest: joint[S_FARTHEST],
             residual: Residual {
-                net: f64::from(s[S_NET2]).sqrt(),
-                gross: f64::from(s[S_GROSS2]).sqrt(),
+                net: f64::from(o[B_NET2]).sqrt(),
+                gross: f64::from(o[B_GROSS2]).sqrt(),
                 peak_gross: 0.0,
             },
         })
@@ -423,6 +492,7 @@ pub(crate) fn finish(
     ctx: &voxcollide::GpuContext,
     kernels: &ImplicitKernels,
     bodies: &[ImplicitBody],
+    sums: &Sums,
     inputs: &[StepInputs],
     setup: &Setup,
     scale: f32,
@@ -430,13 +500,12 @@ pub(crate) fn finish(
 ) {
     let queue = ctx.queue();
     for (b, inputs) in bodies.iter().zip(inputs) {
-        b.write(queue, &params(inputs, setup, b.groups, scale));
+        b.write(queue, &params(inputs, setup, b, sums, scale));
     }
     let mut encoder = ctx
         .device()
         .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide implicit move") });
-    let all: Vec<usize> = (0..bodies.len()).collect();
-    record(&mut encoder, kernels, bodies, &all, &[MOVE], max_per_dim);
+    record(&mut encoder, kernels, bodies, &each(bodies.len(), |_| vec![MOVE]), max_per_dim);
     queue.submit([encoder.finish()]);
 }
 
