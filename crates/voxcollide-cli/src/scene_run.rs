@@ -192,26 +192,17 @@ pub struct FileRunConfig {
 /// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
 /// does: the implicit integrator, whose solve waits on the device every few iterations (on
 /// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
-/// contact, whose search runs on the host and makes each GPU step wait for the positions
-/// (`--backend gpu` steps either on the device).
+/// contact, whose search runs on the host and makes each GPU step wait for the positions.
+/// `--backend gpu` steps every world on the device: both integrators, springs or
+/// `"neo-hookean"` tetrahedra, and every contact response.
 pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
-    cpu_only(world)
-        .or((world.integrator != Integrator::Explicit).then_some(
-            "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
-        ))
-        .or(world.contacts.iter().any(|c| c.surface.is_some()).then_some(
-            "contact response = \"surface\" (the default: its search runs on the host, each GPU step waiting for the positions; --backend gpu runs it)",
-        ))
-}
-
-/// Why `world` steps on the CPU only, if it does: a contact with `response = "surface"` under
-/// the implicit integrator (the device's solve does not couple two bodies yet). Both
-/// integrators step on the GPU otherwise, with springs or `"neo-hookean"` tetrahedra, and a
-/// surface contact under the explicit one.
-pub(crate) fn cpu_only(world: &World) -> Option<&'static str> {
-    if world.integrator != Integrator::Explicit && world.contacts.iter().any(|c| c.surface.is_some()) {
+    if world.integrator != Integrator::Explicit {
         Some(
-            "contact response = \"surface\" (the default) under [time] integrator = \"implicit\" (the GPU's implicit solve does not couple two bodies yet)",
+            "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
+        )
+    } else if world.contacts.iter().any(|c| c.surface.is_some()) {
+        Some(
+            "contact response = \"surface\" (the default: its search runs on the host, each GPU step waiting for the positions; --backend gpu runs it)",
         )
     } else {
         None
@@ -361,20 +352,7 @@ pub fn run_scene(
             note(&format!("{}: {r}", n.name));
         }
     }
-    let on_cpu = cpu_only(&built.world);
-    if let Some(why) = on_cpu
-        && config.backend == Backend::Gpu
-    {
-        return Err(Error::Invalid {
-            what: "backend",
-            value: "gpu".into(),
-            rule: format!(
-                "{}: {why} steps on the CPU only; use --backend auto or cpu",
-                config.path.display()
-            ),
-        });
-    }
-    let on_cpu = if config.backend == Backend::Auto { cpu_first(&built.world) } else { on_cpu };
+    let on_cpu = if config.backend == Backend::Auto { cpu_first(&built.world) } else { None };
     let wants_pictures = file.output.images;
     let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
     if let (Some(why), Some(_)) = (on_cpu, &ctx) {

@@ -351,16 +351,6 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
         let gpu = run_on(&d3, &penalty, three, Backend::Gpu, 1).unwrap();
         let cpu = run_on(&d4, &penalty, three, Backend::Cpu, 1).unwrap();
         assert_eq!(cpu.candidates, gpu.candidates);
-        // The surface response under the implicit integrator is refused there by name.
-        let implicit = scene(12.0).replace("[time]", "[time]\nintegrator = \"implicit\"");
-        assert_ne!(implicit, scene(12.0));
-        let e = run_on(&d3, &implicit, three, Backend::Gpu, 1).unwrap_err().to_string();
-        assert!(
-            e.contains("response = \"surface\"")
-                && e.contains("implicit")
-                && e.contains("--backend auto or cpu"),
-            "{e}"
-        );
         std::fs::remove_dir_all(&d3).unwrap();
         std::fs::remove_dir_all(&d4).unwrap();
         std::fs::remove_dir_all(&d5).unwrap();

@@ -190,13 +190,13 @@ fn the_papers_scene_file_speaks_in_layer_units_never_metres_or_millilitres() {
 #[test]
 fn the_gpu_backend_presses_neo_hookean_tetrahedra_as_the_cpu_does() {
     // The elements' WGSL passes through the command: the ball into a ν = 0.45 block, with the
-    // voxel model's penalty (the surface contact steps on the CPU only), driven 2 mm in its
-    // first 0.1 s (lavapipe steps it at 5–10 a second; tests in voxcollide-sim follow further).
+    // default surface contact (its couplings in the device's solve, found on the host), driven
+    // 2 mm in its first 0.1 s (lavapipe steps it at 5–10 a second; tests in voxcollide-sim
+    // follow further).
     let d = dir("gpu-fem");
     let scene = PRESS
         .replace("INTEGRATOR", "implicit")
         .replace("material = { young_kpa", "material = { model = \"neo-hookean\", poisson = 0.45, young_kpa")
-        .replace("b = \"block\"\n", "b = \"block\"\nresponse = \"penalty\"\n")
         .replace("settle = true\n", "")
         .replace("duration = 0.4", "duration = 0.12")
         .replace("t = 0.3, position = [0, 0, 11]", "t = 0.1, position = [0, 0, 12]");

@@ -53,7 +53,10 @@ const SLOT_P: u32 = 11u;
 const SLOT_AP: u32 = 12u;
 const SLOT_B: u32 = 13u;
 const SLOT_T: u32 = 14u;     // scratch: the new velocity
-const SLOTS: u32 = 15u;
+const SLOT_C: u32 = 15u;     // a surface contact's coupling terms (couple_gather.wgsl)
+const SLOT_E0: u32 = 16u;    // the couplings' own blocks for the preconditioner (the host's),
+const SLOT_E1: u32 = 17u;    // symmetric as SLOT_KC0/1
+const SLOTS: u32 = 18u;
 
 const COL_GP: u32 = 0u;
 const COL_PAP: u32 = 1u;
@@ -103,7 +106,7 @@ struct ImplicitParams {
     own: u32,                // this body's partials
     body: u32,               // this body's index (its own scalars)
     bodies: u32,
-    _pad: u32,
+    coupled: u32,            // 1: a surface contact couples this body (SLOT_C, SLOT_E0/1)
 }
 
 @group(0) @binding(0) var<uniform> sim: SimParams;
@@ -273,10 +276,22 @@ fn outer(u: vec3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(u * u.x, u * u.y, u * u.z);
 }
 
-fn contact_k(i: u32) -> mat3x3<f32> {
-    let a = work[slot(SLOT_KC0, i)];
-    let b = work[slot(SLOT_KC1, i)];
+fn symmetric(s0: u32, s1: u32, i: u32) -> mat3x3<f32> {
+    let a = work[slot(s0, i)];
+    let b = work[slot(s1, i)];
     return mat3x3<f32>(vec3<f32>(a.x, a.w, b.x), vec3<f32>(a.w, a.y, b.y), vec3<f32>(b.x, b.y, a.z));
+}
+
+fn contact_k(i: u32) -> mat3x3<f32> {
+    return symmetric(SLOT_KC0, SLOT_KC1, i);
+}
+
+// The couplings' terms gathered at vertex i (0 where no surface contact couples the body).
+fn coupling(i: u32) -> vec3<f32> {
+    if ip.coupled != 0u {
+        return vget(SLOT_C, i);
+    }
+    return vec3<f32>(0.0);
 }
 
 // The contacts' critical damping along their push: 2·√(m/k)·kc with k = trace(kc).
@@ -538,6 +553,9 @@ fn pass_rhs(i: u32) -> f32 {
             b += (h * h) * diagonal_block(load_tangent(kc / 4u), kc % 4u);
         }
     }
+    if ip.coupled != 0u {
+        b += symmetric(SLOT_E0, SLOT_E1, i);
+    }
     var inv = inverse3(b);
     if !(finite3(inv[0]) && finite3(inv[1]) && finite3(inv[2])) {
         let d = 1.0 / diagonal;
@@ -574,7 +592,7 @@ fn pass_rhs(i: u32) -> f32 {
             kv += (ip.fill_k * body_scalar(B_GV)) * vget(SLOT_G, i);
             a_held += (h * h * ip.fill_k * body_scalar(B_GHELD)) * vget(SLOT_G, i);
         }
-        rhs = h * (vget(SLOT_F, i) - cd * v - h * kv) - a_held;
+        rhs = h * (vget(SLOT_F, i) - cd * v - h * kv) - a_held + coupling(i);
         if ip.guess_scale > 0.0 {
             x = filtered(i, ip.guess_scale * vget(SLOT_X, i));
         }
@@ -637,7 +655,7 @@ fn main(
         if live {
             var ax = vec3<f32>(0.0);
             if is_free(i) {
-                ax = filtered(i, apply_row(i, SLOT_X, body_scalar(B_GP), false));
+                ax = filtered(i, apply_row(i, SLOT_X, body_scalar(B_GP), false) + coupling(i));
             }
             let left = filtered(i, vget(SLOT_B, i)) - ax;
             vput(SLOT_R, i, left);
@@ -676,7 +694,7 @@ fn main(
         if live {
             var ap = vec3<f32>(0.0);
             if is_free(i) {
-                ap = filtered(i, apply_row(i, SLOT_P, body_scalar(B_GP), false));
+                ap = filtered(i, apply_row(i, SLOT_P, body_scalar(B_GP), false) + coupling(i));
             }
             vput(SLOT_AP, i, ap);
             pap = dot3(vget(SLOT_P, i), ap);

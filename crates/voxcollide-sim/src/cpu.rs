@@ -315,18 +315,9 @@ impl CpuWorld {
             for (c, pair) in w.contacts.iter().enumerate() {
                 let Some(surface) = &self.surfaces[c] else { continue };
                 let stiffness = surface.penalty.stiffness;
-                couplings.extend(self.surface_forces[c].pushes.iter().map(|p| {
-                    let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
-                    Coupling {
-                        body: body as u32,
-                        point: p.point,
-                        partner: partner as u32,
-                        from: p.from,
-                        normal: p.normal,
-                        stiffness,
-                        depth: p.depth,
-                    }
-                }));
+                couplings.extend(
+                    self.surface_forces[c].pushes.iter().map(|p| Coupling::of_push(p, pair, stiffness)),
+                );
             }
             let steps: Vec<BodyStep> = (0..w.bodies.len())
                 .map(|k| BodyStep {

@@ -19,7 +19,8 @@ use wgpu::{Buffer, BufferUsages};
 use crate::body::{MassSpring, StepInputs};
 use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
 use crate::cpu::{Parts, Stepper, after_implicit_step};
-use crate::gpu_implicit::{BodyBuffers, ImplicitBody, ImplicitKernels, Setup, Sums};
+use crate::gpu_implicit::{BodyBuffers, CoupledPair, Couplings, ImplicitBody, ImplicitKernels, Setup, Sums};
+use crate::implicit::Coupling;
 use crate::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
@@ -274,6 +275,8 @@ struct Implicit {
     /// sums, which make their solves one.
     bodies: Vec<ImplicitBody>,
     sums: Option<Sums>,
+    /// The surface contacts' couplings (`None`: the world has none).
+    couplings: Option<Couplings>,
     /// The last step's `h` (0: none yet), whose answer the next solve starts from.
     guess_h: f32,
     dt_scale: f32,
@@ -302,16 +305,6 @@ impl GpuWorld {
     /// [`crate::gpu_implicit`]'s passes, and a surface contact under the explicit one).
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
-        if world.integrator != Integrator::Explicit
-            && let Some(c) = world.contacts.iter().position(|c| c.surface.is_some())
-        {
-            let pair = &world.contacts[c];
-            return Err(Error::Invalid {
-                what: "contact response",
-                value: format!("surface ({} – {})", world.names[pair.a], world.names[pair.b]),
-                rule: "the GPU world's implicit solve does not couple two bodies yet: a surface contact under the implicit integrator steps on the CPU (CpuWorld); under the explicit one it steps here".into(),
-            });
-        }
         let device = ctx.device();
         let collisions = world
             .contacts
@@ -412,6 +405,16 @@ impl GpuWorld {
                 kernels: scoped(device, || ImplicitKernels::new(device))?,
                 bodies: Vec::new(),
                 sums: None,
+                couplings: {
+                    let pairs: Vec<CoupledPair> = world
+                        .contacts
+                        .iter()
+                        .filter(|c| c.surface.is_some())
+                        .map(|c| CoupledPair { a: c.a, b: c.b })
+                        .collect();
+                    let n: Vec<u32> = world.bodies.iter().map(|b| b.len() as u32).collect();
+                    (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n))
+                },
                 guess_h: 0.0,
                 dt_scale: 1.0,
                 accelerate_to: 1.0,
@@ -663,6 +666,10 @@ impl GpuWorld {
                 // Each penalty contact's force on this body, and its stiffness.
                 let mut penalties = Vec::new();
                 for &(c, as_a) in &contacts_of[k] {
+                    // (A surface contact's pushes are couplings instead.)
+                    if self.world.contacts[c].surface.is_some() {
+                        continue;
+                    }
                     if let Response::Penalty { stiffness, .. } = self.world.contacts[c].response {
                         penalties.push((force_buffer(c, as_a)?, stiffness));
                     }
@@ -692,6 +699,7 @@ impl GpuWorld {
                     &penalties,
                     sums,
                     (k as u32, base),
+                    imp.couplings.as_ref().is_some_and(|c| c.couples(k)),
                 );
                 base += body.groups();
                 implicit_bodies.push(body);
@@ -808,6 +816,34 @@ impl Stepper for GpuWorld {
             tolerance: settings.tolerance,
             max_iterations: settings.max_iterations,
         };
+        // The surface contacts' pushes, found on the host by `record`, as couplings.
+        if let Some(couplings) = imp.couplings.as_mut() {
+            let per_contact: Vec<Vec<Coupling>> = self
+                .collisions
+                .iter()
+                .zip(&self.world.contacts)
+                .filter_map(|(c, pair)| match c {
+                    DeviceContact::Surface(s) => Some(
+                        s.forces
+                            .pushes
+                            .iter()
+                            .map(|p| Coupling::of_push(p, pair, s.contact.penalty.stiffness))
+                            .collect(),
+                    ),
+                    DeviceContact::Voxel(_) => None,
+                })
+                .collect();
+            let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
+            couplings.upload(
+                self.ctx.device(),
+                self.ctx.queue(),
+                &self.world.bodies,
+                &imp.bodies,
+                &vel,
+                per_contact,
+                h,
+            );
+        }
         let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
         let solved = crate::gpu_implicit::solve(
             &self.ctx,
@@ -815,6 +851,7 @@ impl Stepper for GpuWorld {
             &imp.kernels,
             &imp.bodies,
             sums,
+            imp.couplings.as_ref(),
             inputs,
             &setup,
             self.max_per_dim,
@@ -834,6 +871,34 @@ impl Stepper for GpuWorld {
                 scale,
                 self.max_per_dim,
             );
+            // A surface contact's push is inelastic: the impulses between the pairs the solve
+            // kept that separate, in coupling order, on the host (the CPU's own code), over
+            // the velocities read back.
+            if let Some(c) = imp.couplings.as_ref() {
+                let (couplings, active) = c.kept(&self.ctx)?;
+                if couplings.iter().zip(&active).any(|(k, a)| *a && k.depth > 0.0) {
+                    let mut which: Vec<usize> =
+                        couplings.iter().flat_map(|k| [k.body, k.partner]).map(|k| k as usize).collect();
+                    which.sort_unstable();
+                    which.dedup();
+                    let parts: Vec<(&Buffer, u64)> = which
+                        .iter()
+                        .map(|&k| (&self.bodies[k].vel, 16 * u64::from(self.bodies[k].n)))
+                        .collect();
+                    let bytes = voxcollide::gpu::read_buffers(&self.ctx, &parts)?;
+                    for (&k, bytes) in which.iter().zip(&bytes) {
+                        let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
+                        self.world.bodies[k].vel = vel.iter().map(|v| v.truncate()).collect();
+                    }
+                    crate::implicit::inelastic_impulses(&mut self.world.bodies, couplings, &active);
+                    for &k in &which {
+                        let body = &self.world.bodies[k];
+                        let vel: Vec<Vec4> =
+                            body.vel.iter().zip(&body.inv_mass).map(|(v, m)| v.extend(*m)).collect();
+                        self.ctx.queue().write_buffer(&self.bodies[k].vel, 0, bytemuck::cast_slice(&vel));
+                    }
+                }
+            }
         }
         imp.stats = crate::gpu_implicit::stats(&solved, scale, taken);
         Ok(solved.iter().fold(Residual::default(), |r, s| r.plus(s.residual)))

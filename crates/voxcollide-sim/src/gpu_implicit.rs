@@ -35,6 +35,12 @@ pub const IMPLICIT: &str = concat!(
     include_str!("../shaders/elements.wgsl"),
     include_str!("../shaders/implicit.wgsl")
 );
+/// The couplings' passes' WGSL (a surface contact in the implicit solve).
+pub const COUPLE: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/couple.wgsl"));
+/// The couplings' gather pass's WGSL.
+pub const COUPLE_GATHER: &str =
+    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/couple_gather.wgsl"));
 /// The contact stiffness pass's WGSL.
 pub const IMPLICIT_CONTACT: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit_contact.wgsl"));
@@ -78,9 +84,11 @@ const fn per_tetrahedron(pass: usize) -> bool {
 /// `vec4`s per tetrahedron in `tet_work` (`TET_WORK` in implicit.wgsl).
 const TET_WORK: u64 = 15;
 
-/// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's.
-const SLOTS: u64 = 15;
+/// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's,
+/// and the couplings' own blocks (`SLOT_E0`, `SLOT_E1`, written by the host).
+const SLOTS: u64 = 18;
 const SLOT_KC0: u32 = 5;
+const SLOT_E0: u64 = 16;
 /// Columns of partials, the joint scalars and each body's own in `red`.
 const COLUMNS: u64 = 8;
 const SCALARS: u64 = 16;
@@ -112,7 +120,8 @@ struct GpuImplicitParams {
     /// This body's index, and the bodies'.
     body: u32,
     bodies: u32,
-    _pad: u32,
+    /// 1 where a surface contact couples this body.
+    coupled: u32,
 }
 const _: () = assert!(std::mem::size_of::<GpuImplicitParams>() == 48);
 
@@ -190,6 +199,8 @@ pub(crate) struct ImplicitBody {
     groups: u32,
     base: u32,
     body: u32,
+    /// Whether a surface contact couples it.
+    coupled: bool,
     /// One bind group per pass.
     groups_of: Vec<wgpu::BindGroup>,
     /// Per contact that pushes this body with a penalty: its params and bind group.
@@ -228,6 +239,7 @@ impl ImplicitBody {
         penalties: &[(&Buffer, f32)],
         sums: &Sums,
         (body, base): (u32, u32),
+        coupled: bool,
     ) -> ImplicitBody {
         let groups = own_groups(n, max_per_dim);
         let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
@@ -288,7 +300,19 @@ impl ImplicitBody {
                 (p, group)
             })
             .collect();
-        ImplicitBody { params, work, _tet_work: tet_work, n, tets, groups, base, body, groups_of, contacts }
+        ImplicitBody {
+            params,
+            work,
+            _tet_work: tet_work,
+            n,
+            tets,
+            groups,
+            base,
+            body,
+            coupled,
+            groups_of,
+            contacts,
+        }
     }
 
     /// Its workgroups in a pass over its vertices (its partials in each column).
@@ -302,6 +326,7 @@ impl ImplicitBody {
 }
 
 /// How one step's solve is set up for a body (host side).
+#[derive(Clone, Copy, Debug)]
 pub(crate) struct Setup {
     pub h: f32,
     pub guess_scale: f32,
@@ -322,7 +347,7 @@ fn params(inputs: &StepInputs, s: &Setup, body: &ImplicitBody, sums: &Sums, scal
         own: body.groups,
         body: body.body,
         bodies: sums.bodies,
-        _pad: 0,
+        coupled: u32::from(body.coupled),
     }
 }
 
@@ -346,11 +371,13 @@ fn read_scalars(ctx: &voxcollide::GpuContext, sums: &Sums) -> Result<([f32; 16],
 }
 
 /// Records `items`, each a pass of one body (`(body, pass)`), in order, in one compute pass.
-/// A pass over the joint scalars is recorded once, with any body's bindings.
+/// A pass over the joint scalars is recorded once, with any body's bindings; `(_, COUPLINGS +
+/// mode)` records the couplings' `mode` ([`Couplings::record`]).
 fn record(
     encoder: &mut wgpu::CommandEncoder,
     kernels: &ImplicitKernels,
     bodies: &[ImplicitBody],
+    couplings: Option<&Couplings>,
     items: &[(usize, usize)],
     max_per_dim: u32,
 ) {
@@ -359,6 +386,12 @@ fn record(
         timestamp_writes: None,
     });
     for &(k, p) in items {
+        if p >= COUPLINGS {
+            if let Some(c) = couplings {
+                c.record(&mut pass, p - COUPLINGS, max_per_dim);
+            }
+            continue;
+        }
         let body = &bodies[k];
         if single(p) {
             kernels.passes[p].dispatch_one(&mut pass, &body.groups_of[p]);
@@ -377,8 +410,11 @@ fn each(bodies: usize, passes: impl Fn(usize) -> Vec<usize>) -> Vec<(usize, usiz
 
 /// The solve of one implicit step over every body, after the collisions and the fills'
 /// pressures are recorded in `encoder`: the contact stiffness, the system, one conjugate
-/// gradient over every body to the joint tolerance, and the farthest move. Returns each body's
-/// solve (the joint one's figures, with its own residual at rest); the update is [`finish`]'s.
+/// gradient over every body to the joint tolerance, and the farthest move. With `couplings`
+/// (a surface contact's, uploaded for this step), their terms join the system, and the solve is
+/// repeated from its last answer while the set of couplings it ends within the gap changes, at
+/// most four times, as on the CPU. Returns each body's solve (the joint one's figures, with its
+/// own residual at rest); the update is [`finish`]'s.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn solve(
     ctx: &voxcollide::GpuContext,
@@ -386,6 +422,7 @@ pub(crate) fn solve(
     kernels: &ImplicitKernels,
     bodies: &[ImplicitBody],
     sums: &Sums,
+    couplings: Option<&Couplings>,
     inputs: &[StepInputs],
     setup: &Setup,
     max_per_dim: u32,
@@ -407,73 +444,115 @@ pub(crate) fn solve(
         }
     }
     let count = bodies.len();
+    let coupled = couplings.is_some_and(|c| !c.host.is_empty());
+    let couple = |mode: usize| -> Vec<(usize, usize)> {
+        if coupled { vec![(0, COUPLINGS + mode)] } else { Vec::new() }
+    };
     let fill = |k: usize| inputs[k].fill_volume > 0.0;
     let elements = |k: usize| bodies[k].tets > 0;
-    let guessing = setup.guess_scale > 0.0;
-    // Each body's system and right-hand side, then the joint start.
+    // Each body's forces and start (once a step), then its right-hand side and the joint
+    // start (again in each round).
     let mut start = each(count, |k| {
         let mut passes = vec![PREPARE, FLOOR, SCALARS_A];
         if elements(k) {
-            passes.extend([TANGENT, PRODUCT_RHS]);
-        }
-        passes.push(RHS);
-        if guessing {
-            if fill(k) {
-                passes.extend([GP, SCALARS_GP]);
-            }
-            if elements(k) {
-                passes.push(PRODUCT_X);
-            }
-            passes.push(GUESS);
+            passes.push(TANGENT);
         }
         passes
     });
-    start.push((0, SCALARS_B));
-    start.extend(each(count, |_| vec![START]));
-    start.push((0, SCALARS_C));
-    record(&mut encoder, kernels, bodies, &start, max_per_dim);
-    // One iteration: each body's `A·p`, the joint `α`, each body's update, the joint `β`, each
-    // body's new direction.
+    let round_start = |guessing: bool| -> Vec<(usize, usize)> {
+        let mut items = each(count, |k| if elements(k) { vec![PRODUCT_RHS] } else { Vec::new() });
+        items.extend(couple(MODE_RHS));
+        items.extend(each(count, |k| {
+            let mut passes = vec![RHS];
+            if guessing {
+                if fill(k) {
+                    passes.extend([GP, SCALARS_GP]);
+                }
+                if elements(k) {
+                    passes.push(PRODUCT_X);
+                }
+            }
+            passes
+        }));
+        if guessing {
+            items.extend(couple(MODE_X));
+            items.extend(each(count, |_| vec![GUESS]));
+        }
+        items.push((0, SCALARS_B));
+        items.extend(each(count, |_| vec![START]));
+        items.push((0, SCALARS_C));
+        items
+    };
+    start.extend(round_start(setup.guess_scale > 0.0));
+    record(&mut encoder, kernels, bodies, couplings, &start, max_per_dim);
+    // One iteration: each body's `A·p` (the couplings' terms gathered first), the joint `α`,
+    // each body's update, the joint `β`, each body's new direction.
     let mut iteration = each(count, |k| {
-        let mut p = Vec::with_capacity(4);
+        let mut p = Vec::with_capacity(3);
         if fill(k) {
             p.extend([GP, SCALARS_GP]);
         }
         if elements(k) {
             p.push(PRODUCT_P);
         }
-        p.push(APPLY);
         p
     });
+    iteration.extend(couple(MODE_P));
+    iteration.extend(each(count, |_| vec![APPLY]));
     iteration.push((0, SCALARS_ALPHA));
     iteration.extend(each(count, |_| vec![UPDATE]));
     iteration.push((0, SCALARS_BETA));
     iteration.extend(each(count, |_| vec![DIRECTION]));
     let batch: Vec<(usize, usize)> = (0..BATCH).flat_map(|_| iteration.iter().copied()).collect();
-    let mut recorded = 0;
-    loop {
-        record(&mut encoder, kernels, bodies, &batch, max_per_dim);
-        recorded += BATCH;
-        queue.submit([encoder.finish()]);
-        let (joint, _) = read_scalars(ctx, sums)?;
-        encoder = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("voxcollide implicit solve"),
-        });
-        // (The cap is the solve's own, checked on the device; this only stops the host.)
-        if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
-            break;
-        }
-    }
     let mut far = each(count, |_| vec![FARTHEST]);
     far.push((0, SCALARS_FAR));
-    record(&mut encoder, kernels, bodies, &far, max_per_dim);
-    queue.submit([encoder.finish()]);
-    let (joint, own) = read_scalars(ctx, sums)?;
+    far.extend(couple(MODE_ARRIVE));
+    let new_encoder = || {
+        ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("voxcollide implicit solve"),
+        })
+    };
+    let (mut iterations, mut round) = (0, 1);
+    let (joint, own) = loop {
+        let mut recorded = 0;
+        loop {
+            record(&mut encoder, kernels, bodies, couplings, &batch, max_per_dim);
+            recorded += BATCH;
+            queue.submit([encoder.finish()]);
+            let (joint, _) = read_scalars(ctx, sums)?;
+            encoder = new_encoder();
+            // (The cap is the solve's own, checked on the device; this only stops the host.)
+            if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
+                break;
+            }
+        }
+        record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
+        queue.submit([encoder.finish()]);
+        encoder = new_encoder();
+        let (joint, own) = read_scalars(ctx, sums)?;
+        iterations += joint[S_ITERATIONS] as u32;
+        // The couplings the solve ends within the gap are in it, and no others: solved again,
+        // from its answer, while that set changes (after the first round pairs only join).
+        let Some(c) = couplings.filter(|_| coupled && round < 4) else { break (joint, own) };
+        let bytes = voxcollide::gpu::read_buffers(ctx, &[(&c.changed, 4)])?;
+        if bytemuck::pod_read_unaligned::<u32>(&bytes[0]) == 0 {
+            break (joint, own);
+        }
+        round += 1;
+        c.set_round(queue, round);
+        // `PASS_GP` reads x while S_DONE is negative (the guess's g·x), as at the start.
+        queue.write_buffer(&sums.red, 4 * S_DONE as u64, bytemuck::bytes_of(&-1.0f32));
+        let again = Setup { guess_scale: 1.0, ..*setup };
+        for (b, inputs) in bodies.iter().zip(inputs) {
+            b.write(queue, &params(inputs, &again, b, sums, 1.0));
+        }
+        record(&mut encoder, kernels, bodies, couplings, &round_start(true), max_per_dim);
+    };
     let relative = if joint[S_NORM_B2] > 0.0 { (joint[S_RR] / joint[S_NORM_B2]).sqrt() } else { 0.0 };
     Ok(own
         .iter()
         .map(|o| Solved {
-            iterations: joint[S_ITERATIONS] as u32,
+            iterations,
             relative_residual: relative,
             farthest: joint[S_FARTHEST],
             residual: Residual {
@@ -505,7 +584,7 @@ pub(crate) fn finish(
     let mut encoder = ctx
         .device()
         .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide implicit move") });
-    record(&mut encoder, kernels, bodies, &each(bodies.len(), |_| vec![MOVE]), max_per_dim);
+    record(&mut encoder, kernels, bodies, None, &each(bodies.len(), |_| vec![MOVE]), max_per_dim);
     queue.submit([encoder.finish()]);
 }
 
@@ -522,4 +601,359 @@ pub(crate) fn stats(solved: &[Solved], scale: f32, taken: bool) -> Vec<StepStats
             taken,
         })
         .collect()
+}
+
+/// Keep in sync with `Coupling` in `shaders/couple.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct GpuCoupling {
+    /// The push's direction, and its stiffness.
+    normal: [f32; 4],
+    /// Its critical damping and its depth.
+    terms: [f32; 4],
+    /// Its first entry, the partner's first, the end, and 1 where the pushed point is `a`'s.
+    range: [u32; 4],
+}
+
+/// Keep in sync with `RelativeParams` in `shaders/couple.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct RelativeParams {
+    h: f32,
+    round: u32,
+    first: u32,
+    count: u32,
+    n_a: u32,
+    n_b: u32,
+    _pad: [u32; 2],
+}
+
+// The couplings' modes (`MODE_*` in couple.wgsl). A solve's item `(_, COUPLINGS + mode)` records
+// the mode's pass over every surface contact, then the gather over every coupled body.
+const MODE_P: usize = 0;
+const MODE_X: usize = 1;
+const MODE_RHS: usize = 2;
+const MODE_ARRIVE: usize = 3;
+const COUPLINGS: usize = 100;
+
+/// A surface contact's bodies, `a` and `b`, as the couplings' passes see them.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CoupledPair {
+    pub a: usize,
+    pub b: usize,
+}
+
+/// One coupled body's gather: its lists of (coupling, ±weight) per vertex.
+struct Gather {
+    body: usize,
+    n: u32,
+    params: Buffer,
+    offsets: Buffer,
+    items: Buffer,
+    items_capacity: u64,
+}
+
+/// The surface contacts' couplings in the device's implicit solve (`shaders/couple.wgsl`): the
+/// host builds them from the contacts' pushes each step ([`crate::implicit::Coupling`], as the
+/// CPU does) and uploads them; the passes add their terms to `A·p`, `A·x` and the right-hand
+/// side, and mark which the solve ends within the gap.
+pub(crate) struct Couplings {
+    relative: Vec<Kernel>,
+    gather: Kernel,
+    pairs: Vec<CoupledPair>,
+    /// Per contact: its parameters, and per mode its bind group.
+    params: Vec<Buffer>,
+    relative_groups: Vec<Vec<wgpu::BindGroup>>,
+    gathers: Vec<Gather>,
+    gather_groups: Vec<wgpu::BindGroup>,
+    couplings: Buffer,
+    entries: Buffer,
+    push: Buffer,
+    active: Buffer,
+    changed: Buffer,
+    /// Room for this many couplings and entries.
+    capacity: (u64, u64),
+    /// This step's: per contact its first coupling and count, and the couplings.
+    ranges: Vec<(u32, u32)>,
+    host: Vec<crate::implicit::Coupling>,
+    h: f32,
+    bound: bool,
+}
+
+fn storage_buffer(device: &wgpu::Device, label: &'static str, size: u64) -> Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: size.max(16),
+        usage: BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
+}
+
+impl Couplings {
+    /// The couplings of the surface contacts `pairs` over bodies of `n` vertices each.
+    pub(crate) fn new(device: &wgpu::Device, pairs: Vec<CoupledPair>, n: &[u32]) -> Couplings {
+        use Slot::{Read, ReadWrite, Uniform};
+        let relative = (0..4)
+            .map(|mode| {
+                Kernel::with_constants(
+                    device,
+                    "voxcollide couplings",
+                    COUPLE,
+                    &[Uniform, Read, Read, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                    &[("MODE", f64::from(mode))],
+                )
+            })
+            .collect();
+        let gather = Kernel::new(
+            device,
+            "voxcollide coupling gather",
+            COUPLE_GATHER,
+            &[Uniform, Read, Read, Read, ReadWrite],
+        );
+        let uniform = |label| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: 32,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let params = pairs.iter().map(|_| uniform("coupling params")).collect();
+        let mut coupled: Vec<usize> = pairs.iter().flat_map(|p| [p.a, p.b]).collect();
+        coupled.sort_unstable();
+        coupled.dedup();
+        let gathers = coupled
+            .into_iter()
+            .map(|body| {
+                use wgpu::util::DeviceExt as _;
+                let n = n[body];
+                Gather {
+                    body,
+                    n,
+                    params: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("coupling gather params"),
+                        contents: bytemuck::cast_slice(&[n, 0, 0, 0]),
+                        usage: BufferUsages::UNIFORM,
+                    }),
+                    offsets: storage_buffer(device, "coupling gather offsets", 4 * (u64::from(n) + 1)),
+                    items: storage_buffer(device, "coupling gather items", 16),
+                    items_capacity: 2,
+                }
+            })
+            .collect();
+        Couplings {
+            relative,
+            gather,
+            pairs,
+            params,
+            relative_groups: Vec::new(),
+            gathers,
+            gather_groups: Vec::new(),
+            couplings: storage_buffer(device, "couplings", 48),
+            entries: storage_buffer(device, "coupling entries", 8),
+            push: storage_buffer(device, "coupling pushes", 16),
+            active: storage_buffer(device, "coupling flags", 4),
+            changed: storage_buffer(device, "couplings changed", 4),
+            capacity: (1, 1),
+            ranges: Vec::new(),
+            host: Vec::new(),
+            h: 0.0,
+            bound: false,
+        }
+    }
+
+    /// Whether `body` is coupled.
+    pub(crate) fn couples(&self, body: usize) -> bool {
+        self.gathers.iter().any(|g| g.body == body)
+    }
+
+    /// This step's couplings, per contact in order (`per_contact[c]` the couplings of contact
+    /// `pairs[c]`), over `bodies` at step `h`: uploaded, with the couplings' own blocks into
+    /// each coupled body's `work`, every one in the solve that is pushed now.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn upload(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        bodies: &[crate::body::MassSpring],
+        implicit: &[ImplicitBody],
+        vel: &[&Buffer],
+        per_contact: Vec<Vec<crate::implicit::Coupling>>,
+        h: f32,
+    ) {
+        use crate::contact::entries;
+        self.ranges.clear();
+        self.host.clear();
+        for list in per_contact {
+            self.ranges.push((self.host.len() as u32, list.len() as u32));
+            self.host.extend(list);
+        }
+        self.h = h;
+        let damping = crate::implicit::coupling_damping(bodies, &self.host);
+        let blocks = crate::implicit::coupling_blocks(bodies, &self.host, &damping, h);
+        // The records and their entries; per coupled body, its lists.
+        let mut records = Vec::with_capacity(self.host.len());
+        let mut flat: Vec<[u32; 2]> = Vec::new();
+        let mut lists: Vec<Vec<Vec<[u32; 2]>>> =
+            self.gathers.iter().map(|g| vec![Vec::new(); g.n as usize]).collect();
+        let slot_of = |body: usize| self.gathers.iter().position(|g| g.body == body);
+        for (c, (k, d)) in self.host.iter().zip(&damping).enumerate() {
+            let start = flat.len() as u32;
+            let (body, partner) = (slot_of(k.body as usize), slot_of(k.partner as usize));
+            for (v, w) in entries(&k.point) {
+                flat.push([v, w.to_bits()]);
+                if let Some(g) = body {
+                    lists[g][v as usize].push([c as u32, w.to_bits()]);
+                }
+            }
+            let middle = flat.len() as u32;
+            for (v, w) in entries(&k.from) {
+                flat.push([v, w.to_bits()]);
+                if let Some(g) = partner {
+                    lists[g][v as usize].push([c as u32, (-w).to_bits()]);
+                }
+            }
+            let pair = self.pairs.iter().find(|p| {
+                (p.a, p.b) == (k.body as usize, k.partner as usize)
+                    || (p.b, p.a) == (k.body as usize, k.partner as usize)
+            });
+            let of_a = pair.is_some_and(|p| p.a == k.body as usize);
+            records.push(GpuCoupling {
+                normal: k.normal.extend(k.stiffness).to_array(),
+                terms: [*d, k.depth, 0.0, 0.0],
+                range: [start, middle, flat.len() as u32, u32::from(of_a)],
+            });
+        }
+        // Room for them, the bind groups made anew where a buffer was.
+        let (couplings, entries_len) = (records.len() as u64, flat.len() as u64);
+        if couplings > self.capacity.0 || entries_len > self.capacity.1 {
+            self.capacity = (
+                couplings.max(self.capacity.0).next_power_of_two(),
+                entries_len.max(self.capacity.1).next_power_of_two(),
+            );
+            self.couplings = storage_buffer(device, "couplings", 48 * self.capacity.0);
+            self.entries = storage_buffer(device, "coupling entries", 8 * self.capacity.1);
+            self.push = storage_buffer(device, "coupling pushes", 16 * self.capacity.0);
+            self.active = storage_buffer(device, "coupling flags", 4 * self.capacity.0);
+            self.bound = false;
+        }
+        for (g, lists) in self.gathers.iter_mut().zip(&lists) {
+            let items: u64 = lists.iter().map(|l| l.len() as u64).sum();
+            if items > g.items_capacity {
+                g.items_capacity = items.next_power_of_two();
+                g.items = storage_buffer(device, "coupling gather items", 8 * g.items_capacity);
+                self.bound = false;
+            }
+        }
+        if !self.bound {
+            self.bind(device, implicit, vel);
+        }
+        queue.write_buffer(&self.couplings, 0, bytemuck::cast_slice(&records));
+        queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(&flat));
+        let active: Vec<u32> = self.host.iter().map(|k| u32::from(k.depth > 0.0)).collect();
+        queue.write_buffer(&self.active, 0, bytemuck::cast_slice(&active));
+        self.set_round(queue, 1);
+        for (g, lists) in self.gathers.iter().zip(&lists) {
+            let mut offsets = Vec::with_capacity(lists.len() + 1);
+            offsets.push(0u32);
+            let mut items: Vec<[u32; 2]> = Vec::new();
+            for l in lists {
+                items.extend_from_slice(l);
+                offsets.push(items.len() as u32);
+            }
+            queue.write_buffer(&g.offsets, 0, bytemuck::cast_slice(&offsets));
+            if !items.is_empty() {
+                queue.write_buffer(&g.items, 0, bytemuck::cast_slice(&items));
+            }
+            // The couplings' own blocks, symmetric in two slots (as `SLOT_KC0/1`).
+            let n = g.n as usize;
+            let mut packed = vec![[0.0f32; 4]; 2 * n];
+            if let Some(b) = blocks.get(g.body).filter(|b| b.len() == n) {
+                for (i, m) in b.iter().enumerate() {
+                    packed[i] = [m.x_axis.x, m.y_axis.y, m.z_axis.z, m.x_axis.y];
+                    packed[n + i] = [m.x_axis.z, m.y_axis.z, 0.0, 0.0];
+                }
+            }
+            queue.write_buffer(
+                &implicit[g.body].work,
+                16 * SLOT_E0 * u64::from(g.n),
+                bytemuck::cast_slice(&packed),
+            );
+        }
+    }
+
+    fn bind(&mut self, device: &wgpu::Device, implicit: &[ImplicitBody], vel: &[&Buffer]) {
+        self.relative_groups = self
+            .pairs
+            .iter()
+            .zip(&self.params)
+            .map(|(p, params)| {
+                self.relative
+                    .iter()
+                    .map(|k| {
+                        k.bind(
+                            device,
+                            &[
+                                params,
+                                &self.couplings,
+                                &self.entries,
+                                &implicit[p.a].work,
+                                &implicit[p.b].work,
+                                vel[p.a],
+                                vel[p.b],
+                                &self.push,
+                                &self.active,
+                                &self.changed,
+                            ],
+                        )
+                    })
+                    .collect()
+            })
+            .collect();
+        self.gather_groups = self
+            .gathers
+            .iter()
+            .map(|g| {
+                self.gather
+                    .bind(device, &[&g.params, &self.push, &g.offsets, &g.items, &implicit[g.body].work])
+            })
+            .collect();
+        self.bound = true;
+    }
+
+    /// Sets the solve's round for the arrival test (and clears the "changed" word).
+    fn set_round(&self, queue: &wgpu::Queue, round: u32) {
+        for ((p, &(first, count)), params) in self.pairs.iter().zip(&self.ranges).zip(&self.params) {
+            let n = |k: usize| self.gathers.iter().find(|g| g.body == k).map_or(0, |g| g.n);
+            let r = RelativeParams { h: self.h, round, first, count, n_a: n(p.a), n_b: n(p.b), _pad: [0; 2] };
+            queue.write_buffer(params, 0, bytemuck::bytes_of(&r));
+        }
+        queue.write_buffer(&self.changed, 0, bytemuck::bytes_of(&0u32));
+    }
+
+    /// Records `mode`'s pass over every contact's couplings, then (but for the arrival test)
+    /// the gather over every coupled body.
+    fn record(&self, pass: &mut wgpu::ComputePass<'_>, mode: usize, max_per_dim: u32) {
+        for (groups, &(_, count)) in self.relative_groups.iter().zip(&self.ranges) {
+            self.relative[mode].dispatch(pass, &groups[mode], count, max_per_dim);
+        }
+        if mode != MODE_ARRIVE {
+            for (g, group) in self.gathers.iter().zip(&self.gather_groups) {
+                self.gather.dispatch(pass, group, g.n, max_per_dim);
+            }
+        }
+    }
+
+    /// The couplings this step, and which the solve kept (read back).
+    pub(crate) fn kept(
+        &self,
+        ctx: &voxcollide::GpuContext,
+    ) -> Result<(&[crate::implicit::Coupling], Vec<bool>), Error> {
+        if self.host.is_empty() {
+            return Ok((&self.host, Vec::new()));
+        }
+        let bytes = voxcollide::gpu::read_buffers(ctx, &[(&self.active, 4 * self.host.len() as u64)])?;
+        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[0]);
+        Ok((&self.host, flags.iter().map(|f| *f != 0).collect()))
+    }
 }

@@ -45,8 +45,9 @@ use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
-use crate::contact::{POINT_VERTICES, Stencil, entries};
+use crate::contact::{POINT_VERTICES, Push, Stencil, entries};
 use crate::fem::{TetStiffness, corner_of};
+use crate::world::ContactPair;
 use voxcollide::math::cross;
 
 /// Vertices per parallel task; also the chunk of every dot product's fixed-order sum.
@@ -549,6 +550,20 @@ pub struct Coupling {
 }
 
 impl Coupling {
+    /// The coupling of push `p` of the surface contact `pair`, whose stiffness is `stiffness`.
+    pub(crate) fn of_push(p: &Push, pair: &ContactPair, stiffness: f32) -> Coupling {
+        let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
+        Coupling {
+            body: body as u32,
+            point: p.point,
+            partner: partner as u32,
+            from: p.from,
+            normal: p.normal,
+            stiffness,
+            depth: p.depth,
+        }
+    }
+
     /// Whether the vertex is pushed now.
     fn touching(&self) -> bool {
         self.depth > 0.0
@@ -686,30 +701,8 @@ pub fn integrate_implicit_together(
     assert_eq!(bodies.len(), steps.len(), "one step per body");
     let Some(h) = steps.first().map(|s| s.inputs.dt) else { return Vec::new() };
     // The couplings' damping and their diagonal blocks (for the preconditioner).
-    let mass = |b: u32, v: u32| 1.0 / bodies[b as usize].inv_mass[v as usize];
-    let damping: Vec<f32> = couplings
-        .iter()
-        .map(|c| {
-            let m: f32 = entries(&c.point).map(|(v, w)| w * mass(c.body, v)).sum();
-            let point: f32 = entries(&c.from).map(|(v, w)| w * mass(c.partner, v)).sum();
-            let reduced = if point > 0.0 { m * point / (m + point) } else { m };
-            2.0 * (c.stiffness * reduced).sqrt()
-        })
-        .collect();
-    let mut extra: Vec<Vec<Mat3>> = if couplings.is_empty() {
-        vec![Vec::new(); bodies.len()]
-    } else {
-        bodies.iter().map(|b| vec![Mat3::ZERO; b.len()]).collect()
-    };
-    for (c, d) in couplings.iter().zip(&damping) {
-        let nn = (h * h * c.stiffness + h * d) * outer(c.normal);
-        for (v, w) in entries(&c.point) {
-            extra[c.body as usize][v as usize] += (w * w) * nn;
-        }
-        for (v, w) in entries(&c.from) {
-            extra[c.partner as usize][v as usize] += (w * w) * nn;
-        }
-    }
+    let damping = coupling_damping(bodies, couplings);
+    let extra = coupling_blocks(bodies, couplings, &damping, h);
     // The vertices resting on their floor and pushed into it: still vertically, in the solve.
     let mut on_floor: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
     for (body, s) in bodies.iter_mut().zip(steps) {
@@ -908,11 +901,56 @@ pub fn integrate_implicit_together(
                 }
             });
     }
-    // A surface contact's push is inelastic too, between the two bodies: where a vertex and
-    // its point on the partner's surface separate along the push, an impulse between them
-    // (in their reduced mass, momentum kept) leaves them none of that speed. In order, on one
-    // thread.
-    for (c, _) in couplings.iter().zip(&active).filter(|(c, a)| c.touching() && **a) {
+    inelastic_impulses(bodies, couplings, &active);
+    vec![StepStats { iterations, relative_residual, scaled, farthest, taken: true }; bodies.len()]
+}
+
+/// Per coupling, its critical damping `2√(k·m)`, `m` the reduced mass of the vertex and the
+/// triangle's point.
+pub(crate) fn coupling_damping(bodies: &[MassSpring], couplings: &[Coupling]) -> Vec<f32> {
+    let mass = |b: u32, v: u32| 1.0 / bodies[b as usize].inv_mass[v as usize];
+    couplings
+        .iter()
+        .map(|c| {
+            let m: f32 = entries(&c.point).map(|(v, w)| w * mass(c.body, v)).sum();
+            let point: f32 = entries(&c.from).map(|(v, w)| w * mass(c.partner, v)).sum();
+            let reduced = if point > 0.0 { m * point / (m + point) } else { m };
+            2.0 * (c.stiffness * reduced).sqrt()
+        })
+        .collect()
+}
+
+/// Per body and vertex, the couplings' own blocks `Σ (h²k + h·d)·w²·nnᵀ` (for the
+/// preconditioner); empty per body where there are no couplings.
+pub(crate) fn coupling_blocks(
+    bodies: &[MassSpring],
+    couplings: &[Coupling],
+    damping: &[f32],
+    h: f32,
+) -> Vec<Vec<Mat3>> {
+    let mut extra: Vec<Vec<Mat3>> = if couplings.is_empty() {
+        vec![Vec::new(); bodies.len()]
+    } else {
+        bodies.iter().map(|b| vec![Mat3::ZERO; b.len()]).collect()
+    };
+    for (c, d) in couplings.iter().zip(damping) {
+        let nn = (h * h * c.stiffness + h * d) * outer(c.normal);
+        for (v, w) in entries(&c.point) {
+            extra[c.body as usize][v as usize] += (w * w) * nn;
+        }
+        for (v, w) in entries(&c.from) {
+            extra[c.partner as usize][v as usize] += (w * w) * nn;
+        }
+    }
+    extra
+}
+
+/// A surface contact's push is inelastic, between the two bodies: where a vertex and its point
+/// on the partner's surface separate along the push, an impulse between them (in their reduced
+/// mass, momentum kept) leaves them none of that speed. Over the couplings pushed now and
+/// `active` in the solve, in order, on one thread, after the step's update.
+pub(crate) fn inelastic_impulses(bodies: &mut [MassSpring], couplings: &[Coupling], active: &[bool]) {
+    for (c, _) in couplings.iter().zip(active).filter(|(c, a)| c.touching() && **a) {
         let (b, q) = (c.body as usize, c.partner as usize);
         let inverse =
             |k: usize, i: usize| if bodies[k].mode[i] == Mode::Free { bodies[k].inv_mass[i] } else { 0.0 };
@@ -943,7 +981,6 @@ pub fn integrate_implicit_together(
             bodies[q].vel[t as usize] += *kick;
         }
     }
-    vec![StepStats { iterations, relative_residual, scaled, farthest, taken: true }; bodies.len()]
 }
 
 /// Solves `A·x = b` on the free vertices of every body by preconditioned conjugate gradient;

@@ -12,6 +12,8 @@ fn every_simulation_shader_validates() {
     // The implicit passes: one source, each pass its own value of the overridable `PASS`.
     wgsl::validate("implicit", voxcollide_sim::gpu_implicit::IMPLICIT, &["main"]);
     wgsl::validate("implicit_contact", voxcollide_sim::gpu_implicit::IMPLICIT_CONTACT, &["main"]);
+    wgsl::validate("couple", voxcollide_sim::gpu_implicit::COUPLE, &["main"]);
+    wgsl::validate("couple_gather", voxcollide_sim::gpu_implicit::COUPLE_GATHER, &["main"]);
 }
 
 #[test]

@@ -347,17 +347,10 @@ impl Live {
         };
         let on_cpu = match config.backend {
             Backend::Auto => crate::scene_run::cpu_first(&built.world),
-            _ => crate::scene_run::cpu_only(&built.world),
+            _ => None,
         };
         let on_gpu = match on_cpu {
             Some(why) if on_gpu => {
-                if config.backend == Backend::Gpu {
-                    return Err(Error::Invalid {
-                        what: "backend",
-                        value: "gpu".into(),
-                        rule: format!("{why} steps on the CPU only; use --backend auto or cpu"),
-                    });
-                }
                 note(&format!("{why} steps on the CPU"));
                 false
             }
