@@ -4,13 +4,14 @@
 //! step's solve is [`crate::gpu_implicit`]'s passes instead, which read back a few numbers
 //! (has the solve converged, how far would a vertex move) where the host must decide.
 //!
-//! **A surface contact** (`response = "surface"`, [`SurfaceContact`]) steps here under the
-//! explicit integrator with its search on the host: each step reads back the positions of the
-//! two bodies, finds the pushes as the CPU world does (the same code, the same positions, so the
-//! same bits), and uploads the two force buffers that the `forces` pass reads as it reads a
-//! collision's. Its nearest-triangle search has no WGSL passes yet, and the implicit solve
-//! on the device does not couple two bodies (docs/integrator.md, "On the GPU"): a surface
-//! contact under the implicit integrator is refused by name.
+//! **A surface contact** (`response = "surface"`, [`SurfaceContact`]) steps here with its search
+//! on the host: each step reads back the positions of the two bodies, finds the pushes as the
+//! CPU world does (the same code over the same positions), and uploads the two force buffers
+//! that the `forces` pass reads as it reads a collision's: under the explicit integrator, the
+//! CPU's bits. Under the implicit one the pushes are also uploaded as couplings
+//! ([`crate::implicit::Coupling`]) that join the two bodies in the device's one solve
+//! ([`crate::gpu_implicit`]), and the inelastic impulses after the step are the host's. Its
+//! nearest-triangle search has no WGSL passes yet (docs/integrator.md, "On the GPU").
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;
@@ -300,9 +301,8 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`] and [`SurfaceContact::new`]; [`Error::Invalid`] for a surface
-    /// contact under the implicit integrator (both integrators step here, the implicit one in
-    /// [`crate::gpu_implicit`]'s passes, and a surface contact under the explicit one).
+    /// [`GpuCollision::new`] and [`SurfaceContact::new`]. Both integrators step here (the
+    /// implicit one in [`crate::gpu_implicit`]'s passes), with every contact response.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
         let device = ctx.device();

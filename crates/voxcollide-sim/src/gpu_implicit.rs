@@ -15,6 +15,13 @@
 //! joint system's, and every body reports the joint solve in its [`StepStats`]. A fill's
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
+//! **A surface contact's couplings** ([`crate::implicit::Coupling`]) are built on the host from
+//! its pushes each step and uploaded ([`Couplings`]); `shaders/couple.wgsl` takes each one's
+//! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
+//! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
+//! again from its answer while the set of couplings it ends within the gap changes (at most four
+//! rounds), and the inelastic impulses after the step are the host's, as on the CPU.
+//!
 //! **What differs from the CPU.** The dot products are `f32` trees per workgroup on the device,
 //! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. A
 //! step that would carry a vertex farther than

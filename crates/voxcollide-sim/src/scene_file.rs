@@ -563,8 +563,8 @@ pub enum SearchSpec {
 pub enum ResponseSpec {
     /// A penalty growing with depth measured to the partner's surface triangles, on both sides,
     /// stiff enough for the step and the bodies (the default): the response that holds
-    /// (docs/semantics.md, "Contacts that hold"). Its search runs on the host: the GPU world
-    /// steps it under the explicit integrator only.
+    /// (docs/semantics.md, "Contacts that hold"). Its search runs on the host, under the GPU
+    /// world too.
     #[default]
     Surface,
     /// The voxel model's penalty: growing with depth behind the plane of the three nearest (or

@@ -45,8 +45,8 @@ pub struct ContactPair {
     pub response: Response,
     /// `Some`: the pair's forces are measured to each other's surface triangles, on both sides
     /// ([`crate::contact::SurfaceContact`]), instead of coming from the voxel model's report;
-    /// the grid then gives only the contact's bound (its voxel size). Found on the host: the
-    /// GPU world steps it under the explicit integrator only.
+    /// the grid then gives only the contact's bound (its voxel size). Found on the host, under
+    /// the GPU world too.
     pub surface: Option<SurfacePenalty>,
 }
 
