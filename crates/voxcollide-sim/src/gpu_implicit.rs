@@ -451,7 +451,8 @@ pub(crate) fn solve(
         }
     }
     let count = bodies.len();
-    let coupled = couplings.is_some_and(|c| !c.host.is_empty());
+    // (With no coupling this step the gathers still run: they clear each coupled body's slot.)
+    let coupled = couplings.is_some();
     let couple = |mode: usize| -> Vec<(usize, usize)> {
         if coupled { vec![(0, COUPLINGS + mode)] } else { Vec::new() }
     };
@@ -540,7 +541,7 @@ pub(crate) fn solve(
         iterations += joint[S_ITERATIONS] as u32;
         // The couplings the solve ends within the gap are in it, and no others: solved again,
         // from its answer, while that set changes (after the first round pairs only join).
-        let Some(c) = couplings.filter(|_| coupled && round < 4) else { break (joint, own) };
+        let Some(c) = couplings.filter(|c| !c.host.is_empty() && round < 4) else { break (joint, own) };
         let bytes = voxcollide::gpu::read_buffers(ctx, &[(&c.changed, 4)])?;
         if bytemuck::pod_read_unaligned::<u32>(&bytes[0]) == 0 {
             break (joint, own);
