@@ -1,12 +1,13 @@
 // A surface contact's couplings in the implicit solve (src/gpu_implicit.rs, `Couplings`; the
 // CPU's `Coupling`): each a spring of stiffness k along n between a point of one body and the
-// nearest point of the other's surface, both as weights of their bodies' vertices. Two passes:
+// nearest point of the other's surface, both as weights of their bodies' vertices. Two shaders:
 //
-// PASS_RELATIVE, one invocation per coupling of one contact: `rel = n·(Σ w·u_point − Σ w·u_from)`
-// of a vector `u` of both bodies, and from it the coupling's scalar σ (MODE_*), stored as σ·n in
-// `push`; or, MODE_ARRIVE, whether the solve ends it within the gap (its `active` flag).
-// PASS_GATHER (couple_gather.wgsl), one invocation per vertex of one body: Σ ±w·σ·n over the
-// couplings at it, in coupling order, into its `work` slot SLOT_C, which the implicit passes add.
+// This one (a pipeline per MODE_*), one invocation per coupling of one contact:
+// `rel = n·(Σ w·u_point − Σ w·u_from)` of a vector `u` of both bodies, and from it the
+// coupling's scalar σ, stored as σ·n in `push`; or, MODE_ARRIVE, whether the solve ends it
+// within the gap (its `in_solve` flag).
+// couple_gather.wgsl, one invocation per vertex of one body: Σ ±w·σ·n over the couplings at
+// it, in coupling order, into its `work` slot SLOT_C, which the implicit passes add.
 
 override MODE: u32;
 

@@ -1,5 +1,7 @@
 // The implicit integrator's passes (DESIGN §12, `integrator = "implicit"`) for a world of
-// bodies of springs or tetrahedra whose contacts are the voxel model's: backward Euler
+// bodies of springs or tetrahedra, with the voxel model's contacts (their `k·nnᵀ` in
+// SLOT_KC0/1) or a surface contact's couplings (their terms gathered into SLOT_C by
+// couple_gather.wgsl, their own blocks in SLOT_E0/1 from the host): backward Euler
 // linearised once per step and solved matrix-free by a block-Jacobi preconditioned conjugate
 // gradient over every body at once, as the CPU does it (src/implicit.rs,
 // `integrate_implicit_together`), term by term. One shader, built once per pass with the

@@ -1,8 +1,9 @@
-//! The scene stepped entirely on the GPU: the collision passes (through the embedding API) and
-//! the simulation passes `forces` and `integrate` for both bodies, recorded into one encoder per
-//! step, with nothing read back until a frame is wanted. Under the implicit integrator the
-//! step's solve is [`crate::gpu_implicit`]'s passes instead, which read back a few numbers
-//! (has the solve converged, how far would a vertex move) where the host must decide.
+//! The scene stepped on the GPU: the collision passes (through the embedding API) and the
+//! simulation passes `forces` and `integrate` for every body, recorded into one encoder per
+//! step, with nothing read back until a frame is wanted (but a surface contact's positions,
+//! below). Under the implicit integrator the step's solve is [`crate::gpu_implicit`]'s passes
+//! instead, which read back a few numbers (has the solve converged, how far would a vertex
+//! move) where the host must decide.
 //!
 //! **A surface contact** (`response = "surface"`, [`SurfaceContact`]) steps here with its search
 //! on the host: each step reads back the positions of the two bodies, finds the pushes as the
@@ -242,13 +243,16 @@ struct HostSurface {
     force_b: Buffer,
 }
 
-/// A world stepping entirely on the GPU: every contact's collision passes (through the
-/// embedding API), each body's contact forces summed where it has several, then `forces` and
-/// `integrate` for every body — one command encoder and one submit a step, nothing read back
-/// until [`sync`](Self::sync).
+/// A world stepping on the GPU: every contact's collision passes (through the embedding API),
+/// each body's contact forces summed where it has several, then `forces` and `integrate` for
+/// every body — one command encoder and one submit a step, nothing read back until
+/// [`sync`](Self::sync) but, where a surface contact is found on the host, its bodies'
+/// positions each step (and under the implicit integrator the solve's few numbers and the
+/// coupled bodies' velocities).
 pub struct GpuWorld {
-    /// The world. Its bodies' positions and velocities are only brought up to date by
-    /// [`sync`](Self::sync).
+    /// The world. Its bodies' positions and velocities are brought up to date by
+    /// [`sync`](Self::sync); a surface contact's bodies' positions also each step, for the
+    /// host's search (their velocities only by `sync`).
     pub world: World,
     ctx: GpuContext,
     /// Per contact, in the world's order.
@@ -449,7 +453,8 @@ impl GpuWorld {
     }
 
     /// One step, recorded into one encoder and submitted: every contact's collision → contact
-    /// sums → forces → integration, for every body. Nothing is read back.
+    /// sums → forces → integration, for every body. Nothing is read back but a surface
+    /// contact's positions (and, implicit, the solve's few numbers: [`crate::gpu_implicit`]).
     ///
     /// # Errors
     /// The collisions' recording errors, and [`Error::Gpu`] for a validation or out-of-memory

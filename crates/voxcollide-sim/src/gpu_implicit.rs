@@ -1,13 +1,16 @@
 //! The implicit integrator on the GPU (DESIGN §12): [`crate::GpuWorld`]'s step for a world of
-//! spring lattices whose contacts are the voxel model's, in WGSL (`shaders/implicit.wgsl`).
+//! spring lattices and Neo-Hookean tetrahedra, with the voxel model's contacts or the surface
+//! contact's couplings, in WGSL (`shaders/implicit.wgsl`, `elements.wgsl`, `couple.wgsl`).
 //!
 //! Each body's step is the CPU's ([`crate::implicit`]) term by term: the same forces, the same
-//! blocks of `A = M − h·D − h²·K` (springs, a fill's rank-one term, each contact's `k·nnᵀ` and
-//! its critical damping), the same block-Jacobi preconditioner, the conjugate gradient started
-//! from the last step's answer where that leaves less to solve, the floor's rows held, and the
-//! same update. The passes run without a readback except where the host must decide: once per
-//! batch of [`BATCH`] iterations (has every body's solve converged?) and once at the end (how
-//! far would the farthest vertex move?).
+//! blocks of `A = M − h·D − h²·K` (springs, tetrahedra, a fill's rank-one term, each contact's
+//! `k·nnᵀ` and its critical damping), the same block-Jacobi preconditioner, the conjugate
+//! gradient started from the last step's answer where that leaves less to solve, the floor's
+//! rows held, and the same update. The passes run without a readback except where the host
+//! must decide: once per batch of [`BATCH`] iterations (has the solve converged?), once at the
+//! end (how far would the farthest vertex move?), and with a surface contact once per round
+//! (did the set of couplings in the gap change?), once for the flags the solve kept, and the
+//! coupled bodies' velocities for the impulses, written back.
 //!
 //! **One solve over every body**, as on the CPU: each body's passes write its own range of
 //! every column of partial sums in one buffer (`red`), and the scalar passes sum every body's,
@@ -16,7 +19,7 @@
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
 //! **A surface contact's couplings** ([`crate::implicit::Coupling`]) are built on the host from
-//! its pushes each step and uploaded ([`Couplings`]); `shaders/couple.wgsl` takes each one's
+//! its pushes each step and uploaded (`Couplings`); `shaders/couple.wgsl` takes each one's
 //! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
 //! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
 //! again from its answer while the set of couplings it ends within the gap changes (at most four
@@ -805,7 +808,14 @@ impl Couplings {
         let mut lists: Vec<Vec<Vec<[u32; 2]>>> =
             self.gathers.iter().map(|g| vec![Vec::new(); g.n as usize]).collect();
         let slot_of = |body: usize| self.gathers.iter().position(|g| g.body == body);
-        for (c, (k, d)) in self.host.iter().zip(&damping).enumerate() {
+        // Each coupling's contact, whose pair its pass binds as `a` and `b`.
+        let contact_of: Vec<usize> = self
+            .ranges
+            .iter()
+            .enumerate()
+            .flat_map(|(c, &(_, count))| std::iter::repeat_n(c, count as usize))
+            .collect();
+        for (c, ((k, d), &contact)) in self.host.iter().zip(&damping).zip(&contact_of).enumerate() {
             let start = flat.len() as u32;
             let (body, partner) = (slot_of(k.body as usize), slot_of(k.partner as usize));
             for (v, w) in entries(&k.point) {
@@ -821,11 +831,9 @@ impl Couplings {
                     lists[g][v as usize].push([c as u32, (-w).to_bits()]);
                 }
             }
-            let pair = self.pairs.iter().find(|p| {
-                (p.a, p.b) == (k.body as usize, k.partner as usize)
-                    || (p.b, p.a) == (k.body as usize, k.partner as usize)
-            });
-            let of_a = pair.is_some_and(|p| p.a == k.body as usize);
+            // (Whether the pushed point is its contact's `a`: two contacts may name the same two
+            // bodies in either order.)
+            let of_a = self.pairs[contact].a == k.body as usize;
             records.push(GpuCoupling {
                 normal: k.normal.extend(k.stiffness).to_array(),
                 terms: [*d, k.depth, 0.0, 0.0],

@@ -470,6 +470,38 @@ fn on_the_gpu_too_a_body_pushing_another_carries_it_within_the_step() {
 }
 
 #[test]
+fn on_the_gpu_two_contacts_naming_the_same_bodies_in_either_order_step_as_on_the_cpu() {
+    // The struck block with a second surface contact, its bodies named the other way round:
+    // each coupling is read from its own contact's bodies (a = ball in one, block in the
+    // other), not from the first contact that names the same two.
+    let Some(ctx) = common::gpu() else { return };
+    let both = || {
+        let mut w = moving_ball_on_block();
+        let mut swapped = w.contacts[0];
+        (swapped.a, swapped.b) = (1, 0);
+        w.contacts.push(swapped);
+        w
+    };
+    let mut cpu = CpuWorld::new(both()).unwrap();
+    let mut gpu = GpuWorld::new(&ctx, both()).unwrap();
+    let mut pushed = [0; 2];
+    for step in 0..6 {
+        cpu.step().unwrap();
+        gpu.step().unwrap();
+        for (p, s) in pushed.iter_mut().zip(gpu.surface_stats()) {
+            *p += s.a_pushed + s.b_pushed;
+        }
+        gpu.sync().unwrap();
+        for k in 0..2 {
+            let (c, g) = (&cpu.world.bodies[k], &gpu.world.bodies[k]);
+            let d = c.pos.iter().zip(&g.pos).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+            assert!(d < 1e-3, "step {step}: body {k} differs by {d}");
+        }
+    }
+    assert!(pushed.iter().all(|p| *p > 0), "pushes per contact: {pushed:?}");
+}
+
+#[test]
 fn a_lattice_made_from_a_surface_meets_a_contact_at_that_surface_and_its_cells_carry_the_reaction() {
     // A lattice of spacing 5 in an ellipsoid 12 tall carries the ellipsoid (what is shown and
     // measured); its own vertices stop more than a millimetre below the top.
