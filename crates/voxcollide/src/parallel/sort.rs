@@ -57,9 +57,14 @@ pub(super) struct SortedBody {
     /// The most vertices in one slot.
     pub max_per_slot: u32,
     /// The sort's shape, for [`SortedBody::unsort`]: bits of a slot within its bucket,
-    /// buckets, and vertices per part.
+    /// buckets, and vertices per part (no buckets: one counting sort, `back` then holding
+    /// each vertex's sorted position).
     shape: (u32, usize, usize),
 }
+
+/// The most slots a body sorted in one part is sorted over in one counting sort
+/// ([`SortedBody::sort`]): its counts then stay in cache beside the body.
+const ONE_PASS_SLOTS: usize = 1 << 17;
 
 /// Tasks for the first pass over `n` vertices: a few per thread, none for small bodies, where
 /// the threads would cost more than they save.
@@ -89,6 +94,9 @@ impl SortedBody {
         slot_of: impl Fn(Vec3) -> Option<u32> + Sync,
     ) -> u32 {
         let n = points.len();
+        if parts(n) == 1 && slots <= ONE_PASS_SLOTS {
+            return self.sort_in_one_pass(points, slots, slot_of);
+        }
         let shift = bucket_bits(slots);
         let buckets = ((slots.max(1) - 1) >> shift) + 1;
         let parts = parts(n);
@@ -202,6 +210,52 @@ impl SortedBody {
         sorted as u32
     }
 
+    /// A body small enough to sort on one thread, over a table small enough that its counts stay
+    /// in cache: one counting sort over every slot (the two passes' buckets cost more than
+    /// they save here). The same result as the two passes: stable, the same `rec`, `start` and
+    /// `key`.
+    fn sort_in_one_pass(
+        &mut self,
+        points: &[Vec3],
+        slots: usize,
+        slot_of: impl Fn(Vec3) -> Option<u32>,
+    ) -> u32 {
+        let n = points.len();
+        self.key.resize(n, u32::MAX);
+        self.start.clear();
+        self.start.resize(slots + 1, 0);
+        for (key, &q) in self.key.iter_mut().zip(points) {
+            *key = match slot_of(q) {
+                Some(s) => {
+                    self.start[s as usize] += 1;
+                    s
+                }
+                None => u32::MAX,
+            };
+        }
+        self.max_per_slot = self.start.iter().copied().max().unwrap_or(0);
+        let mut running = 0u32;
+        for c in &mut self.start {
+            (*c, running) = (running, running + *c);
+        }
+        let sorted = self.start[slots] as usize;
+        self.rec.resize(sorted, Rec::default());
+        self.back.resize(n, 0);
+        // Each slot's cursor, from its start; `back[i]`: where vertex i went.
+        self.cursor.clear();
+        self.cursor.extend_from_slice(&self.start[..slots]);
+        for (i, (&s, &q)) in self.key.iter().zip(points).enumerate() {
+            if s != u32::MAX {
+                let at = &mut self.cursor[s as usize];
+                self.rec[*at as usize] = Rec { p: q, i: i as u32 };
+                self.back[i] = *at;
+                *at += 1;
+            }
+        }
+        self.shape = (0, 0, n);
+        sorted as u32
+    }
+
     /// Takes values in sorted order (`by_rec[k]` for `rec[k]`) back to the caller's order,
     /// calling `write(out[i], value)` for each vertex `i` (`None`: left out of the sort). The
     /// sort's two passes run backwards, so every access stays in memory order or within a
@@ -215,6 +269,14 @@ impl SortedBody {
         write: impl Fn(&mut O, Option<T>) + Sync,
     ) {
         let (shift, buckets, part) = self.shape;
+        if buckets == 0 {
+            // One counting sort: each vertex's value is where it went.
+            let (back, key) = (&self.back, &self.key);
+            for (i, o) in out.iter_mut().enumerate() {
+                write(o, (key[i] != u32::MAX).then(|| by_rec[back[i] as usize]));
+            }
+            return;
+        }
         let sorted = self.rec.len();
         // 2 backwards: each bucket's values to where its vertices were in `tmp`.
         scratch.resize(sorted, T::default());
@@ -298,6 +360,12 @@ mod tests {
             (100_000, 1 << 20, false),
             (70_000, 300_000, true),
             (33, 7, false),
+            // Sorted in one pass (one part, a table of at most ONE_PASS_SLOTS).
+            (20_000, 100_000, false),
+            (5_000, 5_000, true),
+            (30_000, 1 << 17, false),
+            // One part, but a table too large for one pass.
+            (20_000, (1 << 17) + 1, false),
         ] {
             let points: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
             let slot_of = |p: Vec3| {
