@@ -1,7 +1,8 @@
 //! The implicit integrator's step (issue 21, item 5): a block of about 20,000 vertices pressed
 //! at its top, as springs and as Neo-Hookean tetrahedra, on one thread and on every core. The
 //! step's trajectory is the same on any number of threads (tests/implicit.rs), so the two
-//! figures time the same work.
+//! figures time the same work. And a ball pressed into a block through the default surface
+//! contact, whose couplings join the two bodies' solve, on the GPU and the CPU.
 //!
 //!     cargo bench -p voxcollide-sim --bench implicit
 
@@ -182,5 +183,76 @@ fn gpu(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench, gpu);
+/// A rigid ball pressed 3 mm into a soft block of 10,571 vertices through the default surface
+/// contact, implicit (a scene file).
+const PRESS: &str = r#"
+units = "mm"
+[time]
+integrator = "implicit"
+max_steps = 100000
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [30, 30, 10] }
+spacing = 1
+material = { young_kpa = 10 }
+fixed = [{ below = { z = -4.5 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 6 }
+spacing = 1.5
+position = [0, 0, 11]
+motion = [{ t = 0.0, position = [0, 0, 11] }, { t = 0.05, position = [0, 0, 8] }]
+[[contact]]
+a = "ball"
+b = "block"
+"#;
+
+/// The press's world, and the steps until the ball pushes the block.
+fn press_world() -> (World, u64) {
+    let file = voxcollide_sim::scene_file::SceneFile::parse("press.toml", PRESS).unwrap();
+    let world = voxcollide_sim::build::build_world(&file).unwrap().world;
+    let mut cpu = CpuWorld::new(world.clone()).unwrap();
+    let mut steps = 0;
+    while cpu.surface_stats[0].a_pushed + cpu.surface_stats[0].b_pushed == 0 && steps < 2000 {
+        cpu.step().unwrap();
+        steps += 1;
+    }
+    (world, steps + 5)
+}
+
+/// The press stepped on the GPU (the host's search, the couplings in the device's solve) and on
+/// the CPU on every core, consecutive steps from five after the first push on.
+fn surface_press(c: &mut Criterion) {
+    let ctx = match voxcollide::GpuContext::new() {
+        Ok(ctx) => ctx,
+        Err(e) => {
+            eprintln!("implicit_surface_press skipped: no adapter ({e})");
+            return;
+        }
+    };
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    let mut group = c.benchmark_group("implicit_surface_press");
+    group.sample_size(10).measurement_time(Duration::from_secs(20));
+    let (world, into) = press_world();
+    let mut on_gpu = voxcollide_sim::GpuWorld::new(&ctx, world.clone()).unwrap();
+    let mut on_cpu = CpuWorld::new(world).unwrap();
+    for _ in 0..into {
+        on_gpu.step().unwrap();
+        on_cpu.step().unwrap();
+    }
+    eprintln!(
+        "press on {}, step {into}: {} and {} CG iterations a step (GPU, CPU), {} pushes",
+        ctx.adapter_name(),
+        on_gpu.stats().map_or(0, |s| s[0].iterations),
+        on_cpu.stats[0].iterations,
+        on_cpu.surface_stats[0].a_pushed + on_cpu.surface_stats[0].b_pushed
+    );
+    group.bench_function("gpu", |b| b.iter(|| on_gpu.step().unwrap()));
+    group.bench_function(format!("cpu_{cores}_threads"), |b| b.iter(|| on_cpu.step().unwrap()));
+    group.finish();
+}
+
+criterion_group!(benches, bench, gpu, surface_press);
 criterion_main!(benches);
