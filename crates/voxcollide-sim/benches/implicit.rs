@@ -249,6 +249,31 @@ fn surface_press(c: &mut Criterion) {
         on_cpu.stats[0].iterations,
         on_cpu.surface_stats[0].a_pushed + on_cpu.surface_stats[0].b_pushed
     );
+    // The same 8 steps on each, timed one by one (criterion's figures below run each for as
+    // many steps as fit its time, so the CPU's reach the press's cheaper, later steps).
+    let median_of = |step: &mut dyn FnMut() -> u32| {
+        let (mut ms, mut iterations) = (Vec::new(), 0);
+        for _ in 0..8 {
+            let t = std::time::Instant::now();
+            iterations += step();
+            ms.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        ms.sort_by(f64::total_cmp);
+        (ms[ms.len() / 2], iterations)
+    };
+    let (gpu_ms, gpu_its) = median_of(&mut || {
+        on_gpu.step().unwrap();
+        on_gpu.stats().map_or(0, |s| s[0].iterations)
+    });
+    let (cpu_ms, cpu_its) = median_of(&mut || {
+        on_cpu.step().unwrap();
+        on_cpu.stats[0].iterations
+    });
+    eprintln!(
+        "implicit_surface_press: steps {into}..{}: median {gpu_ms:.1} ms a step on the GPU ({gpu_its} CG iterations in all), {cpu_ms:.1} ms on the CPU, {cores} threads ({cpu_its}); {:.1}×",
+        into + 8,
+        gpu_ms / cpu_ms
+    );
     group.bench_function("gpu", |b| b.iter(|| on_gpu.step().unwrap()));
     group.bench_function(format!("cpu_{cores}_threads"), |b| b.iter(|| on_cpu.step().unwrap()));
     group.finish();
