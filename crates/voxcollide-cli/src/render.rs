@@ -437,18 +437,29 @@ pub struct Legend {
     /// The value at the map's high end, the bar's top: the scene's `scalar_range.1`. Equal to
     /// `lo`, the bar is one swatch of the low end with one label, as the bodies are drawn.
     pub hi: f32,
+    /// Whether the picture holds values above `hi`, drawn in `hi`'s colour: the top label then
+    /// ends in `+` (see [`Legend::above`]).
+    pub beyond: bool,
 }
 
 impl Legend {
     /// A legend titled `title` for the range `(lo, hi)`, as [`Scene::scalar_range`] takes it.
     #[must_use]
     pub fn new(title: impl Into<String>, (lo, hi): (f32, f32)) -> Legend {
-        Legend { title: title.into(), lo, hi }
+        Legend { title: title.into(), lo, hi, beyond: false }
+    }
+
+    /// The legend of a picture whose largest value is `max`: where that is above `hi`, the
+    /// colours are clipped there, and the top label says so (`0.96+`).
+    #[must_use]
+    pub fn above(mut self, max: f32) -> Legend {
+        self.beyond = max > self.hi;
+        self
     }
 
     /// The tick labels [`draw_legend`] draws, bottom to top: `lo`, the middle and `hi` to 3
-    /// significant figures (more where 3 would make two of them read the same), or `lo` alone
-    /// when `lo == hi`.
+    /// significant figures (more where 3 would make two of them read the same), `hi`'s ending
+    /// in `+` where the picture holds values beyond it, or `lo` alone when `lo == hi`.
     #[must_use]
     pub fn tick_labels(&self) -> Vec<String> {
         let (lo, hi) = (f64::from(self.lo), f64::from(self.hi));
@@ -463,6 +474,11 @@ impl Legend {
             if labels[0] != labels[1] && labels[1] != labels[2] && labels[0] != labels[2] {
                 break;
             }
+        }
+        if self.beyond
+            && let Some(top) = labels.last_mut()
+        {
+            top.push('+');
         }
         labels
     }

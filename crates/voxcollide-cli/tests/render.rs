@@ -680,6 +680,23 @@ fn tick_labels_read_to_three_significant_figures() {
 }
 
 #[test]
+fn a_legend_whose_picture_holds_values_beyond_its_top_says_so() {
+    // The colours stop at `hi`; a picture that moved farther shows its top label as `hi+`, and
+    // a picture within the range does not.
+    let within = displacement((0.0, 0.96)).above(0.5);
+    assert_eq!(within.tick_labels(), ["0", "0.48", "0.96"]);
+    let beyond = displacement((0.0, 0.96)).above(2.44);
+    assert_eq!(beyond.tick_labels(), ["0", "0.48", "0.96+"]);
+    assert_eq!(displacement((0.0, 0.96)).above(0.96).tick_labels(), within.tick_labels());
+    let (w, h) = (320, 200);
+    let (mut plain, mut marked) = (filled(w, h, [BACKGROUND; 3]), filled(w, h, [BACKGROUND; 3]));
+    let a = draw_legend(&mut plain, w as u32, h as u32, &within).unwrap().unwrap();
+    let b = draw_legend(&mut marked, w as u32, h as u32, &beyond).unwrap().unwrap();
+    assert!(b.width >= a.width, "{a:?} {b:?}");
+    assert_ne!(plain, marked, "the + was not drawn");
+}
+
+#[test]
 fn bad_legend_inputs_are_typed_errors() {
     let (w, h) = (320, 200);
     let mut rgba = filled(w, h, [BACKGROUND; 3]);
