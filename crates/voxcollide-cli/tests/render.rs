@@ -690,8 +690,8 @@ fn a_legend_whose_picture_holds_values_beyond_its_top_says_so() {
     assert_eq!(displacement((0.0, 0.96)).above(0.96).tick_labels(), within.tick_labels());
     let (w, h) = (320, 200);
     let (mut plain, mut marked) = (filled(w, h, [BACKGROUND; 3]), filled(w, h, [BACKGROUND; 3]));
-    let a = draw_legend(&mut plain, w as u32, h as u32, &within).unwrap().unwrap();
-    let b = draw_legend(&mut marked, w as u32, h as u32, &beyond).unwrap().unwrap();
+    let a = draw_legend(&mut plain, w, h, &within).unwrap().unwrap();
+    let b = draw_legend(&mut marked, w, h, &beyond).unwrap().unwrap();
     assert!(b.width >= a.width, "{a:?} {b:?}");
     assert_ne!(plain, marked, "the + was not drawn");
 }

@@ -16,11 +16,6 @@ const MODE_X: u32 = 1u;       // A·x (the guess): the same of x
 const MODE_RHS: u32 = 2u;     // the right-hand side's terms, from v and the held Δv
 const MODE_ARRIVE: u32 = 3u;  // the new velocity: which couplings the solve ends within the gap
 
-// Slots of the implicit passes' `work` (implicit.wgsl).
-const SLOT_HELD: u32 = 7u;
-const SLOT_X: u32 = 8u;
-const SLOT_P: u32 = 11u;
-const SLOT_T: u32 = 14u;
 // Not a slot: the velocities, in `vel_a` and `vel_b`.
 const VELOCITY: u32 = 99u;
 

@@ -1,8 +1,6 @@
 // The couplings' terms gathered per vertex of one body (couple.wgsl): Σ ±w·σ·n over the
 // couplings at the vertex, in coupling order, into its `work` slot SLOT_C (0 where none).
 
-const SLOT_C: u32 = 15u;
-
 struct GatherParams {
     n: u32,
     _pad0: u32,

@@ -879,18 +879,18 @@ impl Stepper for GpuWorld {
             // A surface contact's push is inelastic: the impulses between the pairs the solve
             // kept that separate, in coupling order, on the host (the CPU's own code), over
             // the velocities read back.
-            if let Some(c) = imp.couplings.as_ref() {
-                let (couplings, active) = c.kept(&self.ctx)?;
+            // (Only a coupling pushed now can take one: then the flags and the coupled
+            // bodies' velocities come back in one readback.)
+            if let Some(c) = imp.couplings.as_ref().filter(|c| c.couplings().iter().any(|k| k.depth > 0.0)) {
+                let couplings = c.couplings();
+                let mut which: Vec<usize> =
+                    couplings.iter().flat_map(|k| [k.body, k.partner]).map(|k| k as usize).collect();
+                which.sort_unstable();
+                which.dedup();
+                let parts: Vec<(&Buffer, u64)> =
+                    which.iter().map(|&k| (&self.bodies[k].vel, 16 * u64::from(self.bodies[k].n))).collect();
+                let (active, bytes) = c.kept(&self.ctx, &parts)?;
                 if couplings.iter().zip(&active).any(|(k, a)| *a && k.depth > 0.0) {
-                    let mut which: Vec<usize> =
-                        couplings.iter().flat_map(|k| [k.body, k.partner]).map(|k| k as usize).collect();
-                    which.sort_unstable();
-                    which.dedup();
-                    let parts: Vec<(&Buffer, u64)> = which
-                        .iter()
-                        .map(|&k| (&self.bodies[k].vel, 16 * u64::from(self.bodies[k].n)))
-                        .collect();
-                    let bytes = voxcollide::gpu::read_buffers(&self.ctx, &parts)?;
                     for (&k, bytes) in which.iter().zip(&bytes) {
                         let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
                         self.world.bodies[k].vel = vel.iter().map(|v| v.truncate()).collect();

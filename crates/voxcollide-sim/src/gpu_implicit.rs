@@ -42,15 +42,22 @@ use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
 /// The implicit passes' WGSL, composed with `sim_common.wgsl`.
 pub const IMPLICIT: &str = concat!(
     include_str!("../shaders/sim_common.wgsl"),
+    include_str!("../shaders/implicit_slots.wgsl"),
     include_str!("../shaders/elements.wgsl"),
     include_str!("../shaders/implicit.wgsl")
 );
 /// The couplings' passes' WGSL (a surface contact in the implicit solve).
-pub const COUPLE: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/couple.wgsl"));
+pub const COUPLE: &str = concat!(
+    include_str!("../shaders/sim_common.wgsl"),
+    include_str!("../shaders/implicit_slots.wgsl"),
+    include_str!("../shaders/couple.wgsl")
+);
 /// The couplings' gather pass's WGSL.
-pub const COUPLE_GATHER: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/couple_gather.wgsl"));
+pub const COUPLE_GATHER: &str = concat!(
+    include_str!("../shaders/sim_common.wgsl"),
+    include_str!("../shaders/implicit_slots.wgsl"),
+    include_str!("../shaders/couple_gather.wgsl")
+);
 /// The contact stiffness pass's WGSL.
 pub const IMPLICIT_CONTACT: &str =
     concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit_contact.wgsl"));
@@ -960,16 +967,22 @@ impl Couplings {
         }
     }
 
-    /// The couplings this step, and which the solve kept (read back).
+    /// This step's couplings.
+    pub(crate) fn couplings(&self) -> &[crate::implicit::Coupling] {
+        &self.host
+    }
+
+    /// Which couplings the solve kept, read back with `also` in one readback (their bytes
+    /// returned in order).
     pub(crate) fn kept(
         &self,
         ctx: &voxcollide::GpuContext,
-    ) -> Result<(&[crate::implicit::Coupling], Vec<bool>), Error> {
-        if self.host.is_empty() {
-            return Ok((&self.host, Vec::new()));
-        }
-        let bytes = voxcollide::gpu::read_buffers(ctx, &[(&self.active, 4 * self.host.len() as u64)])?;
-        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes[0]);
-        Ok((&self.host, flags.iter().map(|f| *f != 0).collect()))
+        also: &[(&Buffer, u64)],
+    ) -> Result<(Vec<bool>, Vec<Vec<u8>>), Error> {
+        let mut parts = vec![(&self.active, 4 * self.host.len().max(1) as u64)];
+        parts.extend_from_slice(also);
+        let mut bytes = voxcollide::gpu::read_buffers(ctx, &parts)?;
+        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes.remove(0));
+        Ok((flags.iter().take(self.host.len()).map(|f| *f != 0).collect(), bytes))
     }
 }
