@@ -7,6 +7,8 @@
 //!   probed in the same order, so neighbouring probes read neighbouring bins. The caller's
 //!   vertex order is touched only when a body is read in and its forces written out, which makes
 //!   the speed the same for any order.
+//! - Each vertex's slot is computed four at a time in SIMD lanes (`wide`), exactly as one by
+//!   one ([`keys_of`]).
 //! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
 //!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
@@ -20,8 +22,10 @@ mod sort;
 use std::hint::select_unpredictable;
 use std::sync::atomic::{AtomicI32, AtomicI64, Ordering};
 
+use bytemuck::cast;
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
+use wide::{f32x4, i32x4};
 
 use crate::collision::Collision;
 use crate::cpu::{check_body, step_grid};
@@ -116,6 +120,47 @@ fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
         None => voxel_hash(v) & mask,
     }
 }
+
+/// Writes the slot of each of `points` into `keys` (`u32::MAX`: outside the grid or not
+/// finite): the same as `voxel_of` and `slot` one by one, four points at a time on a dense
+/// table. In lanes a point is inside when every `t = (p - origin) · inv` is in `[0, dim)`
+/// (a NaN or an infinity never is), which is `voxel_of`'s test, since `floor(t)` is in
+/// `[0, dim)` exactly when `t` is (`dim` is an integer); and there `floor(t)` is `t`
+/// truncated.
+fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3], keys: &mut [u32]) {
+    let one_by_one = |points: &[Vec3], keys: &mut [u32]| {
+        for (k, &p) in keys.iter_mut().zip(points) {
+            *k = voxel_of(grid, p).map_or(u32::MAX, |q| slot(dense, mask, q));
+        }
+    };
+    let Some([dx, dy]) = dense else {
+        return one_by_one(points, keys);
+    };
+    let (o, inv, d) = (grid.origin(), f32x4::splat(grid.inv_voxel_size()), grid.dims());
+    let (zero, dim) = (f32x4::ZERO, d.as_vec3());
+    let (sx, sy) = (i32x4::splat(dx as i32), i32x4::splat(dy as i32));
+    let whole = points.len() / LANES * LANES;
+    for (p, k) in points[..whole].chunks_exact(LANES).zip(keys[..whole].chunks_exact_mut(LANES)) {
+        let axis = |c: fn(&Vec3) -> f32, o: f32, dim: f32| {
+            let t = (f32x4::new([c(&p[0]), c(&p[1]), c(&p[2]), c(&p[3])]) - f32x4::splat(o)) * inv;
+            (t.trunc_int(), t.simd_ge(zero) & t.simd_lt(f32x4::splat(dim)))
+        };
+        let (qx, inx) = axis(|p| p.x, o.x, dim.x);
+        let (qy, iny) = axis(|p| p.y, o.y, dim.y);
+        let (qz, inz) = axis(|p| p.z, o.z, dim.z);
+        // `x + dx * (y + dy * z)` in wrapping 32-bit arithmetic: the same bits as in `u32`.
+        let s = qx + sx * (qy + sy * qz);
+        let inside: i32x4 = cast(inx & iny & inz);
+        let s = inside.select(s, i32x4::splat(-1)).to_array();
+        for (k, s) in k.iter_mut().zip(s) {
+            *k = s as u32;
+        }
+    }
+    one_by_one(&points[whole..], &mut keys[whole..]);
+}
+
+/// Points whose slots [`keys_of`] computes at once.
+const LANES: usize = 4;
 
 /// A's voxel table: its slots, and A sorted by them.
 #[derive(Debug, Default)]
@@ -264,7 +309,7 @@ impl ParallelCpuCollision {
         lap(&mut self.phases);
         let (dense, mask) = (self.bins.dense, self.bins.mask);
         let slots = self.bins.a.start.len() - 1;
-        self.b.sort(b, slots, |p| voxel_of(&grid, p).map(|q| slot(dense, mask, q)));
+        self.b.sort(b, slots, |p, k| keys_of(&grid, dense, mask, p, k));
         lap(&mut self.phases);
         // A's totals fit 32-bit accumulators when no total can leave i32: a B vertex adds at
         // most one count to an A vertex, of at most 65537 (|force| ≤ magnitude), and only B's
@@ -321,7 +366,7 @@ impl ParallelCpuCollision {
         let slots = dense.unwrap_or_else(|| hashed_slots(a.len(), 4)) as usize;
         bins.mask = (slots - 1) as u32;
         let (mask, dense) = (bins.mask, bins.dense);
-        let binned = bins.a.sort(a, slots, |p| voxel_of(grid, p).map(|q| slot(dense, mask, q)));
+        let binned = bins.a.sort(a, slots, |p, k| keys_of(grid, dense, mask, p, k));
         if dense.is_none() {
             let rec = &bins.a.rec;
             bins.voxel.resize(rec.len(), UVec3::ZERO);
@@ -784,6 +829,52 @@ mod tests {
             let v = k as f32 * 0.5;
             assert_eq!(round_count(v), v.round_ties_even() as i32, "{v}");
             assert_eq!(floor(v), v.floor(), "{v}");
+        }
+    }
+
+    #[test]
+    fn keys_in_lanes_equal_voxel_and_slot_one_by_one() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(22);
+        for (center, size, dims) in [
+            (Vec3::ZERO, 1.0, UVec3::new(7, 5, 3)),
+            (Vec3::new(-3.25, 1e3, 0.5), 0.25, UVec3::new(40, 1, 9)),
+            (Vec3::new(1e6, -1e6, 0.0), 2.0, UVec3::new(1, 300, 2)),
+            // The largest axis, where t reaches 2^24.
+            (Vec3::new(3.0, 0.0, 0.0), 1.0, UVec3::new(1 << 24, 1, 1)),
+        ] {
+            let grid = VoxelGrid::new(center, size, dims).unwrap();
+            let (o, d) = (grid.origin(), grid.dims().as_vec3());
+            let top = o + d * size;
+            let mut points = vec![
+                o,
+                top,
+                o - Vec3::splat(1e-3),
+                Vec3::new(top.x - 1e-3 * size, o.y, o.z),
+                Vec3::new(-0.0, -0.0, -0.0),
+                Vec3::new(f32::NAN, o.y, o.z),
+                Vec3::new(o.x, f32::INFINITY, o.z),
+                Vec3::new(o.x, o.y, f32::NEG_INFINITY),
+                Vec3::splat(f32::MAX),
+                Vec3::splat(-f32::MAX),
+            ];
+            for _ in 0..2000 {
+                // Within the grid and a voxel or two around it, and on voxel faces.
+                let t = Vec3::new(rng.random(), rng.random(), rng.random()) * (d + 4.0) - 2.0;
+                points.push(o + t * size);
+                points.push(o + t.floor() * size);
+            }
+            for n in [points.len(), points.len() - 1, points.len() - 2, 3, 0] {
+                for dense in [Some([dims.x, dims.y]), None] {
+                    let mask = 255;
+                    let mut keys = vec![7; n];
+                    keys_of(&grid, dense, mask, &points[..n], &mut keys);
+                    for (p, k) in points[..n].iter().zip(&keys) {
+                        let one = voxel_of(&grid, *p).map_or(u32::MAX, |q| slot(dense, mask, q));
+                        assert_eq!(*k, one, "{p} in {grid:?}");
+                    }
+                }
+            }
         }
     }
 }

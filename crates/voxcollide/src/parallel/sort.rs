@@ -85,17 +85,17 @@ fn bucket_bits(slots: usize) -> u32 {
 }
 
 impl SortedBody {
-    /// Sorts `points` by `slot_of` (`None`: left out) into `slots` slots. Returns how many
-    /// were sorted.
+    /// Sorts `points` by their slots among `slots`, which `keys_of(points, keys)` writes for
+    /// a run of them (`u32::MAX`: left out). Returns how many were sorted.
     pub fn sort(
         &mut self,
         points: &[Vec3],
         slots: usize,
-        slot_of: impl Fn(Vec3) -> Option<u32> + Sync,
+        keys_of: impl Fn(&[Vec3], &mut [u32]) + Sync,
     ) -> u32 {
         let n = points.len();
         if parts(n) == 1 && slots <= ONE_PASS_SLOTS {
-            return self.sort_in_one_pass(points, slots, slot_of);
+            return self.sort_in_one_pass(points, slots, keys_of);
         }
         let shift = bucket_bits(slots);
         let buckets = ((slots.max(1) - 1) >> shift) + 1;
@@ -112,14 +112,11 @@ impl SortedBody {
             .zip(self.cursor.par_chunks_mut(buckets))
             .for_each(|((keys, points), counts)| {
                 counts.fill(0);
-                for (key, &q) in keys.iter_mut().zip(points) {
-                    *key = match slot_of(q) {
-                        Some(s) => {
-                            counts[(s >> shift) as usize] += 1;
-                            s
-                        }
-                        None => u32::MAX,
-                    };
+                keys_of(points, keys);
+                for &s in keys.iter() {
+                    if s != u32::MAX {
+                        counts[(s >> shift) as usize] += 1;
+                    }
                 }
             });
         // Offsets in (bucket, part) order: a few thousand numbers.
@@ -218,20 +215,17 @@ impl SortedBody {
         &mut self,
         points: &[Vec3],
         slots: usize,
-        slot_of: impl Fn(Vec3) -> Option<u32>,
+        keys_of: impl Fn(&[Vec3], &mut [u32]),
     ) -> u32 {
         let n = points.len();
         self.key.resize(n, u32::MAX);
         self.start.clear();
         self.start.resize(slots + 1, 0);
-        for (key, &q) in self.key.iter_mut().zip(points) {
-            *key = match slot_of(q) {
-                Some(s) => {
-                    self.start[s as usize] += 1;
-                    s
-                }
-                None => u32::MAX,
-            };
+        keys_of(points, &mut self.key);
+        for &s in &self.key {
+            if s != u32::MAX {
+                self.start[s as usize] += 1;
+            }
         }
         self.max_per_slot = self.start.iter().copied().max().unwrap_or(0);
         let mut running = 0u32;
@@ -376,7 +370,11 @@ mod tests {
                     _ => Some((h % slots as u64) as u32),
                 }
             };
-            let sorted = body.sort(&points, slots, slot_of);
+            let sorted = body.sort(&points, slots, |p, k| {
+                for (p, k) in p.iter().zip(k) {
+                    *k = slot_of(*p).unwrap_or(u32::MAX);
+                }
+            });
             let mut expected: Vec<(u32, u32)> =
                 (0..n).filter_map(|i| slot_of(points[i]).map(|s| (s, i as u32))).collect();
             expected.sort_unstable();
