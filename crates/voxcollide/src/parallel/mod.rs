@@ -123,10 +123,7 @@ fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
 
 /// Writes the slot of each of `points` into `keys` (`u32::MAX`: outside the grid or not
 /// finite): the same as `voxel_of` and `slot` one by one, four points at a time on a dense
-/// table. In lanes a point is inside when every `t = (p - origin) · inv` is in `[0, dim)`
-/// (a NaN or an infinity never is), which is `voxel_of`'s test, since `floor(t)` is in
-/// `[0, dim)` exactly when `t` is (`dim` is an integer); and there `floor(t)` is `t`
-/// truncated.
+/// table ([`voxels_in_lanes`]).
 fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3], keys: &mut [u32]) {
     let one_by_one = |points: &[Vec3], keys: &mut [u32]| {
         for (k, &p) in keys.iter_mut().zip(points) {
@@ -136,21 +133,12 @@ fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3]
     let Some([dx, dy]) = dense else {
         return one_by_one(points, keys);
     };
-    let (o, inv, d) = (grid.origin(), f32x4::splat(grid.inv_voxel_size()), grid.dims());
-    let (zero, dim) = (f32x4::ZERO, d.as_vec3());
     let (sx, sy) = (i32x4::splat(dx as i32), i32x4::splat(dy as i32));
     let whole = points.len() / LANES * LANES;
     for (p, k) in points[..whole].chunks_exact(LANES).zip(keys[..whole].chunks_exact_mut(LANES)) {
-        let axis = |c: fn(&Vec3) -> f32, o: f32, dim: f32| {
-            let t = (f32x4::new([c(&p[0]), c(&p[1]), c(&p[2]), c(&p[3])]) - f32x4::splat(o)) * inv;
-            (t.trunc_int(), t.simd_ge(zero) & t.simd_lt(f32x4::splat(dim)))
-        };
-        let (qx, inx) = axis(|p| p.x, o.x, dim.x);
-        let (qy, iny) = axis(|p| p.y, o.y, dim.y);
-        let (qz, inz) = axis(|p| p.z, o.z, dim.z);
+        let ([qx, qy, qz], inside) = voxels_in_lanes(grid, [p[0], p[1], p[2], p[3]]);
         // `x + dx * (y + dy * z)` in wrapping 32-bit arithmetic: the same bits as in `u32`.
         let s = qx + sx * (qy + sy * qz);
-        let inside: i32x4 = cast(inx & iny & inz);
         let s = inside.select(s, i32x4::splat(-1)).to_array();
         for (k, s) in k.iter_mut().zip(s) {
             *k = s as u32;
@@ -159,7 +147,25 @@ fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3]
     one_by_one(&points[whole..], &mut keys[whole..]);
 }
 
-/// Points whose slots [`keys_of`] computes at once.
+/// The voxels of four points, `voxel_of` in lanes: each axis's voxel index, and whether the
+/// point is inside (all bits set) — where it is not, the indices mean nothing. A point is
+/// inside when every `t = (p - origin) · inv` is in `[0, dim)` (a NaN or an infinity never
+/// is), which is `voxel_of`'s test, since `floor(t)` is in `[0, dim)` exactly when `t` is
+/// (`dim` is an integer); and there `floor(t)` is `t` truncated.
+#[inline(always)]
+fn voxels_in_lanes(grid: &VoxelGrid, p: [Vec3; LANES]) -> ([i32x4; 3], i32x4) {
+    let (o, inv, dim) = (grid.origin(), f32x4::splat(grid.inv_voxel_size()), grid.dims().as_vec3());
+    let axis = |c: fn(&Vec3) -> f32, o: f32, dim: f32| {
+        let t = (f32x4::new([c(&p[0]), c(&p[1]), c(&p[2]), c(&p[3])]) - f32x4::splat(o)) * inv;
+        (t.trunc_int(), t.simd_ge(f32x4::ZERO) & t.simd_lt(f32x4::splat(dim)))
+    };
+    let (qx, inx) = axis(|p| p.x, o.x, dim.x);
+    let (qy, iny) = axis(|p| p.y, o.y, dim.y);
+    let (qz, inz) = axis(|p| p.z, o.z, dim.z);
+    ([qx, qy, qz], cast(inx & iny & inz))
+}
+
+/// Points whose voxels are computed at once.
 const LANES: usize = 4;
 
 /// A's voxel table: its slots, and A sorted by them.
@@ -522,10 +528,22 @@ struct Probe<'a, T> {
 
 impl<T: Accumulator> Probe<'_, T> {
     /// Probes a run of sorted B vertices.
+    /// Sorted B is inside the grid, so each vertex has its voxel, computed four at a time.
     fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
         let own = self.own_bins(recs);
-        for (o, r) in out.iter_mut().zip(recs) {
-            *o = self.probe::<VOXEL, PLANE>(r.p, own).map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
+        let force = |f: Option<Vec3>| f.map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
+        let whole = recs.len() / LANES * LANES;
+        for (o, r) in out[..whole].chunks_exact_mut(LANES).zip(recs[..whole].chunks_exact(LANES)) {
+            let p = [r[0].p, r[1].p, r[2].p, r[3].p];
+            let ([x, y, z], inside) = voxels_in_lanes(self.grid, p);
+            let (x, y, z, inside) = (x.to_array(), y.to_array(), z.to_array(), inside.to_array());
+            for l in 0..LANES {
+                let q = (inside[l] != 0).then(|| UVec3::new(x[l] as u32, y[l] as u32, z[l] as u32));
+                o[l] = force(q.and_then(|q| self.probe::<VOXEL, PLANE>(p[l], q, own)));
+            }
+        }
+        for (o, r) in out[whole..].iter_mut().zip(&recs[whole..]) {
+            *o = force(voxel_of(self.grid, r.p).and_then(|q| self.probe::<VOXEL, PLANE>(r.p, q, own)));
         }
     }
 
@@ -661,12 +679,17 @@ impl<T: Accumulator> Probe<'_, T> {
         }
     }
 
-    /// The force on B vertex `p`, or `None` when it does not collide; adds A's shares.
+    /// The force on B vertex `p` in voxel `q`, or `None` when it does not collide; adds A's
+    /// shares.
     /// Specialised by search (`VOXEL`: `Search::Voxel`) and direction (`PLANE`:
     /// `Direction::PlaneNormal`), so each configuration runs code without the others' branches.
     #[inline(always)]
-    fn probe<const VOXEL: bool, const PLANE: bool>(&self, p: Vec3, own_bins: (u32, u32)) -> Option<Vec3> {
-        let q = voxel_of(self.grid, p)?;
+    fn probe<const VOXEL: bool, const PLANE: bool>(
+        &self,
+        p: Vec3,
+        q: UVec3,
+        own_bins: (u32, u32),
+    ) -> Option<Vec3> {
         let law = self.law;
         let center = self.grid.center();
         let pos = |k: u32| self.bins.a.rec[k as usize].p;
