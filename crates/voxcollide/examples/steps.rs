@@ -3,8 +3,11 @@
 //! With `VOXCOLLIDE_PHASES=1` it also prints each phase's median (`set_profiling`).
 //!
 //! ```text
-//! cargo run --release --example steps -- [lattice|z_fastest|shuffled|paper] [N] [steps]
+//! cargo run --release --example steps -- [lattice|z_fastest|shuffled|paper|paper_shuffled|sparse] [N] [steps]
 //! ```
+//!
+//! `sparse` is `lattice` in a grid half the lattice wider on every side, so that A's voxel table
+//! is hashed (more than four voxels a vertex), as for a mesh in a roomy grid.
 
 use std::time::Instant;
 
@@ -24,6 +27,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         "paper_shuffled" => {
             let mut w = workload::shuffled(n, DEFAULT_SEED)?;
             w.params.search = voxcollide::Search::Voxel;
+            w
+        }
+        "sparse" => {
+            let mut w = workload::lattice(n, DEFAULT_SEED)?;
+            let k = (w.a.len() as f64).cbrt().round() as u32;
+            w.grid = voxcollide::Initializer::new(1.0).margin(k / 2 + 1).build(&w.a)?;
             w
         }
         other => return Err(format!("unknown workload {other}").into()),

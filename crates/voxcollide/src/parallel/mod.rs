@@ -25,7 +25,7 @@ use std::sync::atomic::{AtomicI32, AtomicI64, Ordering};
 use bytemuck::cast;
 use glam::{UVec3, Vec3};
 use rayon::prelude::*;
-use wide::{f32x4, i32x4};
+use wide::{f32x4, i32x4, u32x4};
 
 use crate::collision::Collision;
 use crate::cpu::{check_body, step_grid};
@@ -122,24 +122,30 @@ fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
 }
 
 /// Writes the slot of each of `points` into `keys` (`u32::MAX`: outside the grid or not
-/// finite): the same as `voxel_of` and `slot` one by one, four points at a time on a dense
-/// table ([`voxels_in_lanes`]).
+/// finite): the same as `voxel_of` and `slot` one by one, four points at a time
+/// ([`voxels_in_lanes`], and the table's slot of each voxel in lanes).
 fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3], keys: &mut [u32]) {
     let one_by_one = |points: &[Vec3], keys: &mut [u32]| {
         for (k, &p) in keys.iter_mut().zip(points) {
             *k = voxel_of(grid, p).map_or(u32::MAX, |q| slot(dense, mask, q));
         }
     };
-    let Some([dx, dy]) = dense else {
-        return one_by_one(points, keys);
+    let slots = |[x, y, z]: [i32x4; 3]| -> i32x4 {
+        match dense {
+            // `x + dx * (y + dy * z)` in wrapping 32-bit arithmetic: the same bits as in `u32`.
+            Some([dx, dy]) => x + i32x4::splat(dx as i32) * (y + i32x4::splat(dy as i32) * z),
+            // `voxel_hash(v) & mask`, the same operations on unsigned lanes.
+            None => {
+                let (x, y, z): (u32x4, u32x4, u32x4) = (cast(x), cast(y), cast(z));
+                let h = (y * u32x4::splat(0x9e37_79b1)) ^ (z * u32x4::splat(0x85eb_ca77));
+                cast(((h ^ (h >> 16)) + x) & u32x4::splat(mask))
+            }
+        }
     };
-    let (sx, sy) = (i32x4::splat(dx as i32), i32x4::splat(dy as i32));
     let whole = points.len() / LANES * LANES;
     for (p, k) in points[..whole].chunks_exact(LANES).zip(keys[..whole].chunks_exact_mut(LANES)) {
-        let ([qx, qy, qz], inside) = voxels_in_lanes(grid, [p[0], p[1], p[2], p[3]]);
-        // `x + dx * (y + dy * z)` in wrapping 32-bit arithmetic: the same bits as in `u32`.
-        let s = qx + sx * (qy + sy * qz);
-        let s = inside.select(s, i32x4::splat(-1)).to_array();
+        let (q, inside) = voxels_in_lanes(grid, [p[0], p[1], p[2], p[3]]);
+        let s = inside.select(slots(q), i32x4::splat(-1)).to_array();
         for (k, s) in k.iter_mut().zip(s) {
             *k = s as u32;
         }
@@ -378,8 +384,16 @@ impl ParallelCpuCollision {
             bins.voxel.resize(rec.len(), UVec3::ZERO);
             bins.voxel.par_chunks_mut(chunk(rec.len())).zip(rec.par_chunks(chunk(rec.len()))).for_each(
                 |(v, r)| {
-                    for (v, r) in v.iter_mut().zip(r) {
-                        // Sorted vertices are in the grid.
+                    // Sorted vertices are in the grid; four at a time, the rest one by one.
+                    let whole = r.len() / LANES * LANES;
+                    for (v, r) in v[..whole].chunks_exact_mut(LANES).zip(r[..whole].chunks_exact(LANES)) {
+                        let ([x, y, z], _) = voxels_in_lanes(grid, [r[0].p, r[1].p, r[2].p, r[3].p]);
+                        let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
+                        for (l, v) in v.iter_mut().enumerate() {
+                            *v = UVec3::new(x[l] as u32, y[l] as u32, z[l] as u32);
+                        }
+                    }
+                    for (v, r) in v[whole..].iter_mut().zip(&r[whole..]) {
                         *v = voxel_of(grid, r.p).unwrap_or_default();
                     }
                 },
@@ -888,8 +902,7 @@ mod tests {
                 points.push(o + t.floor() * size);
             }
             for n in [points.len(), points.len() - 1, points.len() - 2, 3, 0] {
-                for dense in [Some([dims.x, dims.y]), None] {
-                    let mask = 255;
+                for (dense, mask) in [(Some([dims.x, dims.y]), 0), (None, 255), (None, (1 << 22) - 1)] {
                     let mut keys = vec![7; n];
                     keys_of(&grid, dense, mask, &points[..n], &mut keys);
                     for (p, k) in points[..n].iter().zip(&keys) {
