@@ -2,13 +2,13 @@
 //! giving the same reports as the reference.
 //!
 //! What makes it fast, and why it stays exact:
-//! - Both bodies are sorted by the voxel table's slot (a parallel counting sort, [`sort`]):
+//! - Both bodies are sorted by the voxel table's slot (a parallel counting sort, `sort`):
 //!   A's positions are copied into slot order, so a walk reads contiguous memory, and B is
 //!   probed in the same order, so neighbouring probes read neighbouring bins. The caller's
 //!   vertex order is touched only when a body is read in and its forces written out, which makes
 //!   the speed the same for any order.
 //! - Each vertex's slot is computed four at a time in SIMD lanes (`wide`), exactly as one by
-//!   one ([`keys_of`]).
+//!   one (`keys_of`).
 //! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
 //!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
