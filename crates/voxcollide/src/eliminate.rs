@@ -129,7 +129,14 @@ impl Penalty {
 /// (`d2 < 1e-12`) the unit vector from `center` to `b`, or `+z` when that is degenerate too.
 #[must_use]
 pub fn pairwise_direction(center: Vec3, a: Vec3, b: Vec3) -> Vec3 {
-    let d2 = dist2(b, a);
+    pairwise_direction_at(center, a, b, dist2(b, a))
+}
+
+/// [`pairwise_direction`] for a caller that has `d2 = dist2(b, a)` already (the same bits, so
+/// the same direction).
+#[inline(always)]
+#[must_use]
+pub fn pairwise_direction_at(center: Vec3, a: Vec3, b: Vec3, d2: f32) -> Vec3 {
     if d2 >= DEGENERATE {
         return (b - a) / d2.sqrt();
     }

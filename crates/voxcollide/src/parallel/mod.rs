@@ -29,7 +29,7 @@ use wide::{f32x4, i32x4, u32x4};
 
 use crate::collision::Collision;
 use crate::cpu::{check_body, step_grid};
-use crate::eliminate::{ForceLaw, pairwise_direction, plane_normal};
+use crate::eliminate::{ForceLaw, pairwise_direction, pairwise_direction_at, plane_normal};
 use crate::error::{Body, Error};
 use crate::grid::VoxelGrid;
 use crate::math::dist2;
@@ -732,7 +732,8 @@ impl<T: Accumulator> Probe<'_, T> {
             if best_i == u32::MAX {
                 return None;
             }
-            let f_b = law.pairwise(best_d) * pairwise_direction(center, pos(best_k), p);
+            // `best_d` is `dist2(p, partner)`, which the direction would compute again.
+            let f_b = law.pairwise(best_d) * pairwise_direction_at(center, pos(best_k), p, best_d);
             self.add(best_k, -f_b, own_bins);
             return Some(f_b);
         }
