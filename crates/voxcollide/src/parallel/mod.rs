@@ -98,6 +98,22 @@ fn round_count(x: f32) -> i32 {
     if x.abs() < 4_194_304.0 { ((x + MAGIC) - MAGIC) as i32 } else { x.round_ties_even() as i32 }
 }
 
+/// `round_count(f[axis] * scale)` for the three axes, in lanes while every product is within
+/// `round_count`'s quick range (the same operations, so the same counts).
+#[inline(always)]
+fn counts(f: Vec3, scale: f32) -> [i32; 3] {
+    const MAGIC: f32 = 12_582_912.0;
+    let x = f32x4::new([f.x, f.y, f.z, 0.0]) * f32x4::splat(scale);
+    if x.abs().simd_lt(f32x4::splat(4_194_304.0)).all() {
+        // Integers now, which truncation keeps.
+        let c = ((x + f32x4::splat(MAGIC)) - f32x4::splat(MAGIC)).trunc_int().to_array();
+        [c[0], c[1], c[2]]
+    } else {
+        let x = x.to_array();
+        [round_count(x[0]), round_count(x[1]), round_count(x[2])]
+    }
+}
+
 /// `grid.voxel_of(p)` with the inline [`floor`]: the same voxel or `None` for every `p`.
 #[inline]
 fn voxel_of(grid: &VoxelGrid, p: Vec3) -> Option<UVec3> {
@@ -795,8 +811,8 @@ impl<T: Accumulator> Probe<'_, T> {
     #[inline(always)]
     fn add(&self, k: u32, f: Vec3, own: (u32, u32)) {
         let mine = k >= own.0 && k < own.1;
-        for axis in 0..3 {
-            let c = round_count(f[axis] * self.scale);
+        let counts = counts(f, self.scale);
+        for (axis, c) in counts.into_iter().enumerate() {
             let acc = &self.fixed[3 * k as usize + axis];
             if mine {
                 acc.add_owned(c);
@@ -912,6 +928,23 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn counts_in_lanes_equal_round_count() {
+        let scale = 65536.0 / 0.75;
+        let mut values = vec![0.0, -0.0, 0.5, -0.5, 1.5, -2.5, 4_194_303.5, 4_194_304.0, -4_194_305.0, 1e9];
+        values.extend([f32::NAN, f32::INFINITY, f32::NEG_INFINITY, f32::MAX, f32::MIN_POSITIVE]);
+        let mut x = -70.0f32;
+        while x < 70.0 {
+            values.extend([x, f32::from_bits(x.to_bits() + 1), x / scale, (x + 0.5) / scale]);
+            x += 0.0371;
+        }
+        for w in values.windows(3) {
+            let f = Vec3::new(w[0], w[1], w[2]);
+            let one = [0, 1, 2].map(|a| round_count(f[a] * scale));
+            assert_eq!(counts(f, scale), one, "{f}");
         }
     }
 }
