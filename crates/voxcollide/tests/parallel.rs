@@ -4,6 +4,7 @@
 mod common;
 
 use common::{all_params, bodies, radius_shell_cases};
+use voxcollide::glam::Vec3;
 use voxcollide::*;
 
 #[test]
@@ -198,5 +199,69 @@ fn crowded_voxels_and_ties_probed_in_lanes_match_the_reference() {
             assert!(expected.colliding_b.len() > 20, "{what}: {} colliding", expected.colliding_b.len());
             assert_eq!(common::compare(&what, &expected, &actual, 0.0), 0, "{what}");
         }
+    }
+}
+
+#[test]
+fn hashed_tables_match_the_reference() {
+    // Grids of more than four voxels per A vertex hash A's voxel table (rows grouped in
+    // bricks): random bodies in a roomy grid, a sphere's shell in its bounding grid (a surface
+    // mesh's case), a slab long along x (rows far apart within a brick), and a handful of
+    // vertices in a table of sixteen slots (rows aliased).
+    use rand::{RngExt, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+    let mut cases: Vec<(&str, Vec<Vec3>, Vec<Vec3>, VoxelGrid)> = Vec::new();
+    let (a, b, _, _) = bodies(11, 20_000);
+    let grid = Initializer::new(1.0).margin(20).build(&a[..18_000]).unwrap();
+    cases.push(("roomy", a, b, grid));
+    let mut shell = |r: f32, n: usize| -> Vec<Vec3> {
+        (0..n)
+            .map(|_| {
+                let d = Vec3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                );
+                d.normalize_or(Vec3::X) * (r + rng.random_range(-0.3..0.3))
+            })
+            .collect()
+    };
+    let (a, b) = (shell(30.0, 30_000), shell(29.5, 30_000));
+    let grid = Initializer::new(1.0).margin(2).build(&a).unwrap();
+    cases.push(("shell", a, b, grid));
+    let slab = |rng: &mut rand_chacha::ChaCha8Rng, n: usize| -> Vec<Vec3> {
+        (0..n)
+            .map(|_| {
+                Vec3::new(
+                    rng.random_range(0.0..3000.0),
+                    rng.random_range(0.0..6.0),
+                    rng.random_range(0.0..2.0),
+                )
+            })
+            .collect()
+    };
+    let (a, b) = (slab(&mut rng, 8_000), slab(&mut rng, 8_000));
+    let grid = Initializer::new(1.0).margin(3).build(&a).unwrap();
+    cases.push(("slab", a, b, grid));
+    let a = vec![Vec3::ZERO, Vec3::new(0.3, 9.0, 4.0), Vec3::new(17.0, 2.0, 1.0)];
+    let b =
+        vec![Vec3::new(0.2, 0.1, 0.0), Vec3::new(0.5, 8.8, 4.1), Vec3::new(16.6, 2.2, 1.3), Vec3::splat(5.0)];
+    let grid = Initializer::new(0.5).margin(1).build(&a).unwrap();
+    cases.push(("few", a, b, grid));
+    for (name, a, b, grid) in &cases {
+        let voxels = u64::from(grid.dims().x) * u64::from(grid.dims().y) * u64::from(grid.dims().z);
+        assert!(voxels > 4 * a.len() as u64, "{name}: {voxels} voxels is a dense table");
+        let mut contacts = 0;
+        for radius in [0.9 * grid.voxel_size(), 0.4 * grid.voxel_size()] {
+            for params in all_params(1.0, radius) {
+                let expected = CpuCollision::new(*grid, params).unwrap().step(a, b).unwrap();
+                let actual = ParallelCpuCollision::new(*grid, params).unwrap().step(a, b).unwrap();
+                let what = format!("{name} {params:?}");
+                assert_eq!(expected.colliding_b, actual.colliding_b, "{what}");
+                assert_eq!(common::compare(&what, &expected, &actual, 0.0), 0);
+                contacts += expected.colliding_b.len();
+            }
+        }
+        assert!(contacts > 0, "{name}: no contact");
     }
 }

@@ -10,7 +10,8 @@
 //! - Each vertex's slot is computed four at a time in SIMD lanes (`wide`), exactly as one by
 //!   one (`keys_of`).
 //! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
-//!   consecutive slots, see [`voxel_hash`]), and under `Search::Neighbours` rows and columns the
+//!   consecutive slots: a dense table's linear index, or a hashed table's bricks of rows,
+//!   `Hashed`), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
 //!   plus a rounding margin, so no candidate is lost).
 //! - Forces on A are summed in fixed point with atomic integers: integer sums do not depend on
@@ -128,33 +129,58 @@ fn voxel_of(grid: &VoxelGrid, p: Vec3) -> Option<UVec3> {
     Some(UVec3::new(axis(p.x, o.x, d.x)?, axis(p.y, o.y, d.y)?, axis(p.z, o.z, d.z)?))
 }
 
-/// The slot of voxel `v`: its linear index in a dense table, else its hash.
+/// The slot of voxel `v`: its linear index in a dense table, else its hashed slot.
 #[inline]
-fn slot(dense: Option<[u32; 2]>, mask: u32, v: UVec3) -> u32 {
+fn slot(dense: Option<[u32; 2]>, hashed: Hashed, v: UVec3) -> u32 {
     match dense {
         Some([dx, dy]) => v.x + dx * (v.y + dy * v.z),
-        None => voxel_hash(v) & mask,
+        None => hashed.slot(v),
+    }
+}
+
+/// A hashed table's slots: rows `(y, z)` grouped in bricks of 4 × 4 rows, each brick placed by
+/// [`voxel_hash`] of its own coordinates, its rows `row` slots apart (the grid's voxels along
+/// x, so the rows of a brick do not overlap), and `x` added, masked to the table. A row's
+/// voxels sit in consecutive slots, as the walk needs, and most of the rows around a voxel in
+/// the same brick, a few kilobytes apart: a block's walk reads one to four places of the
+/// table, where a hash of each row read nine unrelated ones (a third of a hashed probe's time
+/// at 1M, docs/performance-notes.md §42). Which slot a voxel lands in only affects speed: the
+/// walk checks each vertex's own voxel.
+#[derive(Clone, Copy, Debug, Default)]
+struct Hashed {
+    mask: u32,
+    row: u32,
+}
+
+impl Hashed {
+    #[inline(always)]
+    fn slot(self, v: UVec3) -> u32 {
+        let brick = voxel_hash(UVec3::new(0, v.y >> 2, v.z >> 2));
+        let row = ((v.y & 3) + 4 * (v.z & 3)).wrapping_mul(self.row);
+        brick.wrapping_add(row).wrapping_add(v.x) & self.mask
     }
 }
 
 /// Writes the slot of each of `points` into `keys` (`u32::MAX`: outside the grid or not
 /// finite): the same as `voxel_of` and `slot` one by one, four points at a time
 /// ([`voxels_in_lanes`], and the table's slot of each voxel in lanes).
-fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, mask: u32, points: &[Vec3], keys: &mut [u32]) {
+fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, hashed: Hashed, points: &[Vec3], keys: &mut [u32]) {
     let one_by_one = |points: &[Vec3], keys: &mut [u32]| {
         for (k, &p) in keys.iter_mut().zip(points) {
-            *k = voxel_of(grid, p).map_or(u32::MAX, |q| slot(dense, mask, q));
+            *k = voxel_of(grid, p).map_or(u32::MAX, |q| slot(dense, hashed, q));
         }
     };
     let slots = |[x, y, z]: [i32x4; 3]| -> i32x4 {
         match dense {
             // `x + dx * (y + dy * z)` in wrapping 32-bit arithmetic: the same bits as in `u32`.
             Some([dx, dy]) => x + i32x4::splat(dx as i32) * (y + i32x4::splat(dy as i32) * z),
-            // `voxel_hash(v) & mask`, the same operations on unsigned lanes.
+            // `Hashed::slot`, the same operations on unsigned lanes.
             None => {
                 let (x, y, z): (u32x4, u32x4, u32x4) = (cast(x), cast(y), cast(z));
-                let h = (y * u32x4::splat(0x9e37_79b1)) ^ (z * u32x4::splat(0x85eb_ca77));
-                cast(((h ^ (h >> 16)) + x) & u32x4::splat(mask))
+                let h = ((y >> 2) * u32x4::splat(0x9e37_79b1)) ^ ((z >> 2) * u32x4::splat(0x85eb_ca77));
+                let three = u32x4::splat(3);
+                let row = ((y & three) + ((z & three) << 2)) * u32x4::splat(hashed.row);
+                cast(((h ^ (h >> 16)) + row + x) & u32x4::splat(hashed.mask))
             }
         }
     };
@@ -195,7 +221,8 @@ const LANES: usize = 4;
 struct Bins {
     /// `Some([dx, dy])`: one slot per voxel, at `x + dx * (y + dy * z)`.
     dense: Option<[u32; 2]>,
-    mask: u32,
+    /// Otherwise: the hashed table.
+    hashed: Hashed,
     /// A in slot order.
     a: SortedBody,
     /// Hashed tables only: the voxel of each sorted A vertex (a walk keeps the row's own).
@@ -335,9 +362,9 @@ impl ParallelCpuCollision {
         let grid = step_grid(&self.grid, self.params.anchor, a)?;
         let binned = self.bin(&grid, a);
         lap(&mut self.phases);
-        let (dense, mask) = (self.bins.dense, self.bins.mask);
+        let (dense, hashed) = (self.bins.dense, self.bins.hashed);
         let slots = self.bins.a.start.len() - 1;
-        self.b.sort(b, slots, |p, k| keys_of(&grid, dense, mask, p, k));
+        self.b.sort(b, slots, |p, k| keys_of(&grid, dense, hashed, p, k));
         lap(&mut self.phases);
         // A's totals fit 32-bit accumulators when no total can leave i32: a B vertex adds at
         // most one count to an A vertex, of at most 65537 (|force| ≤ magnitude), and only B's
@@ -392,9 +419,9 @@ impl ParallelCpuCollision {
         let dense = dense_slots(d, a.len());
         bins.dense = dense.map(|_| [d.x, d.y]);
         let slots = dense.unwrap_or_else(|| hashed_slots(a.len(), 4)) as usize;
-        bins.mask = (slots - 1) as u32;
-        let (mask, dense) = (bins.mask, bins.dense);
-        let binned = bins.a.sort(a, slots, |p, k| keys_of(grid, dense, mask, p, k));
+        bins.hashed = Hashed { mask: (slots - 1) as u32, row: d.x };
+        let (hashed, dense) = (bins.hashed, bins.dense);
+        let binned = bins.a.sort(a, slots, |p, k| keys_of(grid, dense, hashed, p, k));
         if dense.is_none() {
             let rec = &bins.a.rec;
             bins.voxel.resize(rec.len(), UVec3::ZERO);
@@ -651,7 +678,7 @@ impl<T: Accumulator> Probe<'_, T> {
 
     /// Walks voxels `lo..=hi`, offering every A vertex of each (and whether it is in `own`) to
     /// `visit(d2, index, bin position, in_own)`. A row's voxels sit in consecutive slots (see
-    /// [`voxel_hash`]), so each row of the block is one contiguous scan.
+    /// [`Hashed`]), so each row of the block is one contiguous scan.
     /// `OWN`: whether `visit` looks at `in_own` (when not, it is always `false`).
     #[inline(always)]
     fn walk<const OWN: bool>(
@@ -688,8 +715,8 @@ impl<T: Accumulator> Probe<'_, T> {
         }
         for z in lo.z..=hi.z {
             for y in lo.y..=hi.y {
-                let s0 = voxel_hash(UVec3::new(lo.x, y, z)) & bins.mask;
-                let s1 = voxel_hash(UVec3::new(hi.x, y, z)) & bins.mask;
+                let s0 = bins.hashed.slot(UVec3::new(lo.x, y, z));
+                let s1 = bins.hashed.slot(UVec3::new(hi.x, y, z));
                 let mut scan = |from: u32, to: u32| {
                     let (k0, k1) = (start[from as usize] as usize, start[to as usize + 1] as usize);
                     for (k, (r, &v)) in rec[k0..k1].iter().zip(&bins.voxel[k0..k1]).enumerate() {
@@ -702,7 +729,7 @@ impl<T: Accumulator> Probe<'_, T> {
                     scan(s0, s1);
                 } else {
                     // The row wraps around the end of the table.
-                    scan(s0, bins.mask);
+                    scan(s0, bins.hashed.mask);
                     scan(0, s1);
                 }
             }
@@ -919,11 +946,14 @@ mod tests {
                 points.push(o + t.floor() * size);
             }
             for n in [points.len(), points.len() - 1, points.len() - 2, 3, 0] {
-                for (dense, mask) in [(Some([dims.x, dims.y]), 0), (None, 255), (None, (1 << 22) - 1)] {
+                let hashed = |mask| Hashed { mask, row: dims.x };
+                for (dense, hashed) in
+                    [(Some([dims.x, dims.y]), hashed(0)), (None, hashed(255)), (None, hashed((1 << 22) - 1))]
+                {
                     let mut keys = vec![7; n];
-                    keys_of(&grid, dense, mask, &points[..n], &mut keys);
+                    keys_of(&grid, dense, hashed, &points[..n], &mut keys);
                     for (p, k) in points[..n].iter().zip(&keys) {
-                        let one = voxel_of(&grid, *p).map_or(u32::MAX, |q| slot(dense, mask, q));
+                        let one = voxel_of(&grid, *p).map_or(u32::MAX, |q| slot(dense, hashed, q));
                         assert_eq!(*k, one, "{p} in {grid:?}");
                     }
                 }
