@@ -155,6 +155,7 @@ impl SortedBody {
                         // 0..sorted, and the cursor moves once per vertex that 1a counted from
                         // the same keys. So every index is written once.
                         unsafe { tmp.write(*at as usize, Tmp { s, i: (p * part + j) as u32, p: q }) };
+                        tmp.prefetch(*at as usize + 8);
                         *at += 1;
                     }
                 });
@@ -300,11 +301,34 @@ impl SortedBody {
                     } else {
                         let at = &mut cursor[(s >> shift) as usize];
                         write(o, Some(scratch[*at as usize]));
+                        prefetch(scratch, *at as usize + 8);
                         *at += 1;
                     }
                 }
             });
     }
+}
+
+/// Asks for the cache line holding `slice[i]` (nothing when `i` is past the end): a hint for
+/// the passes that follow a bucket's cursor through memory, one of hundreds at a time when the
+/// caller's order is not the slots' (z fastest: the bucket pass 5-6 -> 4-4.5 ms a body at 1M),
+/// which the hardware's prefetchers do not follow.
+#[inline(always)]
+pub(super) fn prefetch<T>(slice: &[T], i: usize) {
+    prefetch_at(slice.as_ptr(), slice.len(), i);
+}
+
+#[inline(always)]
+fn prefetch_at<T>(ptr: *const T, len: usize, i: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if i < len {
+        // SAFETY: a prefetch never faults, and the address is inside the slice.
+        unsafe {
+            core::arch::x86_64::_mm_prefetch::<{ core::arch::x86_64::_MM_HINT_T0 }>(ptr.add(i).cast::<i8>())
+        };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (ptr, len, i);
 }
 
 /// A slice that parallel tasks write at indices that no two writes share: the scatter of a
@@ -323,6 +347,12 @@ unsafe impl<T: Send> Sync for Scatter<'_, T> {}
 impl<'a, T: Copy> Scatter<'a, T> {
     pub fn new(slice: &'a mut [T]) -> Scatter<'a, T> {
         Scatter { ptr: slice.as_mut_ptr(), len: slice.len(), _slice: PhantomData }
+    }
+
+    /// Asks for the line holding element `i` ahead of a write (see [`prefetch`]).
+    #[inline(always)]
+    pub fn prefetch(&self, i: usize) {
+        prefetch_at(self.ptr, self.len, i);
     }
 
     /// Writes `value` at `i` (out of range: a panic, never a stray write).
