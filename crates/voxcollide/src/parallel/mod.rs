@@ -90,12 +90,15 @@ fn floor(x: f32) -> f32 {
     }
 }
 
+/// 1.5 · 2^23: added to and taken from an `f32` below 2^22 in magnitude, it leaves the nearest
+/// integer, ties to even ([`round_count`], [`counts`]).
+const MAGIC: f32 = 12_582_912.0;
+
 /// `x.round_ties_even() as i32` for the fixed-point counts, inline (likewise a libm call
 /// otherwise): adding and subtracting 1.5 · 2^23 rounds to the nearest even integer in the
 /// default rounding mode, exactly, for |x| < 2^22 — counts are at most about 2^16.
 #[inline]
 fn round_count(x: f32) -> i32 {
-    const MAGIC: f32 = 12_582_912.0;
     if x.abs() < 4_194_304.0 { ((x + MAGIC) - MAGIC) as i32 } else { x.round_ties_even() as i32 }
 }
 
@@ -103,7 +106,6 @@ fn round_count(x: f32) -> i32 {
 /// `round_count`'s quick range (the same operations, so the same counts).
 #[inline(always)]
 fn counts(f: Vec3, scale: f32) -> [i32; 3] {
-    const MAGIC: f32 = 12_582_912.0;
     let x = f32x4::new([f.x, f.y, f.z, 0.0]) * f32x4::splat(scale);
     if x.abs().simd_lt(f32x4::splat(4_194_304.0)).all() {
         // Integers now, which truncation keeps.
@@ -144,7 +146,7 @@ fn slot(dense: Option<[u32; 2]>, hashed: Hashed, v: UVec3) -> u32 {
 /// voxels sit in consecutive slots, as the walk needs, and most of the rows around a voxel in
 /// the same brick, a few kilobytes apart: a block's walk reads one to four places of the
 /// table, where a hash of each row read nine unrelated ones (a third of a hashed probe's time
-/// at 1M, docs/performance-notes.md §42). Which slot a voxel lands in only affects speed: the
+/// at 1M, docs/performance-notes.md §43). Which slot a voxel lands in only affects speed: the
 /// walk checks each vertex's own voxel.
 #[derive(Clone, Copy, Debug, Default)]
 struct Hashed {

@@ -155,7 +155,7 @@ impl SortedBody {
                         // 0..sorted, and the cursor moves once per vertex that 1a counted from
                         // the same keys. So every index is written once.
                         unsafe { tmp.write(*at as usize, Tmp { s, i: (p * part + j) as u32, p: q }) };
-                        tmp.prefetch(*at as usize + 8);
+                        tmp.prefetch(*at as usize + PREFETCH_AHEAD);
                         *at += 1;
                     }
                 });
@@ -301,7 +301,7 @@ impl SortedBody {
                     } else {
                         let at = &mut cursor[(s >> shift) as usize];
                         write(o, Some(scratch[*at as usize]));
-                        prefetch(scratch, *at as usize + 8);
+                        prefetch(scratch, *at as usize + PREFETCH_AHEAD);
                         *at += 1;
                     }
                 }
@@ -309,12 +309,16 @@ impl SortedBody {
     }
 }
 
+/// How far ahead of a bucket's cursor [`prefetch`] asks, in elements: two or three lines of
+/// the sort's records.
+const PREFETCH_AHEAD: usize = 8;
+
 /// Asks for the cache line holding `slice[i]` (nothing when `i` is past the end): a hint for
 /// the passes that follow a bucket's cursor through memory, one of hundreds at a time when the
 /// caller's order is not the slots' (z fastest: the bucket pass 5-6 -> 4-4.5 ms a body at 1M),
 /// which the hardware's prefetchers do not follow.
 #[inline(always)]
-pub(super) fn prefetch<T>(slice: &[T], i: usize) {
+fn prefetch<T>(slice: &[T], i: usize) {
     prefetch_at(slice.as_ptr(), slice.len(), i);
 }
 
