@@ -753,8 +753,8 @@ fn pictures(
             up: Vec3::Z,
         };
         let name = format!("{folder}/{view}.png");
-        let largest = tissue.iter().flat_map(|&k| shown[k].1.iter().copied()).fold(0.0f32, f32::max);
-        let legend = Legend::new(format!("tissue displacement ({units})"), range).above(largest);
+        let legend =
+            Legend::new(format!("tissue displacement ({units})"), range).above(scene.largest_scalar());
         renderer.render_png_with_legend(&scene, Some(&legend), &out.join(&name))?;
         files.push(name);
     }

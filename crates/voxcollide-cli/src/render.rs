@@ -97,6 +97,14 @@ pub struct Scene<'a> {
     pub up: Vec3,
 }
 
+impl Scene<'_> {
+    /// The largest scalar of any mesh, or 0 (what [`Legend::above`] compares with its top).
+    #[must_use]
+    pub fn largest_scalar(&self) -> f32 {
+        self.meshes.iter().flat_map(|m| m.scalars.unwrap_or_default().iter().copied()).fold(0.0, f32::max)
+    }
+}
+
 /// The uniform of `shaders/render.wgsl`. Keep in sync with `Params` there.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]

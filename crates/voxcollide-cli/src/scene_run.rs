@@ -506,14 +506,8 @@ pub fn run_scene(
             let name = format!("{scenario}_{frame:04}.png");
             let shown = shown_and_moved(world);
             let scene = picture(world, &shown, &soft, size);
-            let largest = shown
-                .iter()
-                .zip(&soft)
-                .filter(|(_, soft)| **soft)
-                .flat_map(|((_, moved), _)| moved.iter().copied())
-                .fold(0.0f32, f32::max);
-            let legend =
-                Legend::new(format!("displacement ({})", summary.units), scene.scalar_range).above(largest);
+            let legend = Legend::new(format!("displacement ({})", summary.units), scene.scalar_range)
+                .above(scene.largest_scalar());
             r.render_png_with_legend(&scene, Some(&legend), &config.out.join(&name))?;
             summary.files.push(name);
         }

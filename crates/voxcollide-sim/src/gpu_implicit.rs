@@ -377,14 +377,22 @@ pub(crate) struct Solved {
     pub residual: Residual,
 }
 
-/// The joint scalars, and each body's own.
-fn read_scalars(ctx: &voxcollide::GpuContext, sums: &Sums) -> Result<([f32; 16], Vec<[f32; 8]>), Error> {
+/// The joint scalars, each body's own, and, in the same readback, whether the couplings'
+/// `changed` flag (when given) is set.
+fn read_scalars(
+    ctx: &voxcollide::GpuContext,
+    sums: &Sums,
+    changed: Option<&Buffer>,
+) -> Result<([f32; 16], Vec<[f32; 8]>, bool), Error> {
     let size = 4 * (SCALARS + BODY_SCALARS * u64::from(sums.bodies));
-    let bytes = voxcollide::gpu::read_buffers(ctx, &[(&sums.red, size)])?;
+    let mut parts = vec![(&sums.red, size)];
+    parts.extend(changed.map(|c| (c, 4)));
+    let bytes = voxcollide::gpu::read_buffers(ctx, &parts)?;
     let words: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes[0]);
     let joint: [f32; 16] = words[..16].try_into().unwrap_or([0.0; 16]);
     let own = words[16..].chunks_exact(8).map(|c| c.try_into().unwrap_or([0.0; 8])).collect();
-    Ok((joint, own))
+    let changed = bytes.get(1).is_some_and(|b| bytemuck::pod_read_unaligned::<u32>(&b[..4]) != 0);
+    Ok((joint, own, changed))
 }
 
 /// Records `items`, each a pass of one body (`(body, pass)`), in order, in one compute pass.
@@ -537,7 +545,7 @@ pub(crate) fn solve(
             record(&mut encoder, kernels, bodies, couplings, &batch, max_per_dim);
             recorded += BATCH;
             queue.submit([encoder.finish()]);
-            let (joint, _) = read_scalars(ctx, sums)?;
+            let (joint, _, _) = read_scalars(ctx, sums, None)?;
             encoder = new_encoder();
             // (The cap is the solve's own, checked on the device; this only stops the host.)
             if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
@@ -547,15 +555,12 @@ pub(crate) fn solve(
         record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
         queue.submit([encoder.finish()]);
         encoder = new_encoder();
-        let (joint, own) = read_scalars(ctx, sums)?;
-        iterations += joint[S_ITERATIONS] as u32;
         // The couplings the solve ends within the gap are in it, and no others: solved again,
         // from its answer, while that set changes (after the first round pairs only join).
-        let Some(c) = couplings.filter(|c| !c.host.is_empty() && round < 4) else { break (joint, own) };
-        let bytes = voxcollide::gpu::read_buffers(ctx, &[(&c.changed, 4)])?;
-        if bytemuck::pod_read_unaligned::<u32>(&bytes[0]) == 0 {
-            break (joint, own);
-        }
+        let recheck = couplings.filter(|c| !c.host.is_empty() && round < 4);
+        let (joint, own, changed) = read_scalars(ctx, sums, recheck.map(|c| &c.changed))?;
+        iterations += joint[S_ITERATIONS] as u32;
+        let Some(c) = recheck.filter(|_| changed) else { break (joint, own) };
         round += 1;
         c.set_round(queue, round);
         // `PASS_GP` reads x while S_DONE is negative (the guess's g·x), as at the start.

@@ -343,18 +343,13 @@ impl Live {
                 ));
                 false
             }
-            Backend::Auto => true,
-        };
-        let on_cpu = match config.backend {
-            Backend::Auto => crate::scene_run::cpu_first(&built.world),
-            _ => None,
-        };
-        let on_gpu = match on_cpu {
-            Some(why) if on_gpu => {
-                note(&format!("{why} steps on the CPU"));
-                false
-            }
-            _ => on_gpu,
+            Backend::Auto => match crate::scene_run::cpu_first(&built.world) {
+                Some(why) => {
+                    note(&format!("{why} steps on the CPU"));
+                    false
+                }
+                None => true,
+            },
         };
         let world = &built.world;
         let extent = world
