@@ -377,13 +377,17 @@ pub(crate) struct Solved {
     pub residual: Residual,
 }
 
+/// What [`read_scalars`] reads: the joint scalars, each body's own, and whether the couplings'
+/// `changed` flag is set.
+type Scalars = ([f32; 16], Vec<[f32; 8]>, bool);
+
 /// The joint scalars, each body's own, and, in the same readback, whether the couplings'
 /// `changed` flag (when given) is set.
 fn read_scalars(
     ctx: &voxcollide::GpuContext,
     sums: &Sums,
     changed: Option<&Buffer>,
-) -> Result<([f32; 16], Vec<[f32; 8]>, bool), Error> {
+) -> Result<Scalars, Error> {
     let size = 4 * (SCALARS + BODY_SCALARS * u64::from(sums.bodies));
     let mut parts = vec![(&sums.red, size)];
     parts.extend(changed.map(|c| (c, 4)));
