@@ -37,7 +37,7 @@ use crate::math::dist2;
 use crate::params::{ContactParams, Direction, Response, Search};
 use crate::report::ContactReport;
 use crate::voxel_data::{dense_slots, hashed_slots, voxel_hash};
-use sort::{SortedBody, chunk};
+use sort::{Scatter, SortedBody, chunk};
 
 /// The three nearest candidates in `(d2, index)` order.
 /// `i`: the A vertex's index (the tie-break of the reference's order); `k`: where it sits in
@@ -231,6 +231,36 @@ struct Bins {
     voxel: Vec<UVec3>,
 }
 
+/// The caller's indices of the bits set in `marks`, ascending, into `out`: the words' bits
+/// counted (a few thousand `popcnt`s), then each task's words written into its own range.
+/// `starts` is reused from step to step, so nothing is allocated once the vectors are grown.
+fn marked_indices(marks: &[u64], starts: &mut Vec<usize>, out: &mut Vec<u32>) {
+    const WORDS: usize = 1024;
+    starts.clear();
+    starts.push(0);
+    for words in marks.chunks(WORDS) {
+        let ones: usize = words.iter().map(|w| w.count_ones() as usize).sum();
+        starts.push(starts[starts.len() - 1] + ones);
+    }
+    out.clear();
+    out.resize(starts[starts.len() - 1], 0);
+    let to = Scatter::new(out);
+    marks.par_chunks(WORDS).zip(starts.par_windows(2)).enumerate().for_each(|(c, (words, range))| {
+        let mut at = range[0];
+        for (w, &word) in words.iter().enumerate() {
+            let base = (64 * (c * WORDS + w)) as u32;
+            let mut bits = word;
+            while bits != 0 {
+                // SAFETY: this task's words have `range[1] - range[0]` bits set, counted above,
+                // and the tasks' ranges tile `out`: every index is written once.
+                unsafe { to.write(at, base + bits.trailing_zeros()) };
+                at += 1;
+                bits &= bits - 1;
+            }
+        }
+    });
+}
+
 /// The multi-threaded CPU backend. Reports equal [`CpuCollision`](crate::CpuCollision)'s.
 ///
 /// Runs on rayon's global thread pool (one thread per core unless `RAYON_NUM_THREADS` says
@@ -242,14 +272,19 @@ pub struct ParallelCpuCollision {
     bins: Bins,
     /// B in the order of A's slots.
     b: SortedBody,
-    /// Per sorted B vertex: its force and whether it collides (`w` = 1); then the same in
-    /// the caller's order, with scratch for the way back (`SortedBody::unsort`).
+    /// Per sorted B vertex: its force and whether it collides (`w` = 1); scratch for the way
+    /// back (`SortedBody::unsort`).
     res_b: Vec<[f32; 4]>,
-    hit_b: Vec<[f32; 4]>,
     scratch_b: Vec<[f32; 4]>,
     /// Per binned A vertex, in bin order: its force; scratch for the way back.
     res_a: Vec<Vec3>,
     scratch_a: Vec<Vec3>,
+    /// B's colliding vertices, a bit each in the caller's order; the same for A's way back,
+    /// which marks none.
+    marks: Vec<u64>,
+    marks_a: Vec<u64>,
+    /// Where each run of `marks` starts among the colliding vertices (`marked_indices`).
+    mark_starts: Vec<usize>,
     /// Fixed-point force accumulators of A, three per binned vertex in bin order: 64-bit, and
     /// 32-bit for steps where no total can leave `i32` (half the memory the probe adds into).
     fixed: Vec<AtomicI64>,
@@ -279,10 +314,12 @@ impl ParallelCpuCollision {
             bins: Bins::default(),
             b: SortedBody::default(),
             res_b: Vec::new(),
-            hit_b: Vec::new(),
             scratch_b: Vec::new(),
             res_a: Vec::new(),
             scratch_a: Vec::new(),
+            marks: Vec::new(),
+            marks_a: Vec::new(),
+            mark_starts: Vec::new(),
             fixed: Vec::new(),
             fixed32: Vec::new(),
             phases: None,
@@ -380,30 +417,31 @@ impl ParallelCpuCollision {
             run.probe(&mut self.fixed, &mut self.res_b, &mut self.res_a)
         };
         lap(&mut self.phases);
-        // B's results in B's order (those outside the grid collide with nothing), then its
-        // forces.
-        self.hit_b.resize(b.len(), [0.0; 4]);
-        self.b.unsort(&self.res_b, &mut self.scratch_b, &mut self.hit_b, |o, h| *o = h.unwrap_or([0.0; 4]));
+        // B's forces in B's order (those outside the grid collide with nothing), its colliding
+        // vertices marked.
         report.force_b.resize(b.len(), Vec3::ZERO);
-        let size = chunk(b.len());
-        report.force_b.par_chunks_mut(size).zip(self.hit_b.par_chunks(size)).for_each(|(force, hit)| {
-            for (f, h) in force.iter_mut().zip(hit) {
-                *f = Vec3::new(h[0], h[1], h[2]);
-            }
+        self.b.unsort(&self.res_b, &mut self.scratch_b, &mut report.force_b, &mut self.marks, |f, h| {
+            let h = h.unwrap_or([0.0; 4]);
+            *f = Vec3::new(h[0], h[1], h[2]);
+            h[3] != 0.0
         });
         lap(&mut self.phases);
         report.force_a.resize(a.len(), Vec3::ZERO);
-        self.bins.a.unsort(&self.res_a, &mut self.scratch_a, &mut report.force_a, |o, f| {
-            *o = f.unwrap_or(Vec3::ZERO)
-        });
+        self.bins.a.unsort(
+            &self.res_a,
+            &mut self.scratch_a,
+            &mut report.force_a,
+            &mut self.marks_a,
+            |o, f| {
+                *o = f.unwrap_or(Vec3::ZERO);
+                false
+            },
+        );
         lap(&mut self.phases);
         if let Some((k, count)) = overflow {
             return Err(Error::ForceOverflow { vertex: (k / 3) as u32, axis: (k % 3) as u32, count });
         }
-        report.colliding_b.clear();
-        report
-            .colliding_b
-            .extend(self.hit_b.iter().enumerate().filter(|(_, h)| h[3] != 0.0).map(|(j, _)| j as u32));
+        marked_indices(&self.marks, &mut self.mark_starts, &mut report.colliding_b);
         lap(&mut self.phases);
         report.binned_a = binned;
         report.discarded_a = a.len() as u32 - binned;

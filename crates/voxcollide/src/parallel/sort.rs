@@ -17,6 +17,7 @@ use std::marker::PhantomData;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use wide::u32x4;
 
 /// A vertex in slot order: its position and its index in the caller's slice.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -52,12 +53,20 @@ pub(super) struct SortedBody {
     bucket_start: Vec<u32>,
     /// `parts × buckets`: where each part's vertices of each bucket start in `tmp`.
     offset: Vec<u32>,
-    /// Per sorted position: where the vertex was in `tmp` (within its bucket's range).
-    back: Vec<u32>,
+    /// Per record of `tmp`: its sorted position (within its bucket's range); after one
+    /// counting sort, per vertex (`u32::MAX`: left out).
+    sorted_at: Vec<u32>,
     /// The most vertices in one slot.
     pub max_per_slot: u32,
+    /// Whether the body came nearly in slot order: at most half its vertices in a bucket other
+    /// than the last four new ones, as in a body in the grid's own order (x fastest), where
+    /// only a few buckets are written at a time. Then the way back reads each value from
+    /// its sorted position in the same pass that writes it out, since only those few buckets'
+    /// values are read at a time; else it first gathers each bucket's values in the order the
+    /// first pass wrote them ([`SortedBody::unsort`]).
+    in_order: bool,
     /// The sort's shape, for [`SortedBody::unsort`]: bits of a slot within its bucket,
-    /// buckets, and vertices per part (no buckets: one counting sort, `back` then holding
+    /// buckets, and vertices per part (no buckets: one counting sort, `sorted_at` then holding
     /// each vertex's sorted position).
     shape: (u32, usize, usize),
 }
@@ -100,25 +109,39 @@ impl SortedBody {
         let shift = bucket_bits(slots);
         let buckets = ((slots.max(1) - 1) >> shift) + 1;
         let parts = parts(n);
-        let part = n.div_ceil(parts);
+        // Whole words of the way back's marks per part (`unsort`).
+        let part = n.div_ceil(parts).next_multiple_of(64);
         let parts = n.div_ceil(part); // every part non-empty
         self.key.resize(n, u32::MAX);
         self.cursor.resize(parts * buckets, 0);
 
-        // 1a. Each part's keys and counts per bucket.
-        self.key
+        // 1a. Each part's keys and counts per bucket, and how often a vertex's bucket is none
+        //     of the last four new ones.
+        let misses: usize = self
+            .key
             .par_chunks_mut(part)
             .zip(points.par_chunks(part))
             .zip(self.cursor.par_chunks_mut(buckets))
-            .for_each(|((keys, points), counts)| {
+            .map(|((keys, points), counts)| {
                 counts.fill(0);
                 keys_of(points, keys);
+                // The last four new buckets, compared at once: one branch, taken rarely in a
+                // body in order and nearly always in another (one per bucket was a coin toss
+                // each in a lattice's B, whose vertices alternate between neighbouring rows).
+                let (mut misses, mut r) = (0, [u32::MAX; 4]);
                 for &s in keys.iter() {
                     if s != u32::MAX {
-                        counts[(s >> shift) as usize] += 1;
+                        let b = s >> shift;
+                        counts[b as usize] += 1;
+                        if !u32x4::new(r).simd_eq(u32x4::splat(b)).any() {
+                            r = [b, r[0], r[1], r[2]];
+                            misses += 1;
+                        }
                     }
                 }
-            });
+                misses
+            })
+            .sum();
         // Offsets in (bucket, part) order: a few thousand numbers.
         self.bucket_start.resize(buckets + 1, 0);
         let mut running = 0u32;
@@ -131,6 +154,7 @@ impl SortedBody {
         }
         self.bucket_start[buckets] = running;
         let sorted = running as usize;
+        self.in_order = 2 * misses <= sorted;
         self.offset.clear();
         self.offset.extend_from_slice(&self.cursor);
         self.shape = (shift, buckets, part);
@@ -164,12 +188,12 @@ impl SortedBody {
         // 2. Each bucket: a counting sort by slot on the bucket's own slice of `start`, which
         //    ends as its slots' starts.
         self.rec.resize(sorted, Rec::default());
-        self.back.resize(sorted, 0);
+        self.sorted_at.resize(sorted, 0);
         self.start.resize(slots + 1, 0);
         {
             let (tmp, bucket_start) = (&self.tmp, &self.bucket_start);
             let rec = Scatter::new(&mut self.rec);
-            let back = Scatter::new(&mut self.back);
+            let sorted_at = Scatter::new(&mut self.sorted_at);
             self.max_per_slot = self.start[..slots]
                 .par_chunks_mut(1 << shift)
                 .enumerate()
@@ -187,12 +211,13 @@ impl SortedBody {
                     }
                     for (j, t) in tmp[lo..hi].iter().enumerate() {
                         let at = &mut start[t.s as usize - first];
-                        // SAFETY: the bucket's slots' cursors tile its range lo..hi of `rec` and
-                        // `back` (counted just above from the same vertices), and buckets' ranges
-                        // are disjoint: every index is written once.
+                        // SAFETY: the bucket's slots' cursors tile its range lo..hi of `rec`
+                        // (counted just above from the same vertices), and buckets' ranges are
+                        // disjoint: every index is written once. `sorted_at`'s lo..hi is the
+                        // bucket's own.
                         unsafe {
                             rec.write(*at as usize, Rec { p: t.p, i: t.i });
-                            back.write(*at as usize, (lo + j) as u32);
+                            sorted_at.write(lo + j, *at);
                         }
                         *at += 1;
                     }
@@ -235,15 +260,15 @@ impl SortedBody {
         }
         let sorted = self.start[slots] as usize;
         self.rec.resize(sorted, Rec::default());
-        self.back.resize(n, 0);
-        // Each slot's cursor, from its start; `back[i]`: where vertex i went.
+        self.sorted_at.resize(n, 0);
+        // Each slot's cursor, from its start; `sorted_at[i]`: where vertex i went.
         self.cursor.clear();
         self.cursor.extend_from_slice(&self.start[..slots]);
         for (i, (&s, &q)) in self.key.iter().zip(points).enumerate() {
             if s != u32::MAX {
                 let at = &mut self.cursor[s as usize];
                 self.rec[*at as usize] = Rec { p: q, i: i as u32 };
-                self.back[i] = *at;
+                self.sorted_at[i] = *at;
                 *at += 1;
             }
         }
@@ -252,60 +277,97 @@ impl SortedBody {
     }
 
     /// Takes values in sorted order (`by_rec[k]` for `rec[k]`) back to the caller's order,
-    /// calling `write(out[i], value)` for each vertex `i` (`None`: left out of the sort). The
-    /// sort's two passes run backwards, so every access stays in memory order or within a
-    /// bucket whatever order the vertices came in: a plain scatter by `rec[k].i` is a random
-    /// write per vertex in a shuffled body (about 20 ms of a paper(1M) step).
+    /// calling `write(out[i], value)` for each vertex `i` (`None`: left out of the sort), and
+    /// sets bit `i % 64` of `marks[i / 64]` where `write` returns `true` (`marks` is resized to
+    /// `out.len().div_ceil(64)` words).
+    ///
+    ///
+    /// The sort's passes run backwards, so that every access stays in memory order, follows
+    /// one of the bucket cursors or stays within a bucket whatever order the vertices came in
+    /// (a plain scatter by `rec[k].i` is a random write per vertex in a shuffled body: about
+    /// 20 ms of a paper(1M) step): the second pass's as a gather of each record's value from
+    /// its sorted position (`sorted_at`, within the bucket's few kilobytes of `by_rec`) into
+    /// `scratch`, then the first pass's, each part following its buckets' cursors as it wrote
+    /// them. A body that came nearly in slot order (`in_order`) skips `scratch`: its parts
+    /// follow a few buckets at a time, so the first pass backwards reads each value from its
+    /// sorted position directly, within those buckets' ranges of `by_rec`; a body in another
+    /// order follows hundreds of buckets at once, and read so its values would come from
+    /// all over `by_rec` (z fastest: 5 -> 8.5 ms a body at 1M).
     pub fn unsort<T: Copy + Default + Send + Sync, O: Send>(
         &mut self,
         by_rec: &[T],
         scratch: &mut Vec<T>,
         out: &mut [O],
-        write: impl Fn(&mut O, Option<T>) + Sync,
+        marks: &mut Vec<u64>,
+        write: impl Fn(&mut O, Option<T>) -> bool + Sync,
     ) {
         let (shift, buckets, part) = self.shape;
+        marks.clear();
+        marks.resize(out.len().div_ceil(64), 0);
         if buckets == 0 {
             // One counting sort: each vertex's value is where it went.
-            let (back, key) = (&self.back, &self.key);
-            for (i, o) in out.iter_mut().enumerate() {
-                write(o, (key[i] != u32::MAX).then(|| by_rec[back[i] as usize]));
-            }
+            let (sorted_at, key) = (&self.sorted_at, &self.key);
+            write_marked(out, marks, &write, |i| (key[i] != u32::MAX).then(|| by_rec[sorted_at[i] as usize]));
             return;
         }
-        let sorted = self.rec.len();
-        // 2 backwards: each bucket's values to where its vertices were in `tmp`.
-        scratch.resize(sorted, T::default());
-        {
-            let to = Scatter::new(scratch);
-            let (back, bucket_start) = (&self.back, &self.bucket_start);
-            (0..buckets).into_par_iter().with_min_len(8).for_each(|b| {
-                let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
-                for k in lo..hi {
-                    // SAFETY: `back` is a permutation of each bucket's range (the sort wrote
-                    // one entry per position, each a distinct position of the same range).
-                    unsafe { to.write(back[k] as usize, by_rec[k]) };
+        let sorted_at = &self.sorted_at[..self.rec.len()];
+        let from = if self.in_order {
+            None
+        } else {
+            scratch.resize(sorted_at.len(), T::default());
+            let size = chunk(sorted_at.len());
+            scratch.par_chunks_mut(size).zip(sorted_at.par_chunks(size)).for_each(|(s, at)| {
+                for (s, &at) in s.iter_mut().zip(at) {
+                    *s = by_rec[at as usize];
                 }
             });
-        }
-        // 1b backwards: each part reads its buckets' ranges in order, as it wrote them.
+            Some(&scratch[..])
+        };
         self.cursor.clear();
         self.cursor.extend_from_slice(&self.offset);
-        let scratch = &*scratch;
         out.par_chunks_mut(part)
+            .zip(marks.par_chunks_mut(part / 64))
             .zip(self.key.par_chunks(part))
             .zip(self.cursor.par_chunks_mut(buckets))
-            .for_each(|((out, keys), cursor)| {
-                for (o, &s) in out.iter_mut().zip(keys) {
-                    if s == u32::MAX {
-                        write(o, None);
-                    } else {
+            .for_each(|(((out, marks), keys), cursor)| {
+                write_marked(out, marks, &write, |j| {
+                    let s = keys[j];
+                    (s != u32::MAX).then(|| {
                         let at = &mut cursor[(s >> shift) as usize];
-                        write(o, Some(scratch[*at as usize]));
-                        prefetch(scratch, *at as usize + PREFETCH_AHEAD);
+                        let t = *at as usize;
                         *at += 1;
-                    }
-                }
+                        match from {
+                            Some(scratch) => {
+                                prefetch(scratch, t + PREFETCH_AHEAD);
+                                scratch[t]
+                            }
+                            None => by_rec[sorted_at[t] as usize],
+                        }
+                    })
+                });
             });
+    }
+}
+
+/// `write(out[j], value(j))` for each `j`, setting bit `j % 64` of `marks[j / 64]` where it
+/// returns `true`: each word built in a register and stored once.
+#[inline(always)]
+fn write_marked<T, O>(
+    out: &mut [O],
+    marks: &mut [u64],
+    write: &impl Fn(&mut O, Option<T>) -> bool,
+    mut value: impl FnMut(usize) -> Option<T>,
+) {
+    let mut word = 0u64;
+    for (j, o) in out.iter_mut().enumerate() {
+        word |= u64::from(write(o, value(j))) << (j % 64);
+        if j % 64 == 63 {
+            marks[j / 64] = word;
+            word = 0;
+        }
+    }
+    if !out.len().is_multiple_of(64) {
+        marks[out.len() / 64] = word;
     }
 }
 
@@ -379,29 +441,43 @@ mod tests {
     #[test]
     fn sorts_stably_and_unsorts_back() {
         // One body reused across sizes, as from step to step; some vertices left out; a table
-        // of one slot, tables smaller and larger than the body, and a pile in three slots.
+        // of one slot, tables smaller and larger than the body, a pile in three slots, and
+        // bodies that come in slot order (whose way back skips the gather).
+        #[derive(Clone, Copy, PartialEq)]
+        enum Order {
+            Random,
+            Pile,
+            Ascending,
+        }
+        use Order::{Ascending, Pile, Random};
         let mut body = SortedBody::default();
-        for (n, slots, pile) in [
-            (1, 1, false),
-            (10, 3, false),
-            (40_000, 5_000, false),
-            (100_000, 1 << 20, false),
-            (70_000, 300_000, true),
-            (33, 7, false),
+        for (n, slots, order) in [
+            (1, 1, Random),
+            (10, 3, Random),
+            (40_000, 5_000, Random),
+            (100_000, 1 << 20, Random),
+            (100_000, 1 << 20, Ascending),
+            (70_000, 300_000, Pile),
+            (33, 7, Random),
+            (50_001, 3_000, Ascending),
             // Sorted in one pass (one part, a table of at most ONE_PASS_SLOTS).
-            (20_000, 100_000, false),
-            (5_000, 5_000, true),
-            (30_000, 1 << 17, false),
+            (20_000, 100_000, Random),
+            (5_000, 5_000, Pile),
+            (30_000, 1 << 17, Random),
+            (30_000, 1 << 17, Ascending),
             // One part, but a table too large for one pass.
-            (20_000, (1 << 17) + 1, false),
+            (20_000, (1 << 17) + 1, Random),
+            (20_000, (1 << 17) + 1, Ascending),
         ] {
             let points: Vec<Vec3> = (0..n).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
             let slot_of = |p: Vec3| {
                 let h = SplitMix64::new(p.x as u64).next_u64();
-                match (h % 7, pile) {
+                match (h % 7, order) {
                     (0, _) => None,
-                    (_, true) => Some((h % 3) as u32 * 1000),
-                    _ => Some((h % slots as u64) as u32),
+                    (_, Pile) => Some((h % 3) as u32 * 1000),
+                    (_, Random) => Some((h % slots as u64) as u32),
+                    // Ascending, with neighbours swapped here and there.
+                    (_, Ascending) => Some(((p.x as u64 + h % 3) * slots as u64 / (n as u64 + 2)) as u32),
                 }
             };
             let sorted = body.sort(&points, slots, |p, k| {
@@ -413,6 +489,10 @@ mod tests {
                 (0..n).filter_map(|i| slot_of(points[i]).map(|s| (s, i as u32))).collect();
             expected.sort_unstable();
             assert_eq!(sorted as usize, expected.len(), "n {n}");
+            if body.shape.1 != 0 {
+                // A pile's three slots are in at most three buckets: as good as in order.
+                assert_eq!(body.in_order, order != Random, "n {n}: in order");
+            }
             assert_eq!(body.start.len(), slots + 1);
             assert_eq!(body.start[slots], sorted);
             for (k, &(s, i)) in expected.iter().enumerate() {
@@ -423,16 +503,21 @@ mod tests {
                     "n {n} slot {s}"
                 );
             }
+            // Back in the caller's order, marked where the index is a multiple of 3.
             let by_rec: Vec<u32> = body.rec.iter().map(|r| 2 * r.i + 1).collect();
-            let (mut out, mut scratch) = (vec![7u32; n], Vec::new());
-            body.unsort(&by_rec, &mut scratch, &mut out, |o, v| *o = v.unwrap_or(0));
+            let (mut out, mut marks, mut scratch) = (vec![7u32; n], vec![u64::MAX; 3], Vec::new());
+            body.unsort(&by_rec, &mut scratch, &mut out, &mut marks, |o, v| {
+                *o = v.unwrap_or(0);
+                v.is_some_and(|v| v % 3 == 1)
+            });
+            assert_eq!(marks.len(), n.div_ceil(64));
             for (i, &o) in out.iter().enumerate() {
-                assert_eq!(
-                    o,
-                    if slot_of(points[i]).is_some() { 2 * i as u32 + 1 } else { 0 },
-                    "n {n} vertex {i}"
-                );
+                let inside = slot_of(points[i]).is_some();
+                assert_eq!(o, if inside { 2 * i as u32 + 1 } else { 0 }, "n {n} vertex {i}");
+                let marked = marks[i / 64] >> (i % 64) & 1 == 1;
+                assert_eq!(marked, inside && i % 3 == 0, "n {n} vertex {i}");
             }
+            assert!(n % 64 == 0 || marks[n / 64] >> (n % 64) == 0, "n {n}: marks past the end");
         }
     }
 }
