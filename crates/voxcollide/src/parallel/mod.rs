@@ -13,7 +13,10 @@
 //!   consecutive slots: a dense table's linear index, or a hashed table's bricks of rows,
 //!   `Hashed`), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
-//!   plus a rounding margin, so no candidate is lost).
+//!   plus a rounding margin, so no candidate is lost). On x86-64 CPUs with AVX2 the probe runs
+//!   a copy of itself compiled for them, chosen at run time: the same operations, the same bits.
+//! - B's forces go back to the caller's order in one pass that also marks its colliding
+//!   vertices, a bit each, from which the contact list is made.
 //! - Forces on A are summed in fixed point with atomic integers: integer sums do not depend on
 //!   their order, so the totals equal the reference's exactly. 32-bit accumulators while no total
 //!   can leave `i32` (no slot of B holds more than 1213 vertices), else 64-bit ones.
