@@ -302,7 +302,7 @@ impl SortedBody {
         write: impl Fn(&mut O, Option<T>) -> bool + Sync,
     ) {
         let (shift, buckets, part) = self.shape;
-        marks.clear();
+        // Every word is written below (`write_marked`): no need to clear them first.
         marks.resize(out.len().div_ceil(64), 0);
         if buckets == 0 {
             // One counting sort: each vertex's value is where it went.
