@@ -191,7 +191,7 @@ fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, hashed: Hashed, points: &[
     };
     let whole = points.len() / LANES * LANES;
     for (p, k) in points[..whole].chunks_exact(LANES).zip(keys[..whole].chunks_exact_mut(LANES)) {
-        let (q, inside) = voxels_in_lanes(grid, [p[0], p[1], p[2], p[3]]);
+        let (q, inside) = voxels_in_lanes(grid, [&p[0], &p[1], &p[2], &p[3]]);
         let s = inside.select(slots(q), i32x4::splat(-1)).to_array();
         for (k, s) in k.iter_mut().zip(s) {
             *k = s as u32;
@@ -206,16 +206,52 @@ fn keys_of(grid: &VoxelGrid, dense: Option<[u32; 2]>, hashed: Hashed, points: &[
 /// is), which is `voxel_of`'s test, since `floor(t)` is in `[0, dim)` exactly when `t` is
 /// (`dim` is an integer); and there `floor(t)` is `t` truncated.
 #[inline(always)]
-fn voxels_in_lanes(grid: &VoxelGrid, p: [Vec3; LANES]) -> ([i32x4; 3], i32x4) {
+fn voxels_in_lanes(grid: &VoxelGrid, p: [&Vec3; LANES]) -> ([i32x4; 3], i32x4) {
     let (o, inv, dim) = (grid.origin(), f32x4::splat(grid.inv_voxel_size()), grid.dims().as_vec3());
     let axis = |c: fn(&Vec3) -> f32, o: f32, dim: f32| {
-        let t = (f32x4::new([c(&p[0]), c(&p[1]), c(&p[2]), c(&p[3])]) - f32x4::splat(o)) * inv;
+        let t = (f32x4::new([c(p[0]), c(p[1]), c(p[2]), c(p[3])]) - f32x4::splat(o)) * inv;
         (t.trunc_int(), t.simd_ge(f32x4::ZERO) & t.simd_lt(f32x4::splat(dim)))
     };
     let (qx, inx) = axis(|p| p.x, o.x, dim.x);
     let (qy, iny) = axis(|p| p.y, o.y, dim.y);
     let (qz, inz) = axis(|p| p.z, o.z, dim.z);
     ([qx, qy, qz], cast(inx & iny & inz))
+}
+
+/// The blocks of [`Probe::block`] in lanes, for four points `p` in voxels `q` (from
+/// [`voxels_in_lanes`]): each axis's first and last voxel, with the same operations on the
+/// same values, so the same voxels.
+#[inline(always)]
+fn blocks_in_lanes(
+    grid: &VoxelGrid,
+    p: [&Vec3; LANES],
+    q: [i32x4; 3],
+    r: Option<f32>,
+) -> ([i32x4; 3], [i32x4; 3]) {
+    let (origin, vs, dims) = (grid.origin(), grid.voxel_size(), grid.dims());
+    let one = i32x4::splat(1);
+    let axis = |axis: usize| {
+        let (q, dim) = (q[axis], dims[axis]);
+        let mut lo = (q - one).max(i32x4::ZERO);
+        let mut hi = (q + one).min(i32x4::splat(dim as i32 - 1));
+        if let Some(r) = r {
+            let p = f32x4::new(p.map(|p| p[axis]));
+            let o = origin[axis];
+            // As `Probe::axis_range`, term by term.
+            let margin = f32x4::splat(1e-3 * r)
+                + f32x4::splat(16.0 * f32::EPSILON)
+                    * ((p.abs() + f32x4::splat(o.abs())) + f32x4::splat(vs * dim as f32));
+            let reach = f32x4::splat(r) + margin;
+            let (o, vs) = (f32x4::splat(o), f32x4::splat(vs));
+            let below: i32x4 = cast((p - (o + q.round_float() * vs)).simd_gt(reach));
+            let above: i32x4 = cast(((o + (q + one).round_float() * vs) - p).simd_gt(reach));
+            lo = below.select(q, lo);
+            hi = above.select(q, hi);
+        }
+        (lo, hi)
+    };
+    let ((x0, x1), (y0, y1), (z0, z1)) = (axis(0), axis(1), axis(2));
+    ([x0, y0, z0], [x1, y1, z1])
 }
 
 /// Points whose voxels are computed at once.
@@ -473,7 +509,7 @@ impl ParallelCpuCollision {
                     // Sorted vertices are in the grid; four at a time, the rest one by one.
                     let whole = r.len() / LANES * LANES;
                     for (v, r) in v[..whole].chunks_exact_mut(LANES).zip(r[..whole].chunks_exact(LANES)) {
-                        let ([x, y, z], _) = voxels_in_lanes(grid, [r[0].p, r[1].p, r[2].p, r[3].p]);
+                        let ([x, y, z], _) = voxels_in_lanes(grid, [&r[0].p, &r[1].p, &r[2].p, &r[3].p]);
                         let (x, y, z) = (x.to_array(), y.to_array(), z.to_array());
                         for (l, v) in v.iter_mut().enumerate() {
                             *v = UVec3::new(x[l] as u32, y[l] as u32, z[l] as u32);
@@ -660,17 +696,30 @@ impl<T: Accumulator> Probe<'_, T> {
         let own = self.own_bins(recs);
         let force = |f: Option<Vec3>| f.map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
         let whole = recs.len() / LANES * LANES;
+        let radius = self.radius::<VOXEL, PLANE>();
         for (o, r) in out[..whole].chunks_exact_mut(LANES).zip(recs[..whole].chunks_exact(LANES)) {
-            let p = [r[0].p, r[1].p, r[2].p, r[3].p];
-            let ([x, y, z], inside) = voxels_in_lanes(self.grid, p);
-            let (x, y, z, inside) = (x.to_array(), y.to_array(), z.to_array(), inside.to_array());
+            let p = [&r[0].p, &r[1].p, &r[2].p, &r[3].p];
+            let (q, inside) = voxels_in_lanes(self.grid, p);
+            // The blocks in lanes too: one vertex at a time, LLVM packs a voxel's three indices
+            // into a vector through the stack, and the load waits for the stores (a third of
+            // the probe in `perf`).
+            let (lo, hi) = if VOXEL && !PLANE { (q, q) } else { blocks_in_lanes(self.grid, p, q, radius) };
+            let at = |v: [i32x4; 3]| v.map(i32x4::to_array);
+            let (q, lo, hi, inside) = (at(q), at(lo), at(hi), inside.to_array());
             for l in 0..LANES {
-                let q = (inside[l] != 0).then(|| UVec3::new(x[l] as u32, y[l] as u32, z[l] as u32));
-                o[l] = force(q.and_then(|q| self.probe::<VOXEL, PLANE>(p[l], q, own)));
+                let u = |v: [[i32; 4]; 3]| UVec3::new(v[0][l] as u32, v[1][l] as u32, v[2][l] as u32);
+                o[l] = if inside[l] != 0 {
+                    force(self.probe::<VOXEL, PLANE>(r[l].p, u(q), (u(lo), u(hi)), own))
+                } else {
+                    [0.0; 4]
+                };
             }
         }
         for (o, r) in out[whole..].iter_mut().zip(&recs[whole..]) {
-            *o = force(voxel_of(self.grid, r.p).and_then(|q| self.probe::<VOXEL, PLANE>(r.p, q, own)));
+            *o = force(voxel_of(self.grid, r.p).and_then(|q| {
+                let block = if VOXEL && !PLANE { (q, q) } else { self.block(r.p, q, radius) };
+                self.probe::<VOXEL, PLANE>(r.p, q, block, own)
+            }));
         }
     }
 
@@ -806,8 +855,18 @@ impl<T: Accumulator> Probe<'_, T> {
         }
     }
 
-    /// The force on B vertex `p` in voxel `q`, or `None` when it does not collide; adds A's
-    /// shares.
+    /// The reach of a probe's block: the radius under `Search::Neighbours`, `None` (the whole
+    /// 3×3×3 block) for the plane normal under `Search::Voxel`; the paper's pairwise rule has
+    /// no block but the own voxel.
+    fn radius<const VOXEL: bool, const PLANE: bool>(&self) -> Option<f32> {
+        match self.params.search {
+            Search::Neighbours { radius } if !VOXEL => Some(radius),
+            _ => None,
+        }
+    }
+
+    /// The force on B vertex `p` in voxel `q`, with the voxels `block` that it searches (see
+    /// [`Probe::radius`]), or `None` when it does not collide; adds A's shares.
     /// Specialised by search (`VOXEL`: `Search::Voxel`) and direction (`PLANE`:
     /// `Direction::PlaneNormal`), so each configuration runs code without the others' branches.
     #[inline(always)]
@@ -815,6 +874,7 @@ impl<T: Accumulator> Probe<'_, T> {
         &self,
         p: Vec3,
         q: UVec3,
+        (lo, hi): (UVec3, UVec3),
         own_bins: (u32, u32),
     ) -> Option<Vec3> {
         let law = self.law;
@@ -828,7 +888,6 @@ impl<T: Accumulator> Probe<'_, T> {
             // Pairwise: only the partner is needed, the least (d2, index) in the own voxel or
             // within the radius; no top-3 bookkeeping. Without branches: whether a candidate
             // wins is data, not a pattern.
-            let (lo, hi) = if VOXEL { (q, q) } else { self.block(p, q, Some(radius)) };
             let r2 = radius * radius;
             let (mut best_d, mut best_i, mut best_k) = (if VOXEL { f32::INFINITY } else { r2 }, u32::MAX, 0);
             self.walk::<false>(p, lo, hi, q, |d, i, k, _| {
@@ -855,7 +914,6 @@ impl<T: Accumulator> Probe<'_, T> {
         let mut own = Nearest::EMPTY;
         let mut block = Nearest::EMPTY;
         if VOXEL {
-            let (lo, hi) = self.block(p, q, None);
             self.walk::<true>(p, lo, hi, q, |d, i, k, is_own| {
                 block.insert(d, i, k);
                 if is_own {
@@ -864,7 +922,6 @@ impl<T: Accumulator> Probe<'_, T> {
             });
         } else {
             let r2 = radius * radius;
-            let (lo, hi) = self.block(p, q, Some(radius));
             self.walk::<false>(p, lo, hi, q, |d, i, k, _| {
                 if d < r2 {
                     block.insert(d, i, k);
@@ -1070,6 +1127,65 @@ mod tests {
                     for (p, k) in points[..n].iter().zip(&keys) {
                         let one = voxel_of(&grid, *p).map_or(u32::MAX, |q| slot(dense, hashed, q));
                         assert_eq!(*k, one, "{p} in {grid:?}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn blocks_in_lanes_equal_the_block_one_by_one() {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+        let w = crate::workload::lattice(27, 1).unwrap();
+        let bins = Bins::default();
+        for (center, size, dims) in [
+            (Vec3::ZERO, 1.0, UVec3::new(7, 5, 3)),
+            (Vec3::new(-3.25, 1e3, 0.5), 0.25, UVec3::new(40, 1, 9)),
+            (Vec3::new(1e6, -1e6, 0.0), 2.0, UVec3::new(1, 300, 2)),
+            (Vec3::new(3.0, 0.0, 0.0), 1.0, UVec3::new(1 << 20, 2, 1)),
+        ] {
+            let grid = VoxelGrid::new(center, size, dims).unwrap();
+            let (o, d) = (grid.origin(), grid.dims().as_vec3());
+            let mut points = vec![o, o + (d - 1e-3) * size];
+            for _ in 0..2000 {
+                // Inside the grid, on voxel faces and a few ulps either side of them.
+                let t = Vec3::new(rng.random(), rng.random(), rng.random()) * d;
+                let face = o + t.floor() * size;
+                let n = rng.random_range(-8..=8);
+                points.push(o + t * size);
+                points.push(face);
+                points.push(face.to_array().map(|v| f32::from_bits((v.to_bits() as i32 + n) as u32)).into());
+            }
+            for r in [Some(0.9 * size), Some(0.5 * size), Some(1e-6), Some(3.0 * size), None] {
+                let probe = Probe {
+                    grid: &grid,
+                    params: &w.params,
+                    law: &ForceLaw::new(&w.params, Response::default(), size),
+                    bins: &bins,
+                    fixed: &[] as &[AtomicI32],
+                    scale: 1.0,
+                };
+                // And about a reach from a face, either side of the margin's edge.
+                let mut points = points.clone();
+                for _ in 0..4000 {
+                    let Some(r) = r else { break };
+                    let t = (Vec3::new(rng.random(), rng.random(), rng.random()) * d).floor();
+                    let side = Vec3::new(rng.random(), rng.random(), rng.random()).round() * 2.0 - 1.0;
+                    let jitter = Vec3::new(rng.random(), rng.random(), rng.random()) * 2.0 - 1.0;
+                    let reach = r * (1.0 + 1e-3) + jitter * (2e-4 * r + 1e-5 * (o.abs() + d * size));
+                    points.push(o + t * size + side * reach);
+                }
+                points.retain(|p| voxel_of(&grid, *p).is_some());
+                for p in points.chunks_exact(LANES) {
+                    let p = [&p[0], &p[1], &p[2], &p[3]];
+                    let (q, inside) = voxels_in_lanes(&grid, p);
+                    assert_eq!(inside.to_array(), [-1; 4]);
+                    let (lo, hi) = blocks_in_lanes(&grid, p, q, r);
+                    for (l, p) in p.into_iter().enumerate() {
+                        let lane = |v: [i32x4; 3]| UVec3::from_array(v.map(|v| v.to_array()[l] as u32));
+                        let one = probe.block(*p, lane(q), r);
+                        assert_eq!((lane(lo), lane(hi)), one, "{p} with reach {r:?} in {grid:?}");
                     }
                 }
             }
