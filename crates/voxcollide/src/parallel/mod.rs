@@ -889,21 +889,27 @@ impl<T: Accumulator> Probe<'_, T> {
             // within the radius; no top-3 bookkeeping. Without branches: whether a candidate
             // wins is data, not a pattern.
             let r2 = radius * radius;
-            let (mut best_d, mut best_i, mut best_k) = (if VOXEL { f32::INFINITY } else { r2 }, u32::MAX, 0);
+            // The least `(d2, index)` as one 64-bit key, `d2`'s bits above the index: squared
+            // distances are never negative, so their bits order as they do (a NaN's above
+            // every number, as it never wins). Under `Search::Neighbours` the start is `(r2, 0)`,
+            // which a candidate at `r2` or beyond never undercuts; under `Search::Voxel`
+            // `(inf, none)`. One compare and two selects a candidate, where the pair took a
+            // dozen instructions in a chain.
+            let key = |d: f32, i: u32| (u64::from(d.to_bits()) << 32) | u64::from(i);
+            let start = if VOXEL { key(f32::INFINITY, u32::MAX) } else { key(r2, 0) };
+            let (mut best, mut best_k) = (start, 0);
             self.walk::<false>(p, lo, hi, q, |d, i, k, _| {
-                let better = (d < best_d) | ((d == best_d) & (VOXEL | (d < r2)) & (i < best_i));
+                let candidate = key(d, i);
                 // `select_unpredictable`: LLVM turns plain selects back into a branch here,
-                // mispredicted on a third of the candidates (15 % of the probe in `perf`). For
-                // the distance not even that (x86-64 has no float select): a winner is never
-                // farther than the best, and a loser never nearer, so the best distance is
-                // the minimum (`minss`), exactly.
-                best_d = if d < best_d { d } else { best_d };
-                best_i = select_unpredictable(better, i, best_i);
+                // mispredicted on a third of the candidates.
+                let better = candidate < best;
+                best = select_unpredictable(better, candidate, best);
                 best_k = select_unpredictable(better, k, best_k);
             });
-            if best_i == u32::MAX {
+            if best == start {
                 return None;
             }
+            let best_d = f32::from_bits((best >> 32) as u32);
             // `best_d` is `dist2(p, partner)`, which the direction would compute again.
             let f_b = law.pairwise(best_d) * pairwise_direction_at(center, pos(best_k), p, best_d);
             self.add(best_k, -f_b, own_bins);
