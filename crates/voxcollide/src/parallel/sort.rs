@@ -201,6 +201,12 @@ impl SortedBody {
                 .map(|(b, start)| {
                     let (lo, hi) = (bucket_start[b] as usize, bucket_start[b + 1] as usize);
                     let first = b << shift;
+                    // The bucket's records land anywhere in rec[lo..hi] in any order but the
+                    // lucky one, each line's first write a miss that stalls the stores behind
+                    // it: ask for every line of the range first, while the counts are made.
+                    for at in (lo..hi).step_by(64 / size_of::<Rec>()) {
+                        rec.prefetch(at);
+                    }
                     start.fill(0);
                     for t in &tmp[lo..hi] {
                         start[t.s as usize - first] += 1;
