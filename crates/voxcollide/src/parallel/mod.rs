@@ -8,13 +8,15 @@
 //!   vertex order is touched only when a body is read in and its forces written out, which makes
 //!   the speed the same for any order.
 //! - Each vertex's slot is computed four at a time in SIMD lanes (`wide`), exactly as one by
-//!   one (`keys_of`).
+//!   one (`keys_of`), and so is each B vertex's block in the probe (`blocks_in_lanes`).
 //! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
 //!   consecutive slots: a dense table's linear index, or a hashed table's bricks of rows,
 //!   `Hashed`), and under `Search::Neighbours` rows and columns the
 //!   radius cannot reach are skipped (only when their nearest face is farther than the radius
-//!   plus a rounding margin, so no candidate is lost). On x86-64 CPUs with AVX2 the probe runs
-//!   a copy of itself compiled for them, chosen at run time: the same operations, the same bits.
+//!   plus a rounding margin, so no candidate is lost). A pairwise partner is the least
+//!   `(d2, index)` kept as one 64-bit key (`Probe::probe`). On x86-64 CPUs with AVX2 the probe
+//!   runs a copy of itself compiled for them, chosen at run time: the same operations, the same
+//!   bits.
 //! - B's forces go back to the caller's order in one pass that also marks its colliding
 //!   vertices, a bit each, from which the contact list is made.
 //! - Forces on A are summed in fixed point with atomic integers: integer sums do not depend on

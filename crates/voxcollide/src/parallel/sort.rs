@@ -4,7 +4,7 @@
 //!    into buckets of consecutive slots (at most 1024 buckets, so every bucket's write cursor
 //!    stays in cache), with counts of its own;
 //! 2. each bucket, a few thousand vertices, is counting-sorted by slot on its own, into its own
-//!    range of the sorted array, and writes its slots' starts.
+//!    range of the sorted array (whose lines it asks for first), and writes its slots' starts.
 //!
 //! The sort is what makes `ParallelCpuCollision`'s speed independent of the caller's vertex
 //! order: every later pass reads the sorted records, whose order depends only on where the
