@@ -37,7 +37,10 @@ static GLOBAL: Counting = Counting;
 #[test]
 fn warm_parallel_steps_allocate_nothing() {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
-    for w in [workload::lattice(50_000, 1).unwrap(), workload::paper(50_000, 2).unwrap()] {
+    // The lattice in a grid roomy enough for a hashed table too (whose probe lists A's shares).
+    let mut roomy = workload::lattice(50_000, 3).unwrap();
+    roomy.grid = voxcollide::Initializer::new(1.0).margin(20).build(&roomy.a).unwrap();
+    for w in [workload::lattice(50_000, 1).unwrap(), workload::paper(50_000, 2).unwrap(), roomy] {
         for direction in [Direction::Pairwise, Direction::PlaneNormal] {
             for anchor in [Anchor::Fixed, Anchor::FollowA] {
                 let params = ContactParams { direction, anchor, ..w.params };

@@ -330,6 +330,9 @@ pub struct ParallelCpuCollision {
     /// 32-bit for steps where no total can leave `i32` (half the memory the probe adds into).
     fixed: Vec<AtomicI64>,
     fixed32: Vec<AtomicI32>,
+    /// On a hashed table: A's shares from each run of B's probe, by range of A's bins
+    /// ([`Share`]); kept from step to step for their capacity.
+    shares: Vec<Vec<Vec<Share>>>,
     /// With profiling on, the last step's phases in milliseconds (see [`PHASES`]).
     phases: Option<[f64; PHASES.len()]>,
     /// The contacts' response, and its force law.
@@ -363,6 +366,7 @@ impl ParallelCpuCollision {
             mark_starts: Vec::new(),
             fixed: Vec::new(),
             fixed32: Vec::new(),
+            shares: Vec::new(),
             phases: None,
             response: Response::Constant,
             law: ForceLaw::new(&params, Response::Constant, grid.voxel_size()),
@@ -453,9 +457,9 @@ impl ParallelCpuCollision {
         let narrow = 27 * u64::from(self.b.max_per_slot) * 65_540 < 1 << 31;
         let run = Run { grid: &grid, params: &self.params, law: &self.law, bins: &self.bins, b: &self.b };
         let overflow = if narrow {
-            run.probe(&mut self.fixed32, &mut self.res_b, &mut self.res_a)
+            run.probe(&mut self.fixed32, &mut self.shares, &mut self.res_b, &mut self.res_a)
         } else {
-            run.probe(&mut self.fixed, &mut self.res_b, &mut self.res_a)
+            run.probe(&mut self.fixed, &mut self.shares, &mut self.res_b, &mut self.res_a)
         };
         lap(&mut self.phases);
         // B's forces in B's order (those outside the grid collide with nothing), its colliding
@@ -584,11 +588,13 @@ struct Run<'a> {
 
 impl Run<'_> {
     /// Probes sorted B into `res_b` (each vertex's force, `w` = 1 where it collides), adding
-    /// A's shares into `fixed`, then turns A's totals into `res_a` (bin order), leaving the
-    /// accumulators at zero. Returns the first overflow in (vertex, axis) order, as on the CPU.
+    /// A's shares into `fixed` (on a hashed table through `shares`), then turns A's totals into
+    /// `res_a` (bin order), leaving the accumulators at zero. Returns the first overflow in
+    /// (vertex, axis) order, as on the CPU.
     fn probe<T: Accumulator>(
         &self,
         fixed: &mut Vec<T>,
+        shares: &mut Vec<Vec<Vec<Share>>>,
         res_b: &mut Vec<[f32; 4]>,
         res_a: &mut Vec<Vec3>,
     ) -> Option<(usize, i64)> {
@@ -613,15 +619,47 @@ impl Run<'_> {
         let plane = self.params.direction == Direction::PlaneNormal;
         res_b.resize(sorted, [0.0; 4]);
         let (dense, b_start) = (self.bins.dense.is_some(), &self.b.start);
-        res_b.par_chunks_mut(size).zip(self.b.rec.par_chunks(size)).enumerate().for_each(
-            |(c, (out, recs))| match (voxel, plane) {
-                (true, false) if dense => probe.run_own_slots(b_start, c * size, recs, out),
-                (false, false) => probe.run_best::<false, false>(recs, out),
-                (false, true) => probe.run_best::<false, true>(recs, out),
-                (true, false) => probe.run_best::<true, false>(recs, out),
-                (true, true) => probe.run_best::<true, true>(recs, out),
-            },
-        );
+        // A hashed table gives no run of B any of A's accumulators alone (`own_bins`), so
+        // instead of an atomic add each (a quarter of the probe) the runs list their shares
+        // by range of A's bins, and each range is then added up by one task.
+        let runs = sorted.div_ceil(size);
+        let ranges = if dense { 0 } else { binned.div_ceil(1 << SHARE_BITS) };
+        if shares.len() < runs {
+            shares.resize_with(runs, Vec::new);
+        }
+        for lists in shares.iter_mut() {
+            if lists.len() < ranges {
+                lists.resize_with(ranges, Vec::new);
+            }
+            lists.iter_mut().for_each(Vec::clear);
+        }
+        res_b
+            .par_chunks_mut(size)
+            .zip(self.b.rec.par_chunks(size))
+            .zip(shares[..runs].par_iter_mut())
+            .enumerate()
+            .for_each(|(c, ((out, recs), lists))| {
+                let shares = &mut lists[..ranges];
+                match (voxel, plane) {
+                    (true, false) if dense => probe.run_own_slots(b_start, c * size, recs, out),
+                    (false, false) => probe.run_best::<false, false>(recs, out, shares),
+                    (false, true) => probe.run_best::<false, true>(recs, out, shares),
+                    (true, false) => probe.run_best::<true, false>(recs, out, shares),
+                    (true, true) => probe.run_best::<true, true>(recs, out, shares),
+                }
+            });
+        if ranges > 0 {
+            let shares = &shares[..runs];
+            fixed.par_chunks_mut(3 << SHARE_BITS).enumerate().for_each(|(r, acc)| {
+                let first = (r << SHARE_BITS) as u32;
+                for s in shares.iter().flat_map(|lists| &lists[r]) {
+                    let at = 3 * (s.k - first) as usize;
+                    for (a, c) in acc[at..at + 3].iter().zip(s.c) {
+                        a.add_owned(c);
+                    }
+                }
+            });
+        }
         // Back to f32, each accumulator back to zero for the next step, in bin order.
         let unit = m / 65536.0;
         res_a.resize(binned, Vec3::ZERO);
@@ -654,6 +692,25 @@ impl Run<'_> {
     }
 }
 
+/// A's bins per range of [`Share`]s (2^14: a range's accumulators are 192 KiB or less).
+const SHARE_BITS: u32 = 14;
+
+/// An A vertex's share of a B vertex's force on a hashed table: its bin position and
+/// fixed-point counts, added after the probe by the one task that owns the bin's range.
+#[derive(Clone, Copy, Debug)]
+struct Share {
+    k: u32,
+    c: [i32; 3],
+}
+
+/// Where a run of B's probes adds A's shares: into the accumulators, plainly for the bins in
+/// `own` (see [`Probe::own_bins`]) and atomically for the others, or, on a hashed table, to
+/// `shares`, one list per range of `1 << SHARE_BITS` bins (empty on a dense table).
+struct Sink<'s> {
+    own: (u32, u32),
+    shares: &'s mut [Vec<Share>],
+}
+
 /// What a B vertex needs to probe.
 struct Probe<'a, T> {
     grid: &'a VoxelGrid,
@@ -668,13 +725,18 @@ impl<T: Accumulator> Probe<'_, T> {
     /// [`run`](Self::run), compiled for AVX2 where the CPU has it (detected at run time): the
     /// same operations, so the same results to the bit, in VEX encoding with three operands
     /// and blends for the selects (about 1.5 ms less of a 35 ms probe on lattice(1M)).
-    fn run_best<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
+    fn run_best<const VOXEL: bool, const PLANE: bool>(
+        &self,
+        recs: &[sort::Rec],
+        out: &mut [[f32; 4]],
+        shares: &mut [Vec<Share>],
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && !baseline_only() {
             // SAFETY: the CPU has AVX2.
-            return unsafe { self.run_avx2::<VOXEL, PLANE>(recs, out) };
+            return unsafe { self.run_avx2::<VOXEL, PLANE>(recs, out, shares) };
         }
-        self.run::<VOXEL, PLANE>(recs, out);
+        self.run::<VOXEL, PLANE>(recs, out, shares);
     }
 
     /// [`run`](Self::run) for CPUs with AVX2.
@@ -687,15 +749,22 @@ impl<T: Accumulator> Probe<'_, T> {
         &self,
         recs: &[sort::Rec],
         out: &mut [[f32; 4]],
+        shares: &mut [Vec<Share>],
     ) {
-        self.run::<VOXEL, PLANE>(recs, out);
+        self.run::<VOXEL, PLANE>(recs, out, shares);
     }
 
-    /// Probes a run of sorted B vertices.
+    /// Probes a run of sorted B vertices; A's shares go to `shares` (by range of A's bins) on a
+    /// hashed table, where it has one list per range, else into the accumulators.
     /// Sorted B is inside the grid, so each vertex has its voxel, computed four at a time.
     #[inline(always)]
-    fn run<const VOXEL: bool, const PLANE: bool>(&self, recs: &[sort::Rec], out: &mut [[f32; 4]]) {
-        let own = self.own_bins(recs);
+    fn run<const VOXEL: bool, const PLANE: bool>(
+        &self,
+        recs: &[sort::Rec],
+        out: &mut [[f32; 4]],
+        shares: &mut [Vec<Share>],
+    ) {
+        let to = &mut Sink { own: self.own_bins(recs), shares };
         let force = |f: Option<Vec3>| f.map_or([0.0; 4], |f| [f.x, f.y, f.z, 1.0]);
         let whole = recs.len() / LANES * LANES;
         let radius = self.radius::<VOXEL, PLANE>();
@@ -711,7 +780,7 @@ impl<T: Accumulator> Probe<'_, T> {
             for l in 0..LANES {
                 let u = |v: [[i32; 4]; 3]| UVec3::new(v[0][l] as u32, v[1][l] as u32, v[2][l] as u32);
                 o[l] = if inside[l] != 0 {
-                    force(self.probe::<VOXEL, PLANE>(r[l].p, u(q), (u(lo), u(hi)), own))
+                    force(self.probe::<VOXEL, PLANE>(r[l].p, u(q), (u(lo), u(hi)), to))
                 } else {
                     [0.0; 4]
                 };
@@ -720,7 +789,7 @@ impl<T: Accumulator> Probe<'_, T> {
         for (o, r) in out[whole..].iter_mut().zip(&recs[whole..]) {
             *o = force(voxel_of(self.grid, r.p).and_then(|q| {
                 let block = if VOXEL && !PLANE { (q, q) } else { self.block(r.p, q, radius) };
-                self.probe::<VOXEL, PLANE>(r.p, q, block, own)
+                self.probe::<VOXEL, PLANE>(r.p, q, block, to)
             }));
         }
     }
@@ -736,7 +805,7 @@ impl<T: Accumulator> Probe<'_, T> {
         let Some(q) = voxel_of(self.grid, r0.p) else {
             return; // sorted B is in the grid
         };
-        let own = self.own_bins(recs);
+        let to = &mut Sink { own: self.own_bins(recs), shares: &mut [] };
         let (a_start, a_rec) = (&self.bins.a.start, &self.bins.a.rec);
         let mut s = (q.x + dx * (q.y + dy * q.z)) as usize;
         let (mut k, end) = (first, first + recs.len());
@@ -758,7 +827,7 @@ impl<T: Accumulator> Probe<'_, T> {
                 *o = if best_i == u32::MAX {
                     [0.0; 4]
                 } else {
-                    let f = self.pair_force(r.p, best_k, own);
+                    let f = self.pair_force(r.p, best_k, to);
                     [f.x, f.y, f.z, 1.0]
                 };
             }
@@ -769,10 +838,10 @@ impl<T: Accumulator> Probe<'_, T> {
     /// The pairwise force on B vertex `p` from its partner at bin position `k` of A; adds A's
     /// share.
     #[inline(always)]
-    fn pair_force(&self, p: Vec3, k: u32, own: (u32, u32)) -> Vec3 {
+    fn pair_force(&self, p: Vec3, k: u32, to: &mut Sink<'_>) -> Vec3 {
         let partner = self.bins.a.rec[k as usize].p;
         let f_b = self.law.pairwise(dist2(p, partner)) * pairwise_direction(self.grid.center(), partner, p);
-        self.add(k, -f_b, own);
+        self.add(k, -f_b, to);
         f_b
     }
 
@@ -877,7 +946,7 @@ impl<T: Accumulator> Probe<'_, T> {
         p: Vec3,
         q: UVec3,
         (lo, hi): (UVec3, UVec3),
-        own_bins: (u32, u32),
+        to: &mut Sink<'_>,
     ) -> Option<Vec3> {
         let law = self.law;
         let center = self.grid.center();
@@ -914,7 +983,7 @@ impl<T: Accumulator> Probe<'_, T> {
             let best_d = f32::from_bits((best >> 32) as u32);
             // `best_d` is `dist2(p, partner)`, which the direction would compute again.
             let f_b = law.pairwise(best_d) * pairwise_direction_at(center, pos(best_k), p, best_d);
-            self.add(best_k, -f_b, own_bins);
+            self.add(best_k, -f_b, to);
             return Some(f_b);
         }
         // Plane normal: the three nearest of the block (the own voxel's nearest is the
@@ -946,14 +1015,14 @@ impl<T: Accumulator> Probe<'_, T> {
                 let f_b = law.plane(p, pos(k0), pos(k1), pos(k2), n) * n;
                 let share = -f_b / 3.0;
                 for k in block.k {
-                    self.add(k, share, own_bins);
+                    self.add(k, share, to);
                 }
                 return Some(f_b);
             }
         }
         let partner = own.k[0];
         let f_b = law.pairwise(own.d[0]) * pairwise_direction(center, pos(partner), p);
-        self.add(partner, -f_b, own_bins);
+        self.add(partner, -f_b, to);
         Some(f_b)
     }
 
@@ -966,14 +1035,22 @@ impl<T: Accumulator> Probe<'_, T> {
         (UVec3::new(x0, y0, z0), UVec3::new(x1, y1, z1))
     }
 
-    /// Adds `f` to the accumulator of the A vertex at bin position `k`.
-    /// `own`: the bin positions that only this task's B vertices can reach (see
+    /// Adds `f` to the accumulator of the A vertex at bin position `k`, as `to` says (see
+    /// [`Sink`]): on a hashed table by a [`Share`] in its range's list, else directly. `to.own`:
+    /// the bin positions that only this task's B vertices can reach (see
     /// [`Probe::own_bins`]); their accumulators take a plain read and write, the others an
     /// atomic add (an atomic add waits for the stores before it: a quarter of a lattice probe).
     #[inline(always)]
-    fn add(&self, k: u32, f: Vec3, own: (u32, u32)) {
-        let mine = k >= own.0 && k < own.1;
+    fn add(&self, k: u32, f: Vec3, to: &mut Sink<'_>) {
         let counts = counts(f, self.scale);
+        if !to.shares.is_empty() {
+            if counts != [0; 3] {
+                to.shares[(k >> SHARE_BITS) as usize].push(Share { k, c: counts });
+            }
+            return;
+        }
+        let own = to.own;
+        let mine = k >= own.0 && k < own.1;
         for (axis, c) in counts.into_iter().enumerate() {
             let acc = &self.fixed[3 * k as usize + axis];
             if mine {
