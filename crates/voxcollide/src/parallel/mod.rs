@@ -20,7 +20,10 @@
 //! - B's forces go back to the caller's order in one pass that also marks its colliding
 //!   vertices, a bit each, from which the contact list is made.
 //! - Forces on A are summed in fixed point with atomic integers: integer sums do not depend on
-//!   their order, so the totals equal the reference's exactly. 32-bit accumulators while no total
+//!   their order, so the totals equal the reference's exactly. A run of B adds plainly to the
+//!   accumulators that it alone reaches on a dense table; on a hashed table, where none are a
+//!   run's alone, the runs list their shares by range of A's bins (`Share`) and one task per
+//!   range adds them. 32-bit accumulators while no total
 //!   can leave `i32` (no slot of B holds more than 1213 vertices), else 64-bit ones.
 
 mod sort;
