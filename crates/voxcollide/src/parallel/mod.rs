@@ -1173,17 +1173,23 @@ mod tests {
         }
     }
 
+    /// Grids for the tests of work in lanes against work one by one (center, voxel size,
+    /// dims): small and flat ones, far from the origin, and a long one of `long` voxels.
+    fn lane_test_grids(long: UVec3) -> [(Vec3, f32, UVec3); 4] {
+        [
+            (Vec3::ZERO, 1.0, UVec3::new(7, 5, 3)),
+            (Vec3::new(-3.25, 1e3, 0.5), 0.25, UVec3::new(40, 1, 9)),
+            (Vec3::new(1e6, -1e6, 0.0), 2.0, UVec3::new(1, 300, 2)),
+            (Vec3::new(3.0, 0.0, 0.0), 1.0, long),
+        ]
+    }
+
     #[test]
     fn keys_in_lanes_equal_voxel_and_slot_one_by_one() {
         use rand::{RngExt, SeedableRng};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(22);
-        for (center, size, dims) in [
-            (Vec3::ZERO, 1.0, UVec3::new(7, 5, 3)),
-            (Vec3::new(-3.25, 1e3, 0.5), 0.25, UVec3::new(40, 1, 9)),
-            (Vec3::new(1e6, -1e6, 0.0), 2.0, UVec3::new(1, 300, 2)),
-            // The largest axis, where t reaches 2^24.
-            (Vec3::new(3.0, 0.0, 0.0), 1.0, UVec3::new(1 << 24, 1, 1)),
-        ] {
+        // The longest axis reaching t = 2^24.
+        for (center, size, dims) in lane_test_grids(UVec3::new(1 << 24, 1, 1)) {
             let grid = VoxelGrid::new(center, size, dims).unwrap();
             let (o, d) = (grid.origin(), grid.dims().as_vec3());
             let top = o + d * size;
@@ -1227,13 +1233,17 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
         let w = crate::workload::lattice(27, 1).unwrap();
         let bins = Bins::default();
-        for (center, size, dims) in [
-            (Vec3::ZERO, 1.0, UVec3::new(7, 5, 3)),
-            (Vec3::new(-3.25, 1e3, 0.5), 0.25, UVec3::new(40, 1, 9)),
-            (Vec3::new(1e6, -1e6, 0.0), 2.0, UVec3::new(1, 300, 2)),
-            (Vec3::new(3.0, 0.0, 0.0), 1.0, UVec3::new(1 << 20, 2, 1)),
-        ] {
+        for (center, size, dims) in lane_test_grids(UVec3::new(1 << 20, 2, 1)) {
             let grid = VoxelGrid::new(center, size, dims).unwrap();
+            let law = ForceLaw::new(&w.params, Response::default(), size);
+            let probe = Probe {
+                grid: &grid,
+                params: &w.params,
+                law: &law,
+                bins: &bins,
+                fixed: &[] as &[AtomicI32],
+                scale: 1.0,
+            };
             let (o, d) = (grid.origin(), grid.dims().as_vec3());
             let mut points = vec![o, o + (d - 1e-3) * size];
             for _ in 0..2000 {
@@ -1246,14 +1256,6 @@ mod tests {
                 points.push(face.to_array().map(|v| f32::from_bits((v.to_bits() as i32 + n) as u32)).into());
             }
             for r in [Some(0.9 * size), Some(0.5 * size), Some(1e-6), Some(3.0 * size), None] {
-                let probe = Probe {
-                    grid: &grid,
-                    params: &w.params,
-                    law: &ForceLaw::new(&w.params, Response::default(), size),
-                    bins: &bins,
-                    fixed: &[] as &[AtomicI32],
-                    scale: 1.0,
-                };
                 // And about a reach from a face, either side of the margin's edge.
                 let mut points = points.clone();
                 for _ in 0..4000 {
