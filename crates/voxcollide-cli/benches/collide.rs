@@ -1,4 +1,4 @@
-//! Every backend on DESIGN §7's workloads — lattice(N), z_fastest(N), shuffled(N), paper(N)
+//! Every backend on docs/design.md §7's workloads — lattice(N), z_fastest(N), shuffled(N), paper(N)
 //! and paper_shuffled(N) — with each one's baseline (a k-d tree, kiddo, for the neighbour
 //! search; a hash map of A's voxels for the paper's rule):
 //! CPU reference (1 thread), parallel CPU (rayon's threads), GPU resident (positions already on

@@ -1,4 +1,4 @@
-//! `voxcollide bench`: every backend on DESIGN §7's workloads — `lattice(N)` (x fastest),
+//! `voxcollide bench`: every backend on docs/design.md §7's workloads — `lattice(N)` (x fastest),
 //! `z_fastest(N)`, `shuffled(N)`, `paper(N)` and `paper_shuffled(N)` — each against a
 //! baseline that answers its own question, as medians of repeated steps:
 //! - `Search::Neighbours` (lattice, z_fastest, shuffled): a k-d tree (`kiddo`: build over A,
@@ -474,7 +474,7 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
 /// A workload's constructor: `(vertices per body, seed)`.
 pub type MakeWorkload = fn(usize, u64) -> Result<Workload, Error>;
 
-/// The workloads, by name: DESIGN §7's in three orders, and the paper's rule in two.
+/// The workloads, by name: docs/design.md §7's in three orders, and the paper's rule in two.
 pub const WORKLOADS: [(&str, MakeWorkload); 5] = [
     ("lattice", lattice),
     ("z_fastest", z_fastest),

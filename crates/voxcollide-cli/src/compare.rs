@@ -1,4 +1,4 @@
-//! `voxcollide compare` (DESIGN §9): one scene run once per candidate of an implant catalogue,
+//! `voxcollide compare` (docs/design.md §9): one scene run once per candidate of an implant catalogue,
 //! the named body's shape (or mesh) replaced by the candidate's, with settling on; the
 //! candidates' resting shapes and measurements side by side in `report.html` (self-contained),
 //! `compare.json` and `compare.csv`.
@@ -20,9 +20,9 @@ use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
 use voxcollide_sim::{MassSpring, World};
 
+use crate::backend::Backend;
 use crate::plots::{Chart, Series, line_chart_svg};
 use crate::render::{Legend, Renderer, Scene as RenderScene};
-use crate::scenario::Backend;
 use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene, shown_and_moved, shown_surface};
 use plotters::prelude::SeriesLabelPosition;
 
@@ -47,7 +47,7 @@ pub struct CompareConfig {
     pub jobs: usize,
 }
 
-/// One candidate's result, as in `compare.json` (DESIGN §9's keys first).
+/// One candidate's result, as in `compare.json` (docs/design.md §9's keys first).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct CandidateResult {
@@ -78,12 +78,19 @@ pub struct CandidateResult {
     pub footprint_area: f64,
     /// Whether the scene came to rest before `max_steps`.
     pub settled: bool,
-    /// Whether every contact of its run held (DESIGN §11): only then are its numbers an
+    /// Whether every contact of its run held (docs/design.md §11): only then are its numbers an
     /// answer.
     pub held: bool,
     /// Where it did not hold: why, a sentence.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub failure: Option<String>,
+    /// Whether its run finished: the shell reached its own volume (within
+    /// [`VOLUME_TOLERANCE`]) and the scene came to rest. An unfinished run's numbers are where
+    /// it stopped, not an answer.
+    pub finished: bool,
+    /// Where it did not finish: why, a sentence.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unfinished: Option<String>,
     /// The voxel size of the compared body's contact (scene units): the model removes
     /// penetrations deeper than that within a few steps.
     pub voxel_size: f32,
@@ -309,7 +316,7 @@ pub fn compare(
     }
 
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
-    let (ctx, _) = crate::scenario::context(config.backend, true, note)?;
+    let (ctx, _) = crate::backend::context(config.backend, true, note)?;
     let units = scene.units.symbol().to_string();
     let count = runs.len();
     // A software adapter steps on the same cores the CPU backend does, slower (about 7 times
@@ -531,7 +538,58 @@ fn run_candidate(
         .filter_map(|c| c.failure.as_ref().map(|f| format!("contact {} – {}: {f}", c.a, c.b)))
         .reduce(|a, b| format!("{a}; {b}"));
     result.steps = summary.steps;
+    result.unfinished = unfinished(&result);
+    result.finished = result.unfinished.is_none();
     Ok(result)
+}
+
+/// How far from its own volume a candidate's shell may end, relative, and still be finished.
+pub const VOLUME_TOLERANCE: f64 = 0.02;
+
+/// Why a candidate's run is not finished, if it is not: its shell short of (or past) its own
+/// volume by more than [`VOLUME_TOLERANCE`], or the scene not at rest when `max_steps` ran out.
+#[must_use]
+pub fn unfinished(r: &CandidateResult) -> Option<String> {
+    let mut why = Vec::new();
+    // (A NaN volume is off too.)
+    let within = (r.volume_ml - r.target_volume_ml).abs() <= VOLUME_TOLERANCE * r.target_volume_ml;
+    if !within {
+        why.push(format!(
+            "the implant holds {:.1} mL of its {:.1} mL (more than {:.0} % off)",
+            r.volume_ml,
+            r.target_volume_ml,
+            100.0 * VOLUME_TOLERANCE
+        ));
+    }
+    if !r.settled {
+        why.push(format!("the scene had not come to rest after {} steps ([time] max_steps)", r.steps));
+    }
+    (!why.is_empty()).then(|| why.join("; "))
+}
+
+impl CandidateResult {
+    /// Whether its numbers are an answer: every contact held and the run finished.
+    #[must_use]
+    pub fn is_result(&self) -> bool {
+        self.held && self.finished
+    }
+
+    /// Why its numbers are not an answer, if they are not: the failed contact's reason and the
+    /// unfinished run's, in that order.
+    #[must_use]
+    pub fn not_a_result(&self) -> Option<String> {
+        match (self.held, &self.failure, &self.unfinished) {
+            (true, _, None) => None,
+            (true, _, Some(u)) => Some(format!("unfinished: {u}")),
+            (false, f, u) => Some(
+                [Some(f.clone().unwrap_or_else(|| "a contact did not hold".into())), u.clone()]
+                    .into_iter()
+                    .flatten()
+                    .collect::<Vec<_>>()
+                    .join("; "),
+            ),
+        }
+    }
 }
 
 /// Frames at least, over the schedule, for the metrics over time.
@@ -787,6 +845,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         "steps".into(),
         "held".into(),
         "failure".into(),
+        "finished".into(),
+        "unfinished".into(),
     ])
     .map_err(|e| io(&path, e))?;
     for c in &comparison.candidates {
@@ -807,6 +867,8 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             c.steps.to_string(),
             c.held.to_string(),
             c.failure.clone().unwrap_or_default(),
+            c.finished.to_string(),
+            c.unfinished.clone().unwrap_or_default(),
         ])
         .map_err(|e| io(&path, e))?;
     }
@@ -826,7 +888,13 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
             .candidates
             .iter()
             .map(|c| Series {
-                label: if c.held { c.name.clone() } else { format!("{} (FAILED, not a result)", c.name) },
+                label: if !c.held {
+                    format!("{} (FAILED, not a result)", c.name)
+                } else if !c.finished {
+                    format!("{} (UNFINISHED, not a result)", c.name)
+                } else {
+                    c.name.clone()
+                },
                 points: f(c),
             })
             .collect()
@@ -839,7 +907,11 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
     let charts = [
         (
             "profile",
-            "The outer surface through the apex, at rest",
+            if comparison.candidates.iter().all(|c| c.finished) {
+                "The outer surface through the apex, at rest"
+            } else {
+                "The outer surface through the apex, at the end of each run (not all at rest)"
+            },
             format!("x from the implant's centre ({u})"),
             format!("rise of the surface ({u})"),
             profile,
@@ -915,6 +987,13 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             if c.settled { "yes" } else { "no (max_steps)" },
             "yes"
         );
+        if let Some(why) = &c.unfinished {
+            rows += &format!(
+                "<tr class=\"unfinished\"><td colspan=\"14\"><strong>UNFINISHED — {} is not a result:</strong> {}.</td></tr>\n",
+                escape(&c.name),
+                escape(why)
+            );
+        }
     }
     let mut figures = String::new();
     for c in &comparison.candidates {
@@ -923,6 +1002,11 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             figures += &format!(
                 "<p class=\"failed\"><strong>FAILED — not a result:</strong> {}. Its pictures show where the run went wrong.</p>\n",
                 escape(c.failure.as_deref().unwrap_or("a contact did not hold"))
+            );
+        } else if let Some(why) = &c.unfinished {
+            figures += &format!(
+                "<p class=\"unfinished\"><strong>UNFINISHED — not a result:</strong> {}. Its pictures show where the run stopped.</p>\n",
+                escape(why)
             );
         }
         if c.pictures.is_empty() {
@@ -945,12 +1029,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
 <style>
 body {{ font-family: sans-serif; margin: 2em; color: #222; }}
 table {{ border-collapse: collapse; font-size: 0.85em; }} th, td {{ border: 1px solid #bbb; padding: 0.25em 0.45em; text-align: right; }}
-th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; }} tr.failed td {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
+th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; }} tr.failed td {{ text-align: left; }} .unfinished {{ background: #fec; color: #850; }} tr.unfinished td {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
 </style></head>
 <body>
 <h1>Implant comparison</h1>
-<p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled to its own volume under the tissue, then settled. Lengths in {u}.</p>
-{failed}<h2>Measurements</h2>
+<p>Scene <code>{scene}</code>, compared body <code>{body}</code>: each candidate filled toward its own volume under the tissue, then settled (a candidate that did not get there is marked unfinished). Lengths in {u}.</p>
+{failed}{unfinished}<h2>Measurements</h2>
 <table id="measurements">
 <thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>implant pressure (kPa)</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th><th>held</th></tr></thead>
 <tbody>
@@ -975,6 +1059,24 @@ th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; 
                     failed.len(),
                     comparison.candidates.len(),
                     failed.join(", ")
+                )
+            }
+        },
+        unfinished = {
+            let unfinished: Vec<String> = comparison
+                .candidates
+                .iter()
+                .filter(|c| c.held && !c.finished)
+                .map(|c| escape(&c.name))
+                .collect();
+            if unfinished.is_empty() {
+                String::new()
+            } else {
+                format!(
+                    "<p class=\"unfinished\" id=\"unfinished\"><strong>{} of {} candidates UNFINISHED</strong> ({}): short of their volume or not at rest when the run ended, so their numbers are not an answer. Their rows say why.</p>\n",
+                    unfinished.len(),
+                    comparison.candidates.len(),
+                    unfinished.join(", ")
                 )
             }
         },

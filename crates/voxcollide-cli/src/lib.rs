@@ -5,6 +5,7 @@
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 
+pub mod backend; //  `--backend`: the device a command opens, and where a world steps
 pub mod bench; //    `voxcollide bench`: every backend against its workload's baseline
 pub mod compare; //  `voxcollide compare`: implant candidates through one scene, and the report
 pub mod matrix; //   the contact test matrix: every gap, stiffness, volume, spacing and modulus

@@ -5,7 +5,8 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use voxcollide_cli::scenario::{Backend, RunConfig, run};
+use voxcollide_cli::backend::Backend;
+use voxcollide_cli::scenario::{RunConfig, run};
 use voxcollide_cli::scene_run::{FileRunConfig, run_file as run_file_with};
 use voxcollide_sim::{Kind, SceneConfig};
 
@@ -21,18 +22,20 @@ struct Cli {
 enum Command {
     /// Run one of the paper's scenarios: pictures (PNG), ParaView files (VTK) and summary.json.
     Run(RunArgs),
-    /// Time every backend on DESIGN §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
+    /// Time every backend on docs/design.md §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
     Bench(BenchArgs),
-    /// Choose an implant: run a scene once per candidate of a catalogue (DESIGN §9), the named
+    /// Choose an implant: run a scene once per candidate of a catalogue (docs/design.md §9), the named
     /// shell replaced by each and filled to its volume, then settled; write report.html,
-    /// compare.json, compare.csv and a folder per candidate.
+    /// compare.json, compare.csv and a folder per candidate. Exits with status 2 (after
+    /// writing them) when a candidate failed a contact or did not finish (short of its volume
+    /// by more than 2 %, or not at rest by max_steps): its numbers are not a result.
     Compare(CompareArgs),
     /// The contact test matrix: an implant filled under a tissue layer for every gap, shell
     /// stiffness, volume, spacing and tissue modulus given; each cell passes when its contacts
-    /// held (DESIGN §11), its volume is within 2 % and its lift rises with volume. Prints the
+    /// held (docs/design.md §11), its volume is within 2 % and its lift rises with volume. Prints the
     /// table (Markdown) and exits non-zero when a cell fails.
     Matrix(MatrixArgs),
-    /// Watch a scene live in a window (DESIGN §10): orbit, pan and zoom; pause, step and reset;
+    /// Watch a scene live in a window (docs/design.md §10): orbit, pan and zoom; pause, step and reset;
     /// cycle the colouring; drag an instrument with the mouse while the tissue responds.
     View(ViewArgs),
 }
@@ -72,7 +75,7 @@ struct ViewArgs {
 
 #[derive(clap::Args, Debug)]
 struct CompareArgs {
-    /// The scene file (DESIGN §8), e.g. scenes/breast-implant.toml.
+    /// The scene file (docs/design.md §8), e.g. scenes/breast-implant.toml.
     scene: PathBuf,
     /// The scene's shell body that each candidate replaces.
     #[arg(long)]
@@ -204,7 +207,7 @@ struct RunArgs {
     /// A paper scenario (`implant`, `cylinder`: at the defaults below, the shipped
     /// `scenes/implant.toml` and `scenes/cylinder.toml`, built into the command; other values
     /// of --steps, --resolution, --stiffness, --pressure, --magnitude or --voxel-size run the
-    /// built-in generator) or a scene file (`FILE.toml`, DESIGN §8; the options below but
+    /// built-in generator) or a scene file (`FILE.toml`, docs/design.md §8; the options below but
     /// --backend, --out and --image are the paper scenarios' own).
     scene: String,
     /// Where to run.
@@ -677,7 +680,7 @@ fn compare(args: &CompareArgs) -> ExitCode {
         Ok(c) => {
             let w = c.candidates.iter().map(|r| r.name.chars().count()).max().unwrap_or(0).max(9);
             println!(
-                "{:<w$} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8} {:>8}",
+                "{:<w$} {:>9} {:>10} {:>12} {:>10} {:>12} {:>8} {:>10}",
                 "candidate",
                 "volume mL",
                 format!("lift {}", c.units),
@@ -685,11 +688,11 @@ fn compare(args: &CompareArgs) -> ExitCode {
                 "peak kPa",
                 format!("area {}²", c.units),
                 "settled",
-                "held"
+                "result"
             );
             for r in &c.candidates {
                 println!(
-                    "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8} {:>8}",
+                    "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8} {:>10}",
                     r.name,
                     r.volume_ml,
                     r.apex_lift,
@@ -697,24 +700,36 @@ fn compare(args: &CompareArgs) -> ExitCode {
                     r.peak_contact_pressure_kpa,
                     r.contact_area,
                     r.settled,
-                    if r.held { "yes" } else { "FAILED" }
+                    if !r.held {
+                        "FAILED"
+                    } else if !r.finished {
+                        "UNFINISHED"
+                    } else {
+                        "yes"
+                    }
                 );
             }
             println!("written: {}/report.html, compare.json, compare.csv", args.out.display());
-            let failed: Vec<_> = c.candidates.iter().filter(|r| !r.held).collect();
-            for r in &failed {
+            for r in c.candidates.iter().filter(|r| !r.is_result()) {
                 eprintln!(
-                    "warning: candidate {:?} FAILED, its numbers are not a result: {}",
+                    "warning: candidate {:?} {}, its numbers are not a result: {}",
                     r.name,
-                    r.failure.as_deref().unwrap_or("a contact did not hold")
+                    if r.held { "is UNFINISHED" } else { "FAILED" },
+                    r.not_a_result().unwrap_or_default()
                 );
             }
-            if failed.is_empty() {
-                ExitCode::SUCCESS
-            } else {
-                eprintln!("error: {} of {} candidates failed (DESIGN §11)", failed.len(), c.candidates.len());
-                ExitCode::from(2)
+            let failed = c.candidates.iter().filter(|r| !r.held).count();
+            let unfinished = c.candidates.iter().filter(|r| r.held && !r.finished).count();
+            if failed > 0 {
+                eprintln!("error: {failed} of {} candidates failed (docs/design.md §11)", c.candidates.len());
             }
+            if unfinished > 0 {
+                eprintln!(
+                    "error: {unfinished} of {} candidates did not finish (short of their volume or not at rest: raise [time] max_steps, or use integrator = \"implicit\")",
+                    c.candidates.len()
+                );
+            }
+            if failed == 0 && unfinished == 0 { ExitCode::SUCCESS } else { ExitCode::from(2) }
         }
         Err(e) => {
             eprintln!("error: {e}");

@@ -1,8 +1,8 @@
 //! The contact test matrix (issue "Contacts that hold"): an implant filled under a tissue layer
 //! for every combination of the parameters a user changes — the gap to the chest wall, the
 //! shell's stiffness, the volume on one base, the tissue's spacing and modulus — each cell a
-//! `compare` of its volumes, judged by what a planner relies on: every contact held (DESIGN
-//! §11), the volume within 2 %, and the apex lift rising with the volume.
+//! `compare` of its volumes, judged by what a planner relies on: every contact held
+//! (docs/design.md §11), the volume within 2 %, and the apex lift rising with the volume.
 //!
 //! Nothing here is tuned to one geometry: the scene is written from the axes alone, and a cell
 //! the model cannot build (an implant shape that cannot hold its volume on the base, say) is
@@ -10,8 +10,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::backend::Backend;
 use crate::compare::{CandidateResult, CompareConfig, Progress, compare};
-use crate::scenario::Backend;
 use voxcollide::Error;
 use voxcollide_sim::scene_file::IntegratorSpec;
 

@@ -7,26 +7,15 @@ use std::time::Instant;
 use glam::Vec3;
 use serde::Serialize;
 
+use crate::backend::{Backend, context};
 use crate::output::{BodyFrame, PvdSeries};
 use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide::error::Error;
-use voxcollide::gpu::GpuContext;
 use voxcollide::report::ContactReport;
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{CpuSim, GpuSim, Kind, Scene, SceneConfig};
-
-/// Which backend runs the simulation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// The GPU when an adapter (software ones included) is found, else the CPU.
-    Auto,
-    /// The GPU; an error without an adapter.
-    Gpu,
-    /// The CPU reference path.
-    Cpu,
-}
 
 /// Everything a run needs.
 #[derive(Clone, Debug)]
@@ -92,7 +81,7 @@ pub struct Summary {
     pub max_tissue_displacement: f32,
     /// The tissue layer's thickness.
     pub layer_thickness: f32,
-    /// The voxel size of the collision model (the contact's bound, DESIGN §11).
+    /// The voxel size of the collision model (the contact's bound, docs/design.md §11).
     pub voxel_size: f32,
     /// Whether the contact held: after first contact, within the voxel size at every frame.
     pub held: bool,
@@ -106,9 +95,9 @@ pub struct Summary {
     pub frames: Vec<FrameSummary>,
     /// Files written, relative to the output directory.
     pub files: Vec<String>,
-    /// DESIGN §8's per-body figures: the tissue and the foreign body.
+    /// docs/design.md §8's per-body figures: the tissue and the foreign body.
     pub bodies: Vec<crate::scene_run::BodySummary>,
-    /// DESIGN §8's per-contact figures: the one contact.
+    /// docs/design.md §8's per-contact figures: the one contact.
     pub contacts: Vec<crate::scene_run::ContactSummary>,
     /// Whether the bodies were found at rest (the paper scenes do not settle: false).
     pub settled: bool,
@@ -169,32 +158,6 @@ impl Sim {
 /// the report is still empty.
 fn forces_or_zero(v: &[Vec3], n: usize) -> std::borrow::Cow<'_, [Vec3]> {
     if v.len() == n { v.into() } else { vec![Vec3::ZERO; n].into() }
-}
-
-/// The adapter a run uses — for `backend` and whether pictures are wanted — and, when there is
-/// none, why (for the summary). A fallback to the CPU is said through `note`.
-///
-/// # Errors
-/// [`Error::NoAdapter`] for [`Backend::Gpu`] without an adapter.
-pub(crate) fn context(
-    backend: Backend,
-    pictures: bool,
-    note: &mut dyn FnMut(&str),
-) -> Result<(Option<GpuContext>, String), Error> {
-    let mut without = String::from("no adapter used: --backend cpu, no pictures");
-    let ctx = match backend {
-        Backend::Cpu if !pictures => None,
-        Backend::Gpu => Some(GpuContext::new()?),
-        _ => match GpuContext::new() {
-            Ok(ctx) => Some(ctx),
-            Err(e) => {
-                note(&format!("{e}; running on the CPU and writing no pictures"));
-                without = e.to_string();
-                None
-            }
-        },
-    };
-    Ok((ctx, without))
 }
 
 fn io(path: &Path, e: impl std::fmt::Display) -> Error {
@@ -372,7 +335,7 @@ pub fn run(
             ..Default::default()
         },
     ];
-    // DESIGN §11: after first contact, every frame within the voxel size.
+    // docs/design.md §11: after first contact, every frame within the voxel size.
     let bound = summary.voxel_size;
     let touched = summary.frames.iter().position(|f| f.colliding > 0 || f.max_penetration > 0.0);
     let worst = touched

@@ -1,6 +1,6 @@
 //! Running a scene file end to end (`voxcollide run FILE.toml`): its world on the GPU or the
 //! CPU, frames (PNG with every body, a VTK series per body), measurements per body and per
-//! contact, an optional settling phase, and `summary.json` with DESIGN §8's keys.
+//! contact, an optional settling phase, and `summary.json` with docs/design.md §8's keys.
 //!
 //! Nothing is written when the set-up fails: the file is read, its meshes loaded and its world
 //! built before the output folder is touched.
@@ -11,15 +11,15 @@ use std::time::Instant;
 use glam::Vec3;
 use serde::Serialize;
 
+use crate::backend::{Backend, context, cpu_first};
 use crate::output::{BodyFrame, PvdSeries};
 use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
-use crate::scenario::Backend;
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
-use voxcollide_sim::{CpuWorld, GpuWorld, Integrator, MassSpring, World};
+use voxcollide_sim::{Integrator, MassSpring, Simulation, World, simulation};
 
 /// A body in `summary.json`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -51,7 +51,7 @@ pub struct BodySummary {
     pub material: Option<MaterialSummary>,
 }
 
-/// A body's material in `summary.json` (DESIGN §12).
+/// A body's material in `summary.json` (docs/design.md §12).
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct MaterialSummary {
     /// `springs` (the paper's lattice) or `neo-hookean` (tetrahedra).
@@ -81,7 +81,7 @@ pub struct ContactSummary {
     pub penetrating_fraction: f32,
     /// `b`'s vertices in contact (the voxel model's count) at the last frame.
     pub contacts_at_end: usize,
-    /// The contact's bound (DESIGN §11): its voxel size. After first contact no vertex of `b`
+    /// The contact's bound (docs/design.md §11): its voxel size. After first contact no vertex of `b`
     /// may be deeper inside `a` than this at any check (file units).
     pub bound: f32,
     /// The bound at rest: half of `b`'s spacing (a settled run's last frame).
@@ -135,7 +135,7 @@ pub struct FileSummary {
     /// last frame), in spacings of its body: what `settled` is judged by (at rest: at most
     /// [`REST_TOLERANCE`]).
     pub rest_motion: f32,
-    /// `"explicit"` or `"implicit"` (DESIGN §12).
+    /// `"explicit"` or `"implicit"` (docs/design.md §12).
     pub integrator: String,
     /// The criterion for rest that `settled` was judged by: `"rest_motion"` under the explicit
     /// integrator ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling
@@ -189,105 +189,14 @@ pub struct FileRunConfig {
     pub image: (u32, u32),
 }
 
-/// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
-/// does: the implicit integrator, whose solve waits on the device every few iterations (on
-/// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
-/// contact, whose search runs on the host and makes each GPU step wait for the positions.
-/// `--backend gpu` steps every world on the device: both integrators, springs or
-/// `"neo-hookean"` tetrahedra, and every contact response.
-pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
-    if world.integrator != Integrator::Explicit {
-        Some(
-            "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
-        )
-    } else if world.contacts.iter().any(|c| c.surface.is_some()) {
-        Some(
-            "contact response = \"surface\" (the default: its search runs on the host, each GPU step waiting for the positions; --backend gpu runs it)",
-        )
-    } else {
-        None
-    }
-}
+/// A world stepping on either backend (a scene file's run, a live view), through the
+/// simulator's one seam.
+pub(crate) type Run = Box<dyn Simulation + Send>;
 
-/// A world stepping on either backend (a scene file's run, a live view).
-pub(crate) enum Run {
-    Cpu(Box<CpuWorld>),
-    Gpu(Box<GpuWorld>),
-}
-
-impl Run {
-    /// `world` on `ctx`'s device, or on the CPU without one.
-    pub(crate) fn new(ctx: Option<&voxcollide::GpuContext>, world: World) -> Result<Run, Error> {
-        Ok(match ctx {
-            Some(ctx) => Run::Gpu(Box::new(GpuWorld::new(ctx, world)?)),
-            None => Run::Cpu(Box::new(CpuWorld::new(world)?)),
-        })
-    }
-
-    pub(crate) fn step(&mut self) -> Result<(), Error> {
-        match self {
-            Run::Cpu(w) => w.step(),
-            Run::Gpu(w) => w.step(),
-        }
-    }
-
-    /// The implicit integrator's steps taken in parts so far, and the most parts one took
-    /// (None: explicit).
-    pub(crate) fn split(&self) -> Option<(u64, u32)> {
-        match self {
-            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => {
-                Some((w.parts.split_steps, w.parts.most_parts))
-            }
-            Run::Gpu(w) => w.parts().map(|p| (p.split_steps, p.most_parts)),
-            Run::Cpu(_) => None,
-        }
-    }
-
-    /// The implicit integrator's last residual at rest, relative (None: explicit).
-    pub(crate) fn residual(&self) -> Option<f64> {
-        match self {
-            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => Some(w.residual.relative()),
-            Run::Gpu(w) => w.residual().map(|r| r.relative()),
-            Run::Cpu(_) => None,
-        }
-    }
-
-    /// How finely the positions resolve the residual ([`FileSummary::residual_floor`]; CPU
-    /// and implicit only).
-    pub(crate) fn residual_floor(&self) -> Option<f64> {
-        match self {
-            Run::Cpu(w) => w.residual_floor(),
-            Run::Gpu(_) => None,
-        }
-    }
-
-    /// Simulated seconds so far (`steps · dt` but where the implicit step grew to settle).
-    pub(crate) fn time(&self, steps: u64, dt: f32) -> f64 {
-        match self {
-            Run::Cpu(w) if w.world.integrator != Integrator::Explicit => w.time,
-            Run::Gpu(w) => w.time().unwrap_or(steps as f64 * f64::from(dt)),
-            Run::Cpu(_) => steps as f64 * f64::from(dt),
-        }
-    }
-
-    /// Implicit only: let the step grow by up to `factor` towards rest (1: the schedule's).
-    pub(crate) fn accelerate(&mut self, factor: f32) {
-        match self {
-            Run::Cpu(w) => w.accelerate(factor),
-            Run::Gpu(w) => w.accelerate(factor),
-        }
-    }
-
-    /// The world as it is now (read back from the device), and the last step's contact reports.
-    pub(crate) fn frame(&mut self) -> Result<(&World, Vec<ContactReport>), Error> {
-        match self {
-            Run::Cpu(w) => Ok((&w.world, w.reports.clone())),
-            Run::Gpu(w) => {
-                let reports = w.sync()?;
-                Ok((&w.world, reports))
-            }
-        }
-    }
+/// Simulated seconds after `steps` steps of `dt`: the run's own count where its step varies
+/// (the implicit integrator's, grown to settle).
+pub(crate) fn simulated_time(run: &dyn Simulation, steps: u64, dt: f32) -> f64 {
+    run.time().unwrap_or(steps as f64 * f64::from(dt))
 }
 
 fn io(path: &Path, e: impl std::fmt::Display) -> Error {
@@ -354,20 +263,20 @@ pub fn run_scene(
     }
     let on_cpu = if config.backend == Backend::Auto { cpu_first(&built.world) } else { None };
     let wants_pictures = file.output.images;
-    let (ctx, without) = crate::scenario::context(config.backend, wants_pictures, note)?;
+    let (ctx, without) = context(config.backend, wants_pictures, note)?;
     if let (Some(why), Some(_)) = (on_cpu, &ctx) {
         note(&format!("{why} steps on the CPU, on every core (the GPU draws the pictures)"));
     }
     let (mut run, backend, adapter) = match (config.backend, &ctx) {
         (_, Some(ctx)) if on_cpu.is_some() => {
-            (Run::new(None, built.world.clone())?, "cpu", format!("pictures on {}", ctx.adapter_name()))
+            (simulation(None, built.world.clone())?, "cpu", format!("pictures on {}", ctx.adapter_name()))
         }
         (Backend::Cpu, _) | (Backend::Auto, None) => (
-            Run::new(None, built.world.clone())?,
+            simulation(None, built.world.clone())?,
             "cpu",
             ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
         ),
-        (_, Some(ctx)) => (Run::new(Some(ctx), built.world.clone())?, "gpu", ctx.adapter_name()),
+        (_, Some(ctx)) => (simulation(Some(ctx), built.world.clone())?, "gpu", ctx.adapter_name()),
         (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
     };
     let scenario =
@@ -448,7 +357,7 @@ pub fn run_scene(
     summary.rest_window = window as f64 * f64::from(built.dt);
     let spacings: Vec<f32> = world.bodies.iter().map(mean_spring).collect();
     // The contacts are checked at every frame and, between frames, at least 64 times over
-    // the schedule and 4 times a settling window (DESIGN §11: a failed contact is never shown
+    // the schedule and 4 times a settling window (docs/design.md §11: a failed contact is never shown
     // as a result).
     let check_every = (planned / 64).min(window / 4).clamp(1, chunk);
     let mut checks = ContactChecks::new(world.contacts.len());
@@ -467,7 +376,7 @@ pub fn run_scene(
         ));
     }
     loop {
-        let (residual, now) = (run.residual(), run.time(done, built.dt));
+        let (residual, now) = (run.residual().map(|r| r.relative()), simulated_time(&*run, done, built.dt));
         // How finely the positions resolve the residual, past the schedule (two force sums).
         let floor = if residual.is_some() && done >= planned { run.residual_floor() } else { None };
         let (world, reports) = run.frame()?;
@@ -576,7 +485,8 @@ pub fn run_scene(
             summary.rest_motion = if motion.is_finite() { motion } else { 0.0 };
             summary.residual = residual;
             summary.residual_floor = floor;
-            (summary.split_steps, summary.most_parts) = run.split().unzip();
+            (summary.split_steps, summary.most_parts) =
+                run.parts().map(|p| (p.split_steps, p.most_parts)).unzip();
             // Each integrator's own test, met or not (the implicit one never judges by motion).
             summary.criterion = if residual.is_some() { "residual" } else { "rest_motion" }.into();
             for (c, r) in reports.iter().enumerate() {
@@ -595,7 +505,9 @@ pub fn run_scene(
             run.step()?;
             done += 1;
             // The implicit integrator at rest needs no more steps to show it.
-            if file.time.settle && done >= planned && run.residual().is_some_and(|r| r <= RESIDUAL_TOLERANCE)
+            if file.time.settle
+                && done >= planned
+                && run.residual().map(|r| r.relative()).is_some_and(|r| r <= RESIDUAL_TOLERANCE)
             {
                 break;
             }
@@ -616,7 +528,7 @@ pub fn run_scene(
         summary.files.extend(world.names.iter().map(|n| format!("{n}.pvd")));
     }
     summary.steps = done;
-    summary.simulated_time = run.time(done, built.dt);
+    summary.simulated_time = simulated_time(&*run, done, built.dt);
     summary.steps_per_second = if stepping > 0.0 { done as f64 / stepping } else { 0.0 };
     summary.realtime_factor = if stepping > 0.0 { summary.simulated_time / stepping } else { 0.0 };
     let path = config.out.join("summary.json");
@@ -660,7 +572,7 @@ impl Stall {
     }
 }
 
-/// The contacts' checks against their bounds (DESIGN §11), over a run.
+/// The contacts' checks against their bounds (docs/design.md §11), over a run.
 struct ContactChecks {
     /// Per contact: whether it has touched yet (a contact is bound after first contact).
     touched: Vec<bool>,

@@ -1,4 +1,4 @@
-//! Contacts that hold (DESIGN §11), as a user meets them: a rigid probe driven through 80 % of a
+//! Contacts that hold (docs/design.md §11), as a user meets them: a rigid probe driven through 80 % of a
 //! block, a stiff soft body pressed into a soft one, a shell filled under tissue lying on it —
 //! each checked by the run itself (`summary.json`'s `held`, `bound`, `worst_*`) — and the
 //! check seen to fail, with its warning, where the paper's constant response is too weak for
@@ -10,8 +10,8 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use voxcollide_cli::backend::Backend;
 use voxcollide_cli::matrix::{Group, run_group, table};
-use voxcollide_cli::scenario::Backend;
 use voxcollide_sim::scene_file::IntegratorSpec;
 
 fn dir(name: &str) -> PathBuf {
@@ -426,6 +426,87 @@ images = false
         serde_json::from_str(&std::fs::read_to_string(out.join("300_mL/summary.json")).unwrap()).unwrap();
     assert_eq!(s["contacts"][0]["held"], false);
     assert!(s["contacts"][0]["worst_depth"].as_f64().unwrap() > s["contacts"][0]["bound"].as_f64().unwrap());
+}
+
+#[test]
+fn a_comparison_with_an_unfinished_candidate_marks_it_everywhere_and_exits_non_zero() {
+    let d = dir("unfinished-compare");
+    // Contacts that hold, but a cap of 40 steps: the implant is nowhere near its volume and
+    // nothing is at rest. Its numbers must not be shown as an answer.
+    let scene = r#"units = "mm"
+[time]
+duration = 0.3
+settle = true
+max_steps = 40
+[[body]]
+name = "tissue"
+kind = "soft"
+shape = { box = [150, 150, 20] }
+spacing = 10
+position = [0, 0, 30]
+material = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }
+fixed = [{ rim = 1 }]
+[[body]]
+name = "implant"
+kind = "shell"
+shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+spacing = 10
+position = [0, 0, 0]
+material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+floor = 0.0
+inflate = { volume_ml = 300, ramp = 0.2, ease = "smooth" }
+[[contact]]
+a = "implant"
+b = "tissue"
+[output]
+frames = 1
+vtk = false
+images = false
+"#;
+    std::fs::write(d.join("scene.toml"), scene).unwrap();
+    std::fs::write(
+        d.join("candidates.toml"),
+        "[[candidate]]\nname = \"300 mL\"\nshape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }\n",
+    )
+    .unwrap();
+    let out = d.join("out");
+    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
+        .arg("compare")
+        .arg(d.join("scene.toml"))
+        .args(["--body", "implant", "--backend", "cpu", "--candidates"])
+        .arg(d.join("candidates.toml"))
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
+    // Non-zero, after writing its files.
+    assert_eq!(output.status.code(), Some(2), "{stdout}\n{stderr}");
+    assert!(stdout.contains("UNFINISHED"), "{stdout}");
+    assert!(
+        stderr.contains("warning") && stderr.contains("UNFINISHED") && stderr.contains("300 mL"),
+        "{stderr}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("compare.json")).unwrap()).unwrap();
+    let c = &json["candidates"][0];
+    assert_eq!(
+        (c["held"].as_bool(), c["finished"].as_bool(), c["settled"].as_bool()),
+        (Some(true), Some(false), Some(false)),
+        "{c}"
+    );
+    let why = c["unfinished"].as_str().unwrap();
+    assert!(why.contains("of its 300.0 mL") && why.contains("not come to rest"), "{why}");
+    let csv = std::fs::read_to_string(out.join("compare.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let finished = header.iter().position(|h| *h == "finished").unwrap();
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!(row[finished], "false", "{csv}");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("id=\"unfinished\""), "the report's banner");
+    assert!(html.contains("UNFINISHED — 300 mL is not a result"), "the table says so");
+    assert!(html.contains("300 mL (UNFINISHED, not a result)"), "the plots' legend says so too");
+    assert!(html.contains("not all at rest"), "the profile is not called a resting one");
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! `[time] integrator = "implicit"` through the command (DESIGN §12): what summary.json and
+//! `[time] integrator = "implicit"` through the command (docs/design.md §12): what summary.json and
 //! the console say of it, the explicit integrator's answer at rest, and the GPU backend's
 //! answer (its WGSL passes) against the CPU's.
 

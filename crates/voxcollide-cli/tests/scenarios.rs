@@ -9,7 +9,8 @@ use std::path::PathBuf;
 
 use voxcollide::Error;
 use voxcollide::glam::Vec3;
-use voxcollide_cli::scenario::{Backend, RunConfig, Summary, run};
+use voxcollide_cli::backend::Backend;
+use voxcollide_cli::scenario::{RunConfig, Summary, run};
 use voxcollide_sim::{CpuSim, Kind, Scene, SceneConfig};
 
 fn out_dir(name: &str) -> PathBuf {
@@ -158,7 +159,7 @@ fn a_run_writes_pictures_paraview_files_and_a_summary() {
         "layer_thickness",
         "voxel_size",
         "frames",
-        // DESIGN §8's keys, added to these.
+        // docs/design.md §8's keys, added to these.
         "bodies",
         "contacts",
         "settled",

@@ -1,4 +1,4 @@
-//! `voxcollide view` (DESIGN §10) in a real window: an X server in memory (Xvfb, Debian's
+//! `voxcollide view` (docs/design.md §10) in a real window: an X server in memory (Xvfb, Debian's
 //! `xvfb`, which `.ci/run` installs) and the adapter there is (lavapipe in CI). The screenshot
 //! shows the bodies with their legend and heads-up line; a scripted drag of an instrument moves
 //! the dent it makes, in the picture and in the reported displacement; closing the window as a

@@ -59,14 +59,14 @@ fn bench(c: &mut Criterion) {
     );
 
     let mut voxel =
-        ParallelCpuCollision::new(pair.grid, pair.params).unwrap().with_response(pair.response).unwrap();
+        ParallelCpuCollision::new(pair.grid, pair.params).unwrap().with_response(pair.response()).unwrap();
     let mut report = ContactReport::default();
     group.bench_function("voxel_penalty", |bench| {
         bench.iter(|| voxel.step_into(&a.pos, &b.pos, &mut report).unwrap())
     });
     eprintln!("voxel penalty: {} tissue vertices colliding", report.colliding_b.len());
 
-    let penalty = world.contacts[0].surface.unwrap();
+    let penalty = world.contacts[0].surface().unwrap();
     let mut surface = SurfaceContact::new(penalty, a, b).unwrap();
     let mut out = SurfaceForces::default();
     let stats = surface.step(a, b, &mut out);

@@ -12,7 +12,7 @@ use std::time::Duration;
 use criterion::{Criterion, criterion_group, criterion_main};
 use voxcollide::glam::{UVec3, Vec3};
 use voxcollide_sim::bodies::box_lattice;
-use voxcollide_sim::fem::{Elements, lattice_tets};
+use voxcollide_sim::material::neo_hookean::{Elements, lattice_tets};
 use voxcollide_sim::{CpuWorld, ImplicitSettings, Integrator, Material, Mode, StepInputs, World};
 
 /// A block 27 × 27 × 27 vertices (19,683), its base pinned and its top pressed down by 5 % over

@@ -1,4 +1,4 @@
-// The Neo-Hookean tetrahedra of a body (DESIGN §12, `model = "neo-hookean"`), written in the same
+// The Neo-Hookean tetrahedra of a body (docs/design.md §12, `model = "neo-hookean"`), written in the same
 // order as their CPU twin (src/fem.rs), each product rounded as the CPU rounds it (`unfused`), so
 // that the explicit step's forces equal the CPU's to the bit: each tetrahedron's force on a corner, and the implicit
 // integrator's projected stiffness (`Tangent`) with its product. A shader that composes this file

@@ -1,8 +1,7 @@
 // Simulation pass 1: the force on every vertex of a body — its springs (nonlinear, damped),
 // viscous damping, the internal pressure on its surface triangles and its contact force —
 // summed per vertex in adjacency order (a body's tetrahedra after its springs: elements.wgsl),
-// then divided by its mass. CPU twin:
-// MassSpring::forces.
+// then divided by its mass; the spring law is springs.wgsl's. CPU twin: MassSpring::forces.
 
 @group(0) @binding(0) var<uniform> sim: SimParams;
 @group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
@@ -16,19 +15,6 @@
 @group(0) @binding(9) var<storage, read> fill: array<f32>;             // [0]: the pressure of a fill
 @group(0) @binding(10) var<storage, read> tet_index: array<u32>;       // elements.wgsl
 @group(0) @binding(11) var<storage, read> tet_rest: array<vec4<f32>>;
-
-fn spring_force(x: vec3<f32>, v: vec3<f32>, y: vec3<f32>, w: vec3<f32>, rest: f32, k: f32) -> vec3<f32> {
-    let d = y - x;
-    let len = sqrt(dot3(d, d));
-    if len < 1e-12 {
-        return vec3<f32>(0.0);
-    }
-    let u = d / len;
-    let strain = (len - rest) / rest;
-    let tension = k * (len - rest) * (1.0 + sim.stiffening * strain * strain);
-    let damping = sim.spring_damping * dot3(w - v, u);
-    return (tension + damping) * u;
-}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {

@@ -1,4 +1,4 @@
-// The implicit integrator's passes (DESIGN §12, `integrator = "implicit"`) for a world of
+// The implicit integrator's passes (docs/design.md §12, `integrator = "implicit"`) for a world of
 // bodies of springs or tetrahedra, with the voxel model's contacts (their `k·nnᵀ` in
 // SLOT_KC0/1) or a surface contact's couplings (their terms gathered into SLOT_C by
 // couple_gather.wgsl, their own blocks in SLOT_E0/1 from the host): backward Euler
@@ -249,9 +249,8 @@ fn blocks(i: u32, j: u32, s: vec2<f32>) -> Blocks {
     }
     let u = d / len;
     let rest = s.x * sim.rest_scale;
-    let strain = (len - rest) / rest;
-    let tension = s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain);
-    let tangent = s.y * (1.0 + 3.0 * sim.stiffening * strain * strain);
+    let tension = spring_tension_at(len, rest, s.y);
+    let tangent = spring_tangent_at(len, rest, s.y);
     let across = max(tension, 0.0) / len;
     return Blocks(u, across, tangent - across);
 }
@@ -330,18 +329,6 @@ fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
         r += (h2 * ip.fill_k * gu) * vget(SLOT_G, i);
     }
     return r;
-}
-
-fn spring_tension(x: vec3<f32>, y: vec3<f32>, s: vec2<f32>) -> vec3<f32> {
-    let d = y - x;
-    let len = sqrt(dot3(d, d));
-    if len < 1e-12 {
-        return vec3<f32>(0.0);
-    }
-    let u = d / len;
-    let rest = s.x * sim.rest_scale;
-    let strain = (len - rest) / rest;
-    return (s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain)) * u;
 }
 
 fn driven_target(rest: vec3<f32>) -> vec3<f32> {
@@ -451,16 +438,7 @@ fn pass_prepare(i: u32) -> vec2<f32> {
         let j = adjacency[2u * e];
         let s = springs[adjacency[2u * e + 1u]];
         let y = pos[j].xyz;
-        let d = y - x;
-        let len = sqrt(dot3(d, d));
-        if len >= 1e-12 {
-            let u = d / len;
-            let rest = s.x * sim.rest_scale;
-            let strain = (len - rest) / rest;
-            let tension = s.y * (len - rest) * (1.0 + sim.stiffening * strain * strain);
-            let damping = sim.spring_damping * dot3(vel[j].xyz - v, u);
-            f += (tension + damping) * u;
-        }
+        f += spring_force(x, v, y, vel[j].xyz, s.x * sim.rest_scale, s.y);
         let t = spring_tension(x, y, s);
         rest_f += t;
         gross += sqrt(dot3(t, t));

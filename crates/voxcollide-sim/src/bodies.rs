@@ -166,7 +166,7 @@ pub struct CylinderShape {
 /// The tetrahedra of a [`cylinder`]'s polar lattice (its vertices numbered as `cylinder`
 /// numbers them): each layer's cells are triangles about the center line and quads between
 /// rings, each quad cut along its diagonal from `(ring m, segment s)` to `(m + 1, s + 1)`; each
-/// triangle with the one above it is a prism, split by [`prism_tets`](crate::fem::prism_tets)
+/// triangle with the one above it is a prism, split by [`prism_tets`](crate::material::neo_hookean::prism_tets)
 /// so that neighbours share faces.
 #[must_use]
 pub fn cylinder_tets(shape: &CylinderShape) -> Vec<[u32; 4]> {
@@ -190,7 +190,7 @@ pub fn cylinder_tets(shape: &CylinderShape) -> Vec<[u32; 4]> {
             }
         }
     }
-    crate::fem::prism_tets(&prisms)
+    crate::material::neo_hookean::prism_tets(&prisms)
 }
 
 /// A solid cylinder along +z as a polar lattice of `rings` rings of `segments` vertices around a

@@ -4,6 +4,7 @@
 
 use glam::{Mat3, Vec3};
 
+use crate::material::{self, springs::Springs};
 use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
 use voxcollide::math::{cross, dot};
@@ -96,10 +97,10 @@ pub struct MassSpring {
     /// The pressure a fill has built up to hold its volume (see [`StepInputs::fill_hold`]); 0
     /// at the start.
     pub held_pressure: f32,
-    /// Finite elements (DESIGN §12's `"neo-hookean"`): their forces add to the springs' (a
+    /// Finite elements (docs/design.md §12's `"neo-hookean"`): their forces add to the springs' (a
     /// body of elements keeps its springs for its damping only, their stiffness 0); `None`
     /// for the paper's spring lattice.
-    pub elements: Option<crate::fem::Elements>,
+    pub elements: Option<crate::material::neo_hookean::Elements>,
 }
 
 /// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
@@ -387,25 +388,25 @@ impl MassSpring {
     }
 
     /// Half the stability bound of the integrator (see [`Material`]) for strains up to `s_max`
-    /// (with a body's elements, their Gershgorin bound added: [`crate::fem::Elements::stiffness_bound`]).
+    /// (with a body's elements, their Gershgorin bound added: [`crate::material::neo_hookean::Elements::stiffness_bound`]).
     #[must_use]
     pub fn stable_dt(&self, s_max: f32) -> f32 {
-        let m = &self.material;
-        let stiffen = 1.0 + 3.0 * m.stiffening * s_max * s_max;
-        let elements = self.elements.as_ref().map(|e| e.stiffness_bound(self.len()));
+        let bounds: Vec<Vec<f32>> = self.materials().map(|m| m.stiffness_bounds(self, s_max)).collect();
         let omega2 = (0..self.len())
-            .map(|i| {
-                let adj = &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize];
-                let springs =
-                    4.0 * adj.iter().map(|&[_, k]| self.springs[k as usize].k).sum::<f32>() * stiffen;
-                (springs + elements.as_ref().map_or(0.0, |e| e[i])) * self.inv_mass[i]
-            })
+            .map(|i| bounds.iter().map(|b| b[i]).sum::<f32>() * self.inv_mass[i])
             .fold(0.0f32, f32::max);
         if omega2 > 0.0 { 0.5 * 2.0 / omega2.sqrt() } else { f32::INFINITY }
     }
 
-    /// The force on every vertex (springs, damping and `contact`), summed per vertex over its
-    /// springs in adjacency order. CPU twin of `shaders/forces.wgsl`.
+    /// The body's materials, in the order their forces are summed: its springs, then its
+    /// elements if it has them.
+    pub fn materials(&self) -> impl Iterator<Item = &dyn material::Material> {
+        std::iter::once(&Springs as &dyn material::Material)
+            .chain(self.elements.as_ref().map(|e| e as &dyn material::Material))
+    }
+
+    /// The force on every vertex (its materials', viscous damping, the fill's pressure and
+    /// `contact`), summed per vertex in the materials' order. CPU twin of `shaders/forces.wgsl`.
     pub fn forces(&self, inputs: &StepInputs, contact: &[Vec3], out: &mut Vec<Vec3>) {
         use rayon::prelude::*;
         out.clear();
@@ -413,22 +414,9 @@ impl MassSpring {
         let pressure = self.pressure(inputs);
         // Each vertex's sum is its own, in its own order: the same on any number of threads.
         out.par_extend((0..self.len()).into_par_iter().with_min_len(PAR_CHUNK).map(|i| {
-            let (x, v) = (self.pos[i], self.vel[i]);
-            let mut f = contact[i] - m.damping * v;
-            for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-                let s = self.springs[k as usize];
-                f += spring_force(
-                    x,
-                    v,
-                    self.pos[j as usize],
-                    self.vel[j as usize],
-                    s.rest * inputs.rest_scale,
-                    s.k,
-                    m,
-                );
-            }
-            if let Some(e) = &self.elements {
-                f += e.force_on(&self.pos, i);
+            let mut f = contact[i] - m.damping * self.vel[i];
+            for material in self.materials() {
+                material.add_force(self, &self.pos, &self.vel, inputs.rest_scale, i, &mut f);
             }
             if pressure != 0.0 {
                 // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.
@@ -498,23 +486,6 @@ pub fn driven_target(inputs: &StepInputs, rest: Vec3) -> Vec3 {
         let m = inputs.turn;
         m.x_axis * rest.x + m.y_axis * rest.y + m.z_axis * rest.z + inputs.drive
     }
-}
-
-/// The force of one spring on its end `x` (velocity `v`) from the other end `y` (velocity `w`):
-/// the nonlinear spring law plus damping along the spring. Written term by term as in
-/// `shaders/forces.wgsl`.
-#[must_use]
-pub fn spring_force(x: Vec3, v: Vec3, y: Vec3, w: Vec3, rest: f32, k: f32, m: &Material) -> Vec3 {
-    let d = y - x;
-    let len = dot(d, d).sqrt();
-    if len < 1e-12 {
-        return Vec3::ZERO;
-    }
-    let u = d / len;
-    let strain = (len - rest) / rest;
-    let tension = k * (len - rest) * (1.0 + m.stiffening * strain * strain);
-    let damping = m.spring_damping * dot(w - v, u);
-    (tension + damping) * u
 }
 
 #[cfg(test)]

@@ -26,8 +26,8 @@ use crate::bodies::{
     shell_from_surface, tetrahedral_body,
 };
 use crate::body::{MassSpring, Material, Mode, StepInputs};
-use crate::contact::SurfacePenalty;
-use crate::implicit::ImplicitSettings;
+use crate::contact::{ContactModel, SurfacePenalty};
+use crate::integrator::implicit::ImplicitSettings;
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
 use crate::scene_file::{
@@ -206,7 +206,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                     anatomical: *style == ImplantStyle::Anatomical,
                 };
                 let (positions, mesh) = implant_surface(shape, f64::from(edge / scale))?;
-                // DESIGN §9: it stands on its base in the plane z = 0 of its position, apex up
+                // docs/design.md §9: it stands on its base in the plane z = 0 of its position, apex up
                 // (the outline's base is at z = −projection/2).
                 let lift = Vec3::new(0.0, 0.0, (0.5 * shape.projection) as f32);
                 let made = Surface { positions: positions.into_iter().map(|p| p + lift).collect(), mesh };
@@ -462,10 +462,11 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     note.vertices = body.len();
     if neo_hookean {
         let h = h.unwrap_or(1.0);
-        let tets = mesh_tets.unwrap_or_else(|| crate::fem::lattice_tets(&body.rest_pos, h));
+        let tets = mesh_tets.unwrap_or_else(|| crate::material::neo_hookean::lattice_tets(&body.rest_pos, h));
         let young = m.young_kpa * 1e3 * s;
-        let mut elements = crate::fem::Elements::new(&body.rest_pos, &tets, young, m.poisson)
-            .map_err(|e| file.body_error(index, "material.model", e.to_string()))?;
+        let mut elements =
+            crate::material::neo_hookean::Elements::new(&body.rest_pos, &tets, young, m.poisson)
+                .map_err(|e| file.body_error(index, "material.model", e.to_string()))?;
         note.remarks.push(format!(
             "neo-hookean: {} tetrahedra, poisson = {} (the springs keep only their damping)",
             elements.tets.len(),
@@ -842,14 +843,18 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
             rule: e.to_string(),
         })?;
-        if let Some(surface) = &surface {
-            surface.validate().map_err(|e| Error::Invalid {
-                what: "contact",
-                value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
-                rule: e.to_string(),
-            })?;
-        }
-        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, response, surface });
+        let model = match surface {
+            Some(surface) => {
+                surface.validate().map_err(|e| Error::Invalid {
+                    what: "contact",
+                    value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
+                    rule: e.to_string(),
+                })?;
+                ContactModel::Surface(surface)
+            }
+            None => ContactModel::Voxel(response),
+        };
+        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, model });
     }
     let steps = match (file.time.steps, file.time.duration) {
         (Some(n), _) => n,

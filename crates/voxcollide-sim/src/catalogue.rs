@@ -1,4 +1,4 @@
-//! Implant catalogues (DESIGN §9): the candidates `voxcollide compare` runs through one scene,
+//! Implant catalogues (docs/design.md §9): the candidates `voxcollide compare` runs through one scene,
 //! read from TOML and checked, with errors that name the file, line, column and key.
 //!
 //! ```toml

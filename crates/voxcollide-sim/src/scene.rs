@@ -5,6 +5,7 @@ use glam::{UVec3, Vec3};
 
 use crate::bodies::{CylinderShape, box_lattice, box_slice, cylinder, ellipsoid_shell};
 use crate::body::{MassSpring, Material, Mode, StepInputs};
+use crate::contact::ContactModel;
 use crate::world::{ContactPair, World};
 use voxcollide::error::Error;
 use voxcollide::grid::VoxelGrid;
@@ -305,8 +306,7 @@ impl Scene {
                 b: 0,
                 grid: self.grid,
                 params: self.params,
-                response: Response::Constant,
-                surface: None,
+                model: ContactModel::Voxel(Response::Constant),
             }],
             self.v_max,
             std::sync::Arc::new(move |step| {

@@ -1,4 +1,4 @@
-//! Scene files (DESIGN §8): a TOML description of the bodies, their contacts, the schedule and
+//! Scene files (docs/design.md §8): a TOML description of the bodies, their contacts, the schedule and
 //! the output, read with serde so that every error names the file, the line, the column and the
 //! key.
 //!
@@ -56,7 +56,7 @@ pub enum Units {
     Cm,
     /// Metres.
     M,
-    /// The paper's layer units (DESIGN §1: the tissue layer is 8 wide): lengths with no
+    /// The paper's layer units (docs/design.md §1: the tissue layer is 8 wide): lengths with no
     /// physical size. They are computed as metres, so that the paper's constants carry over
     /// unchanged (`k = 0.4·E·h`), and printed and drawn as "layer units", never as metres, with
     /// volumes in cubic layer units, never in millilitres.
@@ -150,13 +150,13 @@ pub struct Time {
     /// A cap on all steps; reaching it unsettled is reported, not an error.
     #[serde(default = "default_max_steps")]
     pub max_steps: u64,
-    /// The integrator (DESIGN §12): the paper's semi-implicit Euler, `"explicit"` (the
+    /// The integrator (docs/design.md §12): the paper's semi-implicit Euler, `"explicit"` (the
     /// default), or `"implicit"`: backward Euler ([`crate::implicit`]).
     #[serde(default)]
     pub integrator: IntegratorSpec,
 }
 
-/// `[time] integrator` (DESIGN §12).
+/// `[time] integrator` (docs/design.md §12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum IntegratorSpec {
@@ -178,14 +178,14 @@ impl IntegratorSpec {
     }
 }
 
-/// A material's model (DESIGN §12).
+/// A material's model (docs/design.md §12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MaterialModel {
     /// The paper's spring lattice (Poisson's ratio 1/4 whatever the file says), the default.
     #[default]
     Springs,
-    /// Finite elements that honour `poisson` ([`crate::fem`]).
+    /// Finite elements that honour `poisson` ([`crate::material::neo_hookean`]).
     NeoHookean,
 }
 
@@ -342,7 +342,7 @@ pub struct MaterialSpec {
     /// Damping ratio of the damping along each spring (default: `damping`).
     pub spring_damping: Option<f64>,
     /// The model: `"springs"` (the default: the paper's lattice, ν = 1/4) or `"neo-hookean"`
-    /// (tetrahedra that honour `poisson`: [`crate::fem`]).
+    /// (tetrahedra that honour `poisson`: [`crate::material::neo_hookean`]).
     #[serde(default)]
     pub model: MaterialModel,
 }

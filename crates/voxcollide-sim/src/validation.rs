@@ -16,8 +16,8 @@ use glam::{Mat3, UVec3, Vec3};
 use crate::bodies::box_lattice;
 use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::cpu::CpuWorld;
-use crate::fem::{Elements, lame, lattice_tets};
-use crate::implicit::ImplicitSettings;
+use crate::integrator::implicit::ImplicitSettings;
+use crate::material::neo_hookean::{Elements, lame, lattice_tets};
 use crate::world::{Integrator, World};
 use voxcollide::error::Error;
 

@@ -11,22 +11,8 @@ use std::sync::Arc;
 use voxcollide::{ContactParams, Error, Response, VoxelGrid};
 
 use crate::body::{MassSpring, StepInputs};
-use crate::contact::SurfacePenalty;
-use crate::implicit::ImplicitSettings;
-
-/// How a world's bodies move from one step to the next (DESIGN §12).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub enum Integrator {
-    /// The paper's semi-implicit (symplectic) Euler, its step within the stability bound
-    /// ([`MassSpring::integrate`]), bit for bit on the CPU and the GPU.
-    #[default]
-    Explicit,
-    /// Backward Euler, linearised per step and solved by conjugate gradient
-    /// ([`MassSpring::integrate_implicit`]): a step chosen for accuracy, not stability. The CPU
-    /// steps it, and [`crate::GpuWorld`] in WGSL ([`crate::gpu_implicit`]) for spring lattices
-    /// whose contacts are the voxel model's.
-    Implicit(ImplicitSettings),
-}
+use crate::contact::{ContactModel, SurfacePenalty};
+pub use crate::integrator::Integrator;
 
 /// One pair of bodies in contact: `a` is binned (its voxel model follows it under
 /// [`Anchor::FollowA`](voxcollide::Anchor::FollowA)), `b` probes.
@@ -40,14 +26,23 @@ pub struct ContactPair {
     pub grid: VoxelGrid,
     /// The pair's contact parameters.
     pub params: ContactParams,
-    /// How strongly the pair's contacts push: the paper's constant magnitude, or a penalty
-    /// growing with depth (docs/semantics.md, "Contacts that hold").
-    pub response: Response,
-    /// `Some`: the pair's forces are measured to each other's surface triangles, on both sides
-    /// ([`crate::contact::SurfaceContact`]), instead of coming from the voxel model's report;
-    /// the grid then gives only the contact's bound (its voxel size). Found on the host, under
-    /// the GPU world too.
-    pub surface: Option<SurfacePenalty>,
+    /// How the pair finds its contacts and how strongly they push: the voxel model's report
+    /// or the surface contact ([`crate::contact`]).
+    pub model: ContactModel,
+}
+
+impl ContactPair {
+    /// The pair's response as the voxel model names it ([`ContactModel::response`]).
+    #[must_use]
+    pub fn response(&self) -> Response {
+        self.model.response()
+    }
+
+    /// The pair's surface contact, where it is one ([`ContactModel::surface`]).
+    #[must_use]
+    pub fn surface(&self) -> Option<SurfacePenalty> {
+        self.model.surface()
+    }
 }
 
 /// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
@@ -117,8 +112,8 @@ impl World {
                 ));
             }
             pair.params.validate(&pair.grid)?;
-            pair.response.validate(&pair.params, &pair.grid)?;
-            if let Some(surface) = &pair.surface {
+            pair.response().validate(&pair.params, &pair.grid)?;
+            if let ContactModel::Surface(surface) = &pair.model {
                 surface.validate()?;
             }
         }

@@ -161,7 +161,7 @@ fn implants_have_their_catalogue_volume_base_and_projection() {
             );
             assert!(
                 (lo.z - 100.0).abs() < 0.01,
-                "its base in the plane z = 0 of its position (DESIGN §9): {lo}"
+                "its base in the plane z = 0 of its position (docs/design.md §9): {lo}"
             );
             let r = 0.5 * base as f32;
             if style == "round" {
@@ -417,8 +417,8 @@ fn a_contact_responds_with_a_penalty_stiff_for_the_step_unless_told_otherwise() 
     use voxcollide::Response;
     let built = build_world(&SceneFile::parse("indent.toml", INDENT).unwrap()).unwrap();
     let pair = &built.world.contacts[0];
-    let Response::Penalty { stiffness, gap } = pair.response else {
-        panic!("{:?}", pair.response);
+    let Response::Penalty { stiffness, gap } = pair.response() else {
+        panic!("{:?}", pair.response());
     };
     // Half of what the step allows the block's lightest free vertex: 0.5 m / dt².
     let block = &built.world.bodies[0];
@@ -440,8 +440,8 @@ fn a_contact_responds_with_a_penalty_stiff_for_the_step_unless_told_otherwise() 
     // gap in file units; and the paper's constant response with its own magnitude rule.
     let given = INDENT.replace("[[contact]]", "[[contact]]\nstiffness = 250\ngap = 0.5");
     let built = build_world(&SceneFile::parse("indent.toml", &given).unwrap()).unwrap();
-    assert_eq!(built.world.contacts[0].response, Response::Penalty { stiffness: 250.0, gap: 0.5 });
+    assert_eq!(built.world.contacts[0].response(), Response::Penalty { stiffness: 250.0, gap: 0.5 });
     let constant = INDENT.replace("[[contact]]", "[[contact]]\nresponse = \"constant\"");
     let built = build_world(&SceneFile::parse("indent.toml", &constant).unwrap()).unwrap();
-    assert_eq!(built.world.contacts[0].response, Response::Constant);
+    assert_eq!(built.world.contacts[0].response(), Response::Constant);
 }

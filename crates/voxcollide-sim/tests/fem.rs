@@ -1,4 +1,4 @@
-//! The Neo-Hookean tetrahedra (DESIGN §12, issue 21): they honour the file's Poisson ratio,
+//! The Neo-Hookean tetrahedra (docs/design.md §12, issue 21): they honour the file's Poisson ratio,
 //! where the paper's spring lattice has its own 1/4.
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
@@ -8,7 +8,7 @@ use std::sync::Arc;
 
 use voxcollide::glam::{Mat3, UVec3, Vec3};
 use voxcollide_sim::bodies::box_lattice;
-use voxcollide_sim::fem::{Elements, lattice_tets};
+use voxcollide_sim::material::neo_hookean::{Elements, lattice_tets};
 use voxcollide_sim::*;
 
 /// A bar `w × w × 4w` cells of spacing 1, pinned at its base, its top driven up by `strain`;
@@ -142,7 +142,7 @@ fn a_scene_files_neo_hookean_block_is_tetrahedra_at_the_files_ratio() {
     assert_eq!(e.tets.len(), 8 * 8 * 4 * 6);
     let volume: f32 = e.volume.iter().sum();
     assert!((volume - 20.0 * 20.0 * 10.0).abs() < 1.0, "{volume}");
-    let (mu, lambda) = voxcollide_sim::fem::lame(3e3 * 1e-3, 0.45);
+    let (mu, lambda) = voxcollide_sim::material::neo_hookean::lame(3e3 * 1e-3, 0.45);
     assert!((e.mu - mu as f32).abs() < 1e-6 && (e.lambda - (lambda + mu) as f32).abs() < 1e-4);
     assert!(body.springs.iter().all(|s| s.k == 0.0));
     assert!(built.notes[0].remarks.iter().any(|r| r.contains("neo-hookean")), "{:?}", built.notes[0].remarks);

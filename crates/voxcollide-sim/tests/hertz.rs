@@ -8,8 +8,8 @@ use std::time::Instant;
 
 use voxcollide::glam::Vec3;
 use voxcollide::{Error, Search};
-use voxcollide_sim::body::spring_force;
 use voxcollide_sim::build::build_world;
+use voxcollide_sim::material::springs::spring_force;
 use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{CpuWorld, MassSpring, Mode};
 

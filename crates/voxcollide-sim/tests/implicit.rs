@@ -1,4 +1,4 @@
-//! The implicit integrator (DESIGN §12): stable far beyond the explicit bound, a fill that
+//! The implicit integrator (docs/design.md §12): stable far beyond the explicit bound, a fill that
 //! holds its volume, the explicit integrator's answer at rest, and the same trajectory on any
 //! number of threads.
 

@@ -1,10 +1,10 @@
-//! Scene files (DESIGN §8): every key of the contract is read, defaults are as documented, and
+//! Scene files (docs/design.md §8): every key of the contract is read, defaults are as documented, and
 //! every kind of mistake is an error naming the file, the line, the column and the key.
 
 use voxcollide::Error;
 use voxcollide_sim::scene_file::*;
 
-/// A file with every key of DESIGN §8 (one valid body of each kind).
+/// A file with every key of docs/design.md §8 (one valid body of each kind).
 const FULL: &str = r#"
 units = "cm"
 
@@ -117,7 +117,7 @@ fn every_key_of_the_contract_is_read() {
     assert_eq!((d.a, d.b, d.direction, d.search), (2, 0, DirectionSpec::Pairwise, SearchSpec::Neighbours));
     assert_eq!((d.radius, d.voxel_size, d.magnitude), (Auto::Auto, Auto::Auto, Auto::Auto));
     // ... and the response that holds, measured to the surfaces on both sides, its stiffness and
-    // gap chosen (DESIGN §11).
+    // gap chosen (docs/design.md §11).
     assert_eq!((d.response, d.stiffness, d.gap), (ResponseSpec::Surface, Auto::Auto, Auto::Auto));
     assert_eq!(s.output, Output { frames: 6, images: false, vtk: true });
 }
@@ -324,7 +324,7 @@ fn bad_cases() -> Vec<(&'static str, usize, usize, &'static str, &'static str)> 
             "contact[0].direction",
             "unknown variant",
         ),
-        // DESIGN §12's keys are read; what is not built yet is refused by its key.
+        // docs/design.md §12's keys are read; what is not built yet is refused by its key.
         ("[time]\nintegrator = \"leapfrog\"\n", 2, 14, "time.integrator", "unknown variant"),
         (with("material = { model = \"foam\" }\n"), 6, 22, "body[0].material.model", "unknown variant"),
         (
@@ -419,7 +419,7 @@ fn a_missing_mesh_or_file_is_named() {
 
 #[test]
 fn the_papers_integrator_and_material_are_read_by_name() {
-    // DESIGN §12: the explicit integrator and the spring lattice, named as the contract names them.
+    // docs/design.md §12: the explicit integrator and the spring lattice, named as the contract names them.
     let s = SceneFile::parse(
         "p.toml",
         "[time]\nintegrator = \"explicit\"\n[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [1, 1, 1] }\nspacing = 0.5\nmaterial = { model = \"springs\", young_kpa = 3.0, poisson = 0.45, density = 1000.0, damping = 0.1 }\n",

@@ -10,10 +10,10 @@ fn every_simulation_shader_validates() {
         wgsl::validate(name, source, &["main"]);
     }
     // The implicit passes: one source, each pass its own value of the overridable `PASS`.
-    wgsl::validate("implicit", voxcollide_sim::gpu_implicit::IMPLICIT, &["main"]);
-    wgsl::validate("implicit_contact", voxcollide_sim::gpu_implicit::IMPLICIT_CONTACT, &["main"]);
-    wgsl::validate("couple", voxcollide_sim::gpu_implicit::COUPLE, &["main"]);
-    wgsl::validate("couple_gather", voxcollide_sim::gpu_implicit::COUPLE_GATHER, &["main"]);
+    wgsl::validate("implicit", voxcollide_sim::gpu::implicit::IMPLICIT, &["main"]);
+    wgsl::validate("implicit_contact", voxcollide_sim::gpu::implicit::IMPLICIT_CONTACT, &["main"]);
+    wgsl::validate("couple", voxcollide_sim::gpu::implicit::COUPLE, &["main"]);
+    wgsl::validate("couple_gather", voxcollide_sim::gpu::implicit::COUPLE_GATHER, &["main"]);
 }
 
 #[test]

@@ -134,7 +134,7 @@ fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {
         pool.install(|| {
             let file = SceneFile::parse("press.toml", PRESS).unwrap();
             let built = build_world(&file).unwrap();
-            assert!(built.world.contacts[0].surface.is_some(), "the default response is the surface one");
+            assert!(built.world.contacts[0].surface().is_some(), "the default response is the surface one");
             let mut cpu = CpuWorld::new(built.world).unwrap();
             let mut pushed = 0;
             for _ in 0..400 {
@@ -191,7 +191,10 @@ fn under_the_explicit_integrator_a_surface_contact_steps_the_same_bits_on_cpu_an
     let Some(ctx) = common::gpu() else { return };
     for (name, text, steps) in [("press.toml", PRESS, 400), ("dome.toml", DOME, 300)] {
         let built = build_world(&SceneFile::parse(name, text).unwrap()).unwrap();
-        assert!(built.world.contacts[0].surface.is_some(), "{name}: the default response is the surface one");
+        assert!(
+            built.world.contacts[0].surface().is_some(),
+            "{name}: the default response is the surface one"
+        );
         if name == "dome.toml" {
             assert!(built.world.bodies[0].embedded.is_some(), "the dome carries its sphere");
         }
@@ -340,8 +343,7 @@ fn moving_ball_on_block() -> World {
         b: 1,
         grid,
         params,
-        response: Response::Penalty { stiffness, gap: 0.0 },
-        surface: Some(SurfacePenalty { stiffness, gap: 0.0, reach: 4.0, margin: 1.0 }),
+        model: ContactModel::Surface(SurfacePenalty { stiffness, gap: 0.0, reach: 4.0, margin: 1.0 }),
     };
     let schedule = std::sync::Arc::new(|_| {
         vec![

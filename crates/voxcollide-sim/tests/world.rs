@@ -42,8 +42,7 @@ fn world() -> World {
         b: 0,
         grid: Initializer::new(0.25).margin(4).build(&shell.pos).unwrap(),
         params,
-        response,
-        surface: None,
+        model: ContactModel::Voxel(response),
     };
     let penalty = Response::Penalty { stiffness: 40.0, gap: 0.0 };
     let contacts = vec![contact(1, &left, Response::Constant), contact(2, &right, penalty)];

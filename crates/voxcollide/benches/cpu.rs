@@ -1,4 +1,4 @@
-//! CPU reference backend on the DESIGN §7 workloads (one thread): a step is everything from
+//! CPU reference backend on the docs/design.md §7 workloads (one thread): a step is everything from
 //! positions to forces for both bodies. Run: `cargo bench --bench cpu`.
 
 use std::hint::black_box;

@@ -1,4 +1,4 @@
-//! What the penalty response costs a step against the paper's constant one (DESIGN §7's
+//! What the penalty response costs a step against the paper's constant one (docs/design.md §7's
 //! lattice workload, plane-normal and pairwise), on the reference (one thread) and the
 //! parallel backend, with the two responses interleaved in one group so that their ratio comes
 //! from the same moments. Run: `cargo bench --bench response`.

@@ -1,4 +1,4 @@
-//! Steps one backend on one DESIGN §7 workload in a loop and prints the median, for profiling
+//! Steps one backend on one docs/design.md §7 workload in a loop and prints the median, for profiling
 //! (`perf record`, callgrind) and quick before/after checks; `voxcollide bench` is the full table.
 //! With `VOXCOLLIDE_PHASES=1` it also prints each phase's median (`set_profiling`).
 //!

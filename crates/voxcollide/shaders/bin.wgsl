@@ -1,4 +1,4 @@
-// Pass 2a: count the vertices of every slot (a counting sort by slot, DESIGN §3's VoxelData):
+// Pass 2a: count the vertices of every slot (a counting sort by slot, docs/design.md §3's VoxelData):
 // each vertex whose voxel is inside the grid adds one to its slot's count. Run for A (BODY 0),
 // and for B (BODY 1) by A's slots, so that the probe walks B in A's slot order whatever order B
 // comes in. CPU twins: VoxelData::bin, and parallel/sort.rs.

@@ -1,4 +1,4 @@
-//! `CpuCollision`: the single-threaded reference backend, written to follow DESIGN §2 plainly.
+//! `CpuCollision`: the single-threaded reference backend, written to follow docs/design.md §2 plainly.
 //! Every other backend is checked against it.
 
 use glam::Vec3;

@@ -1,5 +1,5 @@
 //! The paper's `CollisionDetector`: bins body A into the voxel data, then finds which B
-//! vertices collide and with which A vertices (DESIGN §2, *Search* and *Partner choice*).
+//! vertices collide and with which A vertices (docs/design.md §2, *Search* and *Partner choice*).
 
 use std::cmp::Ordering;
 

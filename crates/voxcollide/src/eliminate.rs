@@ -1,5 +1,5 @@
 //! The paper's `CollisionEliminator`: turns contacts into equal and opposite penalty forces
-//! (DESIGN §2, *Direction*).
+//! (docs/design.md §2, *Direction*).
 
 use glam::Vec3;
 

@@ -1,4 +1,4 @@
-//! Order-independent accumulation of the forces on body A in fixed point (DESIGN §2,
+//! Order-independent accumulation of the forces on body A in fixed point (docs/design.md §2,
 //! *Accumulation*): each component becomes an integer count of `magnitude / 65536`, counts are
 //! summed exactly, and a total outside `i32` is an error instead of a wrapped value.
 

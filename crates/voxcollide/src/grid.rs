@@ -43,7 +43,7 @@ impl VoxelGrid {
         if !center.is_finite() {
             return Err(Error::NonFiniteCenter { center });
         }
-        // DESIGN §2, in f32 and in this order: `voxel_size * 0.5` first.
+        // docs/design.md §2, in f32 and in this order: `voxel_size * 0.5` first.
         let half = voxel_size * 0.5;
         let origin = center - Vec3::new(half * dims.x as f32, half * dims.y as f32, half * dims.z as f32);
         Ok(VoxelGrid { center, voxel_size, dims, origin, inv: 1.0 / voxel_size })

@@ -46,7 +46,7 @@ impl Initializer {
         Initializer { toward: Some(toward), ..self }
     }
 
-    /// Builds the grid over the finite vertices of `a` (DESIGN §2, *Initializer*):
+    /// Builds the grid over the finite vertices of `a` (docs/design.md §2, *Initializer*):
     /// `center = 0.5 * (lo + hi)`, `side = max(hi - lo)`,
     /// `n = max(ceil(side / voxel_size) + 2 * margin, 1)` voxels per axis.
     ///

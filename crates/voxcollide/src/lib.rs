@@ -3,7 +3,7 @@
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 
-// The paper's architecture (DESIGN §1, its Fig. 4), one module a box:
+// The paper's architecture (docs/design.md §1, its Fig. 4), one module a box:
 pub mod collision; //    `Collision`: the facade trait every backend implements
 pub mod cpu; //          `CpuCollision`: the reference backend
 pub mod detect; //       `CollisionDetector`: binning and search
@@ -21,7 +21,7 @@ pub mod math;
 pub mod parallel; //     `ParallelCpuCollision`: the multi-threaded CPU backend (rayon)
 pub mod params;
 pub mod report;
-pub mod workload; //     the benchmark workloads of DESIGN §7
+pub mod workload; //     the benchmark workloads of docs/design.md §7
 
 pub use collision::Collision;
 pub use cpu::CpuCollision;

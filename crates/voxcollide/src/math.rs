@@ -1,4 +1,4 @@
-//! Vector arithmetic in one fixed `f32` order (DESIGN §2: "exactly in the order written"), so
+//! Vector arithmetic in one fixed `f32` order (docs/design.md §2: "exactly in the order written"), so
 //! that the GPU shaders, which spell out the same expressions, give the same bits.
 //!
 //! No fused multiply-add and no `normalize` or `length` helper whose order is left to a library:

@@ -10,7 +10,7 @@ pub const MIN_MAGNITUDE: f32 = 1e-30;
 /// `count * (magnitude / 65536)`, could leave `f32`.
 pub const MAX_MAGNITUDE: f32 = 1e30;
 
-/// When a B vertex collides, and which A vertices are its candidates (DESIGN §2, *Search*).
+/// When a B vertex collides, and which A vertices are its candidates (docs/design.md §2, *Search*).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Search {
     /// The paper's rule: `b` collides iff its voxel holds an A vertex; the candidates are the A
@@ -25,7 +25,7 @@ pub enum Search {
     },
 }
 
-/// Which way the penalty force of a contact points (DESIGN §2, *Direction*).
+/// Which way the penalty force of a contact points (docs/design.md §2, *Direction*).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Direction {
     /// Along the line of centres of `b` and its partner.
@@ -35,7 +35,7 @@ pub enum Direction {
     PlaneNormal,
 }
 
-/// Where the grid sits from step to step (DESIGN §2, *Anchor*).
+/// Where the grid sits from step to step (docs/design.md §2, *Anchor*).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Anchor {
     /// The grid stays where it was built.
@@ -85,7 +85,7 @@ impl ContactParams {
     }
 }
 
-/// How strongly a contact pushes: the magnitude of its force (DESIGN §2 gives the paper's,
+/// How strongly a contact pushes: the magnitude of its force (docs/design.md §2 gives the paper's,
 /// [`Response::Constant`]; docs/semantics.md gives both).
 ///
 /// Set on a backend with `with_response` ([`CpuCollision::with_response`](crate::CpuCollision::with_response),

@@ -1,4 +1,4 @@
-//! The benchmark workloads of DESIGN §7, seeded and reproducible, so that every figure (and
+//! The benchmark workloads of docs/design.md §7, seeded and reproducible, so that every figure (and
 //! every example) runs on the same bodies.
 
 use glam::Vec3;

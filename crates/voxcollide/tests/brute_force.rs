@@ -1,6 +1,6 @@
-//! Independent brute-force check of the CPU reference (DESIGN §2).
+//! Independent brute-force check of the CPU reference (docs/design.md §2).
 //!
-//! Everything below re-implements DESIGN §2 ("Semantics (normative)") from the spec alone, the
+//! Everything below re-implements docs/design.md §2 ("Semantics (normative)") from the spec alone, the
 //! slow and obvious way: for every B vertex, every A vertex is looked at (no voxel hash), voxels
 //! are computed here with this file's own `floor((p - origin) * inv)`, and the forces are built
 //! in the f32 order the spec fixes. The result is compared with `CpuCollision` bit for bit, for
@@ -188,7 +188,7 @@ fn pairwise_dir(a: Vec3, b: Vec3, center: Vec3, ctr: &mut Counters) -> Vec3 {
     }
 }
 
-/// One step of DESIGN §2, O(|A|·|B|).
+/// One step of docs/design.md §2, O(|A|·|B|).
 fn brute_force(
     grid: &VoxelGrid,
     params: &ContactParams,

@@ -11,7 +11,7 @@ use voxcollide::glam::{UVec3, Vec3};
 use voxcollide::*;
 
 /// Whether the adapter's `sqrt` is correctly rounded, so that the GPU's forces equal the
-/// reference's bit for bit (DESIGN §2): Mesa's llvmpipe, on Vulkan and on GL.
+/// reference's bit for bit (docs/design.md §2): Mesa's llvmpipe, on Vulkan and on GL.
 fn exact_adapter(ctx: &GpuContext) -> bool {
     ctx.adapter_name().contains("llvmpipe")
 }
@@ -40,7 +40,7 @@ fn gpu_matches_cpu_for_all_combinations() {
     }
     eprintln!("{contacts} contacts compared; {inexact} force components not bit-identical");
     assert!(contacts > 100_000, "only {contacts} contacts");
-    // DESIGN §2: exactly equal where the device's sqrt is correctly rounded, as on Mesa's
+    // docs/design.md §2: exactly equal where the device's sqrt is correctly rounded, as on Mesa's
     // llvmpipe (lavapipe on Vulkan, and on GL); within 1e-5 * m elsewhere (checked above).
     if exact_adapter(&ctx) {
         assert_eq!(inexact, 0, "{}: force components differ in their bits", ctx.adapter_name());
@@ -84,7 +84,7 @@ fn candidates_at_the_radius_are_never_pruned() {
 
 #[test]
 fn the_benchmark_workloads_match_the_cpu() {
-    // DESIGN §7's lattice and paper at 300k: over 256 scan blocks, so the block totals are
+    // docs/design.md §7's lattice and paper at 300k: over 256 scan blocks, so the block totals are
     // summed in more than one round; the parallel backend equals the reference (tests/parallel.rs).
     let Some(ctx) = gpu() else { return };
     for w in [workload::lattice(300_000, 2013).unwrap(), workload::paper(300_000, 2013).unwrap()] {

@@ -1,4 +1,4 @@
-//! Hand-computed cases for the voxel grid and the initializer (DESIGN §2, *Grid* and
+//! Hand-computed cases for the voxel grid and the initializer (docs/design.md §2, *Grid* and
 //! *Initializer*), and their bad-input errors.
 
 use voxcollide::glam::{UVec3, Vec3};

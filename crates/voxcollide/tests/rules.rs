@@ -1,4 +1,4 @@
-//! Hand-computed cases for each collision rule of DESIGN §2, with the numbers in the comments,
+//! Hand-computed cases for each collision rule of docs/design.md §2, with the numbers in the comments,
 //! and the bad-input errors of `CpuCollision`.
 
 use voxcollide::fixed_point::ForceAccumulator;

@@ -22,11 +22,12 @@ use super::blit::Blit;
 use super::controls::{Action, Colouring, HELP, Orbit};
 use super::stepper::{Snapshot, Stepper};
 use super::{ViewConfig, ViewReport};
+use crate::backend::Backend;
 use crate::render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
 };
-use crate::scenario::Backend;
-use crate::scene_run::{Run, contact_forces, meshes, shown_and_moved};
+use crate::scene_run::{contact_forces, meshes, shown_and_moved};
+use voxcollide_sim::simulation;
 
 /// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. The
 /// simulation steps on its own thread meanwhile (`super::stepper`).
@@ -343,7 +344,7 @@ impl Live {
                 ));
                 false
             }
-            Backend::Auto => match crate::scene_run::cpu_first(&built.world) {
+            Backend::Auto => match crate::backend::cpu_first(&built.world) {
                 Some(why) => {
                     note(&format!("{why} steps on the CPU"));
                     false
@@ -366,7 +367,7 @@ impl Live {
         }));
         let first = draggable(built.world.clone(), &drags);
         let stepper = Stepper::start(
-            Run::new(on_gpu.then_some(&ctx), first.clone())?,
+            simulation(on_gpu.then_some(&ctx), first.clone())?,
             f64::from(built.dt),
             config.steps_per_frame.is_some(),
         )?;
@@ -485,7 +486,7 @@ impl Live {
                     d.target.iter_mut().chain(d.now.iter_mut()).for_each(|v| *v = Vec3::ZERO);
                 }
                 let on_gpu = self.backend == "gpu";
-                match Run::new(on_gpu.then_some(&self.ctx), self.first.clone()) {
+                match simulation(on_gpu.then_some(&self.ctx), self.first.clone()) {
                     Ok(sim) => {
                         self.stepper.reset(sim);
                         self.steps = 0;

@@ -1,4 +1,4 @@
-//! `voxcollide view` (DESIGN §10): a scene run live in a window (winit and a wgpu surface),
+//! `voxcollide view` (docs/design.md §10): a scene run live in a window (winit and a wgpu surface),
 //! drawn each frame as the run's pictures are, with a camera to orbit, pan and zoom, pause,
 //! step and reset, a colouring to cycle with its legend, a heads-up line, and instruments to
 //! drag with the mouse while the tissue responds (the paper's virtual operation).
@@ -25,7 +25,7 @@ use voxcollide_sim::scene_file::SceneFile;
 pub use blit::BLIT_SHADER;
 pub use controls::{Action, Colouring, HELP, Orbit, Pacing, ScriptedDrag};
 
-use crate::scenario::Backend;
+use crate::backend::Backend;
 
 /// The scenes `view` knows by name (the files under `scenes/` that need no mesh file), built in.
 pub const SHIPPED: [(&str, &str); 6] = [

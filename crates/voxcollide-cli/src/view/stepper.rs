@@ -161,7 +161,7 @@ impl Drop for Stepper {
 
 /// The run's state now.
 fn snapshot(run: &mut Run, steps: u64, dt: f32) -> Result<Snapshot, Error> {
-    let time = run.time(steps, dt);
+    let time = crate::scene_run::simulated_time(&**run, steps, dt);
     let (world, reports) = run.frame()?;
     Ok(Snapshot { world: world.clone(), reports, steps, time })
 }
@@ -256,12 +256,13 @@ mod tests {
     use super::*;
     use voxcollide_sim::build::build_world;
     use voxcollide_sim::scene_file::SceneFile;
+    use voxcollide_sim::simulation;
 
     const BLOCK: &str = "units = \"mm\"\n[time]\nduration = 10.0\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [20, 20, 10] }\nspacing = 2.5\nmaterial = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }\nfixed = [{ below = { z = -4.9 } }]\n";
 
     fn block(fixed: bool) -> Stepper {
         let built = build_world(&SceneFile::parse("block.toml", BLOCK).unwrap()).unwrap();
-        Stepper::start(Run::new(None, built.world).unwrap(), f64::from(built.dt), fixed).unwrap()
+        Stepper::start(simulation(None, built.world).unwrap(), f64::from(built.dt), fixed).unwrap()
     }
 
     fn wait_for(stepper: &Stepper, what: impl Fn(u64) -> bool) -> u64 {
@@ -309,7 +310,7 @@ mod tests {
         s.step_and_wait(3);
         assert_eq!(s.take_latest().map(|l| l.steps), Some(10));
         let built = build_world(&SceneFile::parse("block.toml", BLOCK).unwrap()).unwrap();
-        s.reset(Run::new(None, built.world).unwrap());
+        s.reset(simulation(None, built.world).unwrap());
         s.step_and_wait(2);
         let latest = s.take_latest().expect("a state after the reset");
         assert_eq!(latest.steps, 2, "counted from the reset");

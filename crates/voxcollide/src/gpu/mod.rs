@@ -1,4 +1,4 @@
-//! The GPU backend: WGSL compute passes on wgpu (DESIGN §3), checked against the CPU reference.
+//! The GPU backend: WGSL compute passes on wgpu (docs/design.md §3), checked against the CPU reference.
 //!
 //! A step is fourteen passes recorded into one command encoder — bounds (FollowA only), frame, a
 //! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), the same of B by

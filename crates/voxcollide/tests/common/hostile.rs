@@ -8,7 +8,7 @@
 //! - the backends agree: the reference's report, exactly, from the parallel backend; from the GPU
 //!   the same `colliding_b`, counts and center, and forces bit for bit where the adapter's `sqrt`
 //!   is correctly rounded (Mesa's llvmpipe, on Vulkan and on GL), within `1e-5 * m` elsewhere
-//!   (DESIGN §2); or the same `Error` variant from every backend;
+//!   (docs/design.md §2); or the same `Error` variant from every backend;
 //! - the reference's report keeps its invariants: the lengths, `binned_a + discarded_a == |A|`,
 //!   `colliding_b` ascending and in range, finite forces, `force_b` zero exactly where B does not
 //!   collide and of length `m` (to f32 rounding) where it does, and a net force within the
@@ -515,7 +515,7 @@ fn agree(
     }
 }
 
-/// The invariants of DESIGN §2 that a report keeps whatever its inputs.
+/// The invariants of docs/design.md §2 that a report keeps whatever its inputs.
 /// `constant`: every contact's force has the magnitude `m` (the paper's response); otherwise at
 /// most `m` (a penalty).
 pub fn invariants(r: &ContactReport, a: &[Vec3], b: &[Vec3], m: f32, constant: bool) -> Result<(), String> {

@@ -1,4 +1,4 @@
-//! Finite elements that honour Poisson's ratio (DESIGN §12, `model = "neo-hookean"`): linear
+//! The Neo-Hookean material (WGSL twin: `shaders/elements.wgsl`): finite elements that honour Poisson's ratio (docs/design.md §12, `model = "neo-hookean"`): linear
 //! tetrahedra of a stable Neo-Hookean material (Smith, de Goes and Kim 2018, without its
 //! `log(I_C + 1)` term), on a lattice's cubes (six tetrahedra each, the Freudenthal split that
 //! neighbouring cubes share faces with) or on a `.vtu`/`.msh` mesh's own tetrahedra.
@@ -34,6 +34,8 @@
 use glam::{Mat3, Mat3A, UVec3, Vec3, Vec3A};
 use std::collections::HashMap;
 
+use super::Material;
+use crate::body::MassSpring;
 use voxcollide::error::Error;
 
 /// The tetrahedra of a body and their material.
@@ -204,6 +206,39 @@ impl Elements {
             }
         }
         bound
+    }
+}
+
+/// The elements as a [`Material`]: each vertex's tetrahedra, gathered in adjacency order.
+impl Material for Elements {
+    fn add_force(
+        &self,
+        _body: &MassSpring,
+        pos: &[Vec3],
+        _vel: &[Vec3],
+        _rest_scale: f32,
+        i: usize,
+        f: &mut Vec3,
+    ) {
+        // Summed first, then added: as `shaders/elements.wgsl`'s `elements_force`.
+        *f += self.force_on(pos, i);
+    }
+
+    fn for_each_term(
+        &self,
+        _body: &MassSpring,
+        pos: &[Vec3],
+        _rest_scale: f32,
+        i: usize,
+        term: &mut dyn FnMut(Vec3),
+    ) {
+        for &[k, c] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
+            term(self.corner_force(pos, k as usize, c as usize));
+        }
+    }
+
+    fn stiffness_bounds(&self, body: &MassSpring, _s_max: f32) -> Vec<f32> {
+        self.stiffness_bound(body.len())
     }
 }
 

@@ -1,4 +1,4 @@
-//! The implicit integrator on the GPU (DESIGN §12): [`crate::GpuWorld`]'s step for a world of
+//! The implicit integrator on the GPU (docs/design.md §12): [`crate::GpuWorld`]'s step for a world of
 //! spring lattices and Neo-Hookean tetrahedra, with the voxel model's contacts or the surface
 //! contact's couplings, in WGSL (`shaders/implicit.wgsl`, `elements.wgsl`, `couple.wgsl`).
 //!
@@ -18,7 +18,7 @@
 //! joint system's, and every body reports the joint solve in its [`StepStats`]. A fill's
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
-//! **A surface contact's couplings** ([`crate::implicit::Coupling`]) are built on the host from
+//! **A surface contact's couplings** ([`crate::integrator::implicit::Coupling`]) are built on the host from
 //! its pushes each step and uploaded (`Couplings`); `shaders/couple.wgsl` takes each one's
 //! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
 //! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
@@ -35,32 +35,35 @@ use bytemuck::{Pod, Zeroable};
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::StepInputs;
-use crate::implicit::{Residual, StepStats};
+use crate::integrator::implicit::{Residual, StepStats};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
 
 /// The implicit passes' WGSL, composed with `sim_common.wgsl`.
 pub const IMPLICIT: &str = concat!(
-    include_str!("../shaders/sim_common.wgsl"),
-    include_str!("../shaders/implicit_slots.wgsl"),
-    include_str!("../shaders/elements.wgsl"),
-    include_str!("../shaders/implicit.wgsl")
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/implicit_slots.wgsl"),
+    include_str!("../../shaders/springs.wgsl"),
+    include_str!("../../shaders/elements.wgsl"),
+    include_str!("../../shaders/implicit.wgsl")
 );
 /// The couplings' passes' WGSL (a surface contact in the implicit solve).
 pub const COUPLE: &str = concat!(
-    include_str!("../shaders/sim_common.wgsl"),
-    include_str!("../shaders/implicit_slots.wgsl"),
-    include_str!("../shaders/couple.wgsl")
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/implicit_slots.wgsl"),
+    include_str!("../../shaders/couple.wgsl")
 );
 /// The couplings' gather pass's WGSL.
 pub const COUPLE_GATHER: &str = concat!(
-    include_str!("../shaders/sim_common.wgsl"),
-    include_str!("../shaders/implicit_slots.wgsl"),
-    include_str!("../shaders/couple_gather.wgsl")
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/implicit_slots.wgsl"),
+    include_str!("../../shaders/couple_gather.wgsl")
 );
 /// The contact stiffness pass's WGSL.
-pub const IMPLICIT_CONTACT: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/implicit_contact.wgsl"));
+pub const IMPLICIT_CONTACT: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/implicit_contact.wgsl")
+);
 
 /// Conjugate-gradient iterations recorded between two looks at whether the solves converged.
 pub const BATCH: u32 = 8;
@@ -681,7 +684,7 @@ struct Gather {
 }
 
 /// The surface contacts' couplings in the device's implicit solve (`shaders/couple.wgsl`): the
-/// host builds them from the contacts' pushes each step ([`crate::implicit::Coupling`], as the
+/// host builds them from the contacts' pushes each step ([`crate::integrator::implicit::Coupling`], as the
 /// CPU does) and uploads them; the passes add their terms to `A·p`, `A·x` and the right-hand
 /// side, and mark which the solve ends within the gap.
 pub(crate) struct Couplings {
@@ -702,7 +705,7 @@ pub(crate) struct Couplings {
     capacity: (u64, u64),
     /// This step's: per contact its first coupling and count, and the couplings.
     ranges: Vec<(u32, u32)>,
-    host: Vec<crate::implicit::Coupling>,
+    host: Vec<crate::integrator::implicit::Coupling>,
     h: f32,
     bound: bool,
 }
@@ -805,7 +808,7 @@ impl Couplings {
         bodies: &[crate::body::MassSpring],
         implicit: &[ImplicitBody],
         vel: &[&Buffer],
-        per_contact: Vec<Vec<crate::implicit::Coupling>>,
+        per_contact: Vec<Vec<crate::integrator::implicit::Coupling>>,
         h: f32,
     ) {
         use crate::contact::entries;
@@ -816,8 +819,8 @@ impl Couplings {
             self.host.extend(list);
         }
         self.h = h;
-        let damping = crate::implicit::coupling_damping(bodies, &self.host);
-        let blocks = crate::implicit::coupling_blocks(bodies, &self.host, &damping, h);
+        let damping = crate::integrator::implicit::coupling_damping(bodies, &self.host);
+        let blocks = crate::integrator::implicit::coupling_blocks(bodies, &self.host, &damping, h);
         // The records and their entries; per coupled body, its lists.
         let mut records = Vec::with_capacity(self.host.len());
         let mut flat: Vec<[u32; 2]> = Vec::new();
@@ -977,7 +980,7 @@ impl Couplings {
     }
 
     /// This step's couplings.
-    pub(crate) fn couplings(&self) -> &[crate::implicit::Coupling] {
+    pub(crate) fn couplings(&self) -> &[crate::integrator::implicit::Coupling] {
         &self.host
     }
 

@@ -1,4 +1,4 @@
-//! The implicit integrator (DESIGN §12, `integrator = "implicit"`): backward Euler, linearised
+//! The implicit integrator (docs/design.md §12, `integrator = "implicit"`): backward Euler, linearised
 //! once per step (Baraff and Witkin 1998) and solved matrix-free by a block-Jacobi
 //! preconditioned conjugate gradient, on every core, each solve starting from the last step's
 //! answer ([`Guess`]: a third fewer iterations on the time-to-rest benchmark's scenes).
@@ -19,7 +19,7 @@
 //! pushed vertex and the three corners of the partner's triangle it is pushed from (a
 //! [`Coupling`]); for the voxel model's, `−k_c·nnᵀ` on the pushed vertex alone; and for a body
 //! of finite elements each tetrahedron's stiffness, projected to be positive semi-definite
-//! ([`crate::fem::Tangent`]), its products gathered per vertex. `D` holds the
+//! ([`crate::material::neo_hookean::Tangent`]), its products gathered per vertex. `D` holds the
 //! vertex damping, each spring's damping along it and each push's critical damping of the
 //! relative speed along it.
 //!
@@ -44,9 +44,11 @@
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
-use crate::body::{MassSpring, Mode, StepInputs, driven_target, spring_force};
+use super::{CpuIntegrator, Loads};
+use crate::body::{MassSpring, Mode, StepInputs, driven_target};
 use crate::contact::{POINT_VERTICES, Push, Stencil, entries};
-use crate::fem::{TetStiffness, corner_of};
+use crate::material::neo_hookean::{TetStiffness, corner_of};
+use crate::material::springs;
 use crate::world::ContactPair;
 use voxcollide::math::cross;
 
@@ -69,7 +71,7 @@ pub struct ImplicitSettings {
     /// bodies are left as they were, [`StepStats::taken`] is `false`), for the caller to take
     /// it again as shorter steps: [`crate::CpuWorld`] does while a schedule runs, along the
     /// schedule ([`StepInputs::toward`](crate::StepInputs::toward)), in at most
-    /// [`crate::cpu::MAX_SUBSTEPS`] parts, and a scene file's world asks it. `false`:
+    /// [`crate::integrator::substep::MAX_SUBSTEPS`] parts, and a scene file's world asks it. `false`:
     /// the step's velocity is scaled down by one factor over all bodies. Scaling keeps the
     /// contacts' promise but not the motion: a 3,000 kPa shell filling to 800 mL under 1 kPa
     /// tissue, at steps where its fill moved it 3–5 times `max_move`, moved at a fifth of its
@@ -327,9 +329,8 @@ impl MassSpring {
                 }
                 let u = d / len;
                 let rest = s.rest * rest_scale;
-                let strain = (len - rest) / rest;
-                let tension = s.k * (len - rest) * (1.0 + m.stiffening * strain * strain);
-                let tangent = s.k * (1.0 + 3.0 * m.stiffening * strain * strain);
+                let tension = springs::tension(len, rest, s.k, m.stiffening);
+                let tangent = springs::tangent(len, rest, s.k, m.stiffening);
                 // tangent·uuᵀ + across·(I − uuᵀ) = across·I + (tangent − across)·uuᵀ.
                 let across = tension.max(0.0) / len;
                 let along = tangent - across;
@@ -469,23 +470,13 @@ impl MassSpring {
         contact: &[Vec3],
         pressure: f32,
     ) -> (Vec3, f32) {
-        let m = &self.material;
-        let x = pos[i];
         let mut f = contact[i];
         let mut g = contact[i].length();
-        for &[j, k] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-            let s = self.springs[k as usize];
-            let t =
-                spring_force(x, Vec3::ZERO, pos[j as usize], Vec3::ZERO, s.rest * inputs.rest_scale, s.k, m);
-            f += t;
-            g += t.length();
-        }
-        if let Some(e) = &self.elements {
-            for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
-                let t = e.corner_force(pos, k as usize, c as usize);
+        for material in self.materials() {
+            material.for_each_term(self, pos, inputs.rest_scale, i, &mut |t| {
                 f += t;
                 g += t.length();
-            }
+            });
         }
         if pressure != 0.0 {
             for &t in &self.tri_adjacency[self.tri_offsets[i] as usize..self.tri_offsets[i + 1] as usize] {
@@ -1076,4 +1067,43 @@ fn conjugate_gradient(
         iterations += 1;
     }
     (x, iterations, (residual / norm_b) as f32)
+}
+
+/// The implicit step on the CPU, as a [`CpuIntegrator`]: every body's residual at rest, the
+/// voxel model's contact stiffness and the surface contacts' couplings, then one solve over
+/// every body ([`integrate_implicit_together`]). It keeps nothing of its own: the last answer
+/// (`guess`) and the solves (`stats`) are the world's.
+pub struct Implicit<'a> {
+    /// This step's settings.
+    pub settings: ImplicitSettings,
+    /// Where the solve starts, and where its answer is kept for the next step.
+    pub guess: &'a mut Guess,
+    /// The solves, per body.
+    pub stats: &'a mut Vec<StepStats>,
+}
+
+impl CpuIntegrator for Implicit<'_> {
+    fn integrate(&mut self, bodies: &mut [MassSpring], loads: &Loads<'_>) -> Residual {
+        let mut residual = Residual::default();
+        let mut contact_k = Vec::with_capacity(bodies.len());
+        let mut contact_vel = Vec::with_capacity(bodies.len());
+        for (k, body) in bodies.iter().enumerate() {
+            residual = residual.plus(body.residual(&loads.inputs[k], &loads.contact[k]));
+            // What the voxel model's penalties push against stands still.
+            contact_vel.push(vec![Vec3::ZERO; body.len()]);
+            contact_k.push(loads.contacts.stiffness_on(k, body.len(), loads.pairs, loads.reports));
+        }
+        let couplings = loads.contacts.couplings(loads.pairs);
+        let steps: Vec<BodyStep> = (0..bodies.len())
+            .map(|k| BodyStep {
+                inputs: &loads.inputs[k],
+                forces: &loads.forces[k],
+                contact: &loads.contact[k],
+                contact_k: &contact_k[k],
+                contact_vel: &contact_vel[k],
+            })
+            .collect();
+        *self.stats = integrate_implicit_together(bodies, &steps, &couplings, &self.settings, self.guess);
+        residual
+    }
 }

@@ -1,7 +1,7 @@
 //! The scene stepped on the GPU: the collision passes (through the embedding API) and the
 //! simulation passes `forces` and `integrate` for every body, recorded into one encoder per
 //! step, with nothing read back until a frame is wanted (but a surface contact's positions,
-//! below). Under the implicit integrator the step's solve is [`crate::gpu_implicit`]'s passes
+//! below). Under the implicit integrator the step's solve is [`crate::gpu::implicit`]'s passes
 //! instead, which read back a few numbers (has the solve converged, how far would a vertex
 //! move) where the host must decide.
 //!
@@ -10,26 +10,27 @@
 //! CPU world does (the same code over the same positions), and uploads the two force buffers
 //! that the `forces` pass reads as it reads a collision's: under the explicit integrator, the
 //! CPU's bits. Under the implicit one the pushes are also uploaded as couplings
-//! ([`crate::implicit::Coupling`]) that join the two bodies in the device's one solve
-//! ([`crate::gpu_implicit`]), and the inelastic impulses after the step are the host's. Its
+//! ([`crate::integrator::implicit::Coupling`]) that join the two bodies in the device's one solve
+//! ([`crate::gpu::implicit`]), and the inelastic impulses after the step are the host's. Its
 //! nearest-triangle search has no WGSL passes yet (docs/integrator.md, "On the GPU").
+
+pub mod implicit;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
-use crate::contact::{SurfaceContact, SurfaceForces, SurfaceStats};
-use crate::cpu::{Parts, Stepper, after_implicit_step};
-use crate::gpu_implicit::{BodyBuffers, CoupledPair, Couplings, ImplicitBody, ImplicitKernels, Setup, Sums};
-use crate::implicit::Coupling;
-use crate::implicit::{ImplicitSettings, Residual, StepStats};
+use crate::contact::{ContactModel, SurfaceContact, SurfaceForces, SurfaceStats};
+use crate::integrator::implicit::Coupling;
+use crate::integrator::implicit::{ImplicitSettings, Residual, StepStats};
+use crate::integrator::substep::{Parts, Stepper, after_implicit_step};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
+use implicit::{BodyBuffers, CoupledPair, Couplings, ImplicitBody, ImplicitKernels, Setup, Sums};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuCollision, GpuContext, scoped};
-use voxcollide::params::Response;
 use voxcollide::report::ContactReport;
 
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
@@ -37,13 +38,14 @@ pub const SHADERS: [(&str, &str); 4] =
     [("accumulate", ACCUMULATE), ("volume", VOLUME), ("forces", FORCES), ("integrate", INTEGRATE)];
 /// Pass 1: forces over mass.
 pub const FORCES: &str = concat!(
-    include_str!("../shaders/sim_common.wgsl"),
-    include_str!("../shaders/elements.wgsl"),
-    include_str!("../shaders/forces.wgsl")
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/springs.wgsl"),
+    include_str!("../../shaders/elements.wgsl"),
+    include_str!("../../shaders/forces.wgsl")
 );
 /// Pass 2: integration.
 pub const INTEGRATE: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/integrate.wgsl"));
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/integrate.wgsl"));
 
 /// A body's step parameters. Keep in sync with `SimParams` in `shaders/sim_common.wgsl`.
 #[repr(C)]
@@ -197,7 +199,7 @@ impl GpuBody {
             tets: body.elements.as_ref().map_or(0, |e| e.tets.len() as u32),
             mu: body.elements.as_ref().map_or(0.0, |e| e.mu),
             lambda: body.elements.as_ref().map_or(0.0, |e| e.lambda),
-            alpha: body.elements.as_ref().map_or(0.0, crate::fem::Elements::alpha),
+            alpha: body.elements.as_ref().map_or(0.0, crate::material::neo_hookean::Elements::alpha),
             _pad: 0,
         }
     }
@@ -295,10 +297,10 @@ struct Implicit {
 
 /// The `accumulate` pass: one body's contact forces from several contacts.
 pub const ACCUMULATE: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/accumulate.wgsl"));
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/accumulate.wgsl"));
 /// The `volume` pass: a filled body's enclosed volume and the fill's pressure.
 pub const VOLUME: &str =
-    concat!(include_str!("../shaders/sim_common.wgsl"), include_str!("../shaders/volume.wgsl"));
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/volume.wgsl"));
 
 impl GpuWorld {
     /// Uploads `world` to the device of `ctx`.
@@ -306,18 +308,18 @@ impl GpuWorld {
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
     /// [`GpuCollision::new`] and [`SurfaceContact::new`]. Both integrators step here (the
-    /// implicit one in [`crate::gpu_implicit`]'s passes), with every contact response.
+    /// implicit one in [`crate::gpu::implicit`]'s passes), with every contact response.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
         let device = ctx.device();
         let collisions = world
             .contacts
             .iter()
-            .map(|c| match c.surface {
-                None => GpuCollision::new(ctx, c.grid, c.params)
-                    .and_then(|g| g.with_response(c.response))
+            .map(|c| match c.model {
+                ContactModel::Voxel(response) => GpuCollision::new(ctx, c.grid, c.params)
+                    .and_then(|g| g.with_response(response))
                     .map(|g| DeviceContact::Voxel(Box::new(g))),
-                Some(penalty) => {
+                ContactModel::Surface(penalty) => {
                     let (a, b) = (&world.bodies[c.a], &world.bodies[c.b]);
                     let contact = SurfaceContact::new(penalty, a, b)?;
                     let buffer = |n: usize| {
@@ -413,7 +415,7 @@ impl GpuWorld {
                     let pairs: Vec<CoupledPair> = world
                         .contacts
                         .iter()
-                        .filter(|c| c.surface.is_some())
+                        .filter(|c| c.surface().is_some())
                         .map(|c| CoupledPair { a: c.a, b: c.b })
                         .collect();
                     let n: Vec<u32> = world.bodies.iter().map(|b| b.len() as u32).collect();
@@ -454,7 +456,7 @@ impl GpuWorld {
 
     /// One step, recorded into one encoder and submitted: every contact's collision → contact
     /// sums → forces → integration, for every body. Nothing is read back but a surface
-    /// contact's positions (and, implicit, the solve's few numbers: [`crate::gpu_implicit`]).
+    /// contact's positions (and, implicit, the solve's few numbers: [`crate::gpu::implicit`]).
     ///
     /// # Errors
     /// The collisions' recording errors, and [`Error::Gpu`] for a validation or out-of-memory
@@ -672,10 +674,7 @@ impl GpuWorld {
                 let mut penalties = Vec::new();
                 for &(c, as_a) in &contacts_of[k] {
                     // (A surface contact's pushes are couplings instead.)
-                    if self.world.contacts[c].surface.is_some() {
-                        continue;
-                    }
-                    if let Response::Penalty { stiffness, .. } = self.world.contacts[c].response {
+                    if let Some(stiffness) = self.world.contacts[c].model.voxel_stiffness() {
                         penalties.push((force_buffer(c, as_a)?, stiffness));
                     }
                 }
@@ -801,7 +800,7 @@ impl GpuWorld {
 }
 
 impl Stepper for GpuWorld {
-    /// The collisions and fills recorded, the solves ([`crate::gpu_implicit`]), and the update
+    /// The collisions and fills recorded, the solves ([`crate::gpu::implicit`]), and the update
     /// with one scale over every body where a vertex would move farther than the largest move,
     /// or none where [`ImplicitSettings::split_far`] refuses such a step.
     fn advance(
@@ -850,7 +849,7 @@ impl Stepper for GpuWorld {
             );
         }
         let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
-        let solved = crate::gpu_implicit::solve(
+        let solved = crate::gpu::implicit::solve(
             &self.ctx,
             encoder,
             &imp.kernels,
@@ -866,7 +865,7 @@ impl Stepper for GpuWorld {
         let scale = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
         let taken = !(settings.split_far && scale < 1.0);
         if taken {
-            crate::gpu_implicit::finish(
+            crate::gpu::implicit::finish(
                 &self.ctx,
                 &imp.kernels,
                 &imp.bodies,
@@ -895,7 +894,11 @@ impl Stepper for GpuWorld {
                         let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
                         self.world.bodies[k].vel = vel.iter().map(|v| v.truncate()).collect();
                     }
-                    crate::implicit::inelastic_impulses(&mut self.world.bodies, couplings, &active);
+                    crate::integrator::implicit::inelastic_impulses(
+                        &mut self.world.bodies,
+                        couplings,
+                        &active,
+                    );
                     for &k in &which {
                         let body = &self.world.bodies[k];
                         let vel: Vec<Vec4> =
@@ -905,7 +908,7 @@ impl Stepper for GpuWorld {
                 }
             }
         }
-        imp.stats = crate::gpu_implicit::stats(&solved, scale, taken);
+        imp.stats = crate::gpu::implicit::stats(&solved, scale, taken);
         Ok(solved.iter().fold(Residual::default(), |r, s| r.plus(s.residual)))
     }
 
