@@ -22,9 +22,9 @@ use voxcollide_sim::{MassSpring, World};
 
 use crate::backend::Backend;
 use crate::plots::{Chart, Series, line_chart_svg};
-use crate::render::{Legend, Renderer, Scene as RenderScene};
-use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene, shown_and_moved, shown_surface};
+use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene_on, shown_and_moved, shown_surface};
 use plotters::prelude::SeriesLabelPosition;
+use voxcollide_render::{Legend, Renderer, Scene as RenderScene};
 
 /// What to compare, and where.
 #[derive(Clone, Debug)]
@@ -506,21 +506,36 @@ fn run_candidate(
         folder: folder.clone(),
         ..CandidateResult::default()
     };
-    let summary = run_scene(&s, built, &run_config, progress, &mut |_| {}, &mut |world, reports, at| {
-        result.history.push(sample(world, reports, body, tissue, metres, at.time));
-        if at.last {
-            measure_end(world, reports, body, tissue, metres, &mut result);
-            // The pressure of the last step's inputs; internal stress units are pascals times
-            // the file's metres per unit.
-            let inputs = world.inputs(at.step.saturating_sub(1))?;
-            result.implant_pressure_kpa =
-                f64::from(world.bodies[body].pressure(&inputs[body])) / (1e3 * metres);
-            if let Some(r) = renderer.as_mut() {
-                result.pictures = pictures(r, world, body, tissue, &config.out, &folder, units)?;
+    // On the comparison's one device (opened once, by `compare`) where the candidate steps
+    // there; a candidate on the CPU draws nothing itself (compare draws its pictures).
+    let (run_ctx, without) = match backend {
+        Backend::Cpu => (None, "no adapter used: --backend cpu, no pictures"),
+        _ => (ctx, "no adapter"),
+    };
+    let summary = run_scene_on(
+        run_ctx,
+        without,
+        &s,
+        built,
+        &run_config,
+        progress,
+        &mut |_| {},
+        &mut |world, reports, at| {
+            result.history.push(sample(world, reports, body, tissue, metres, at.time));
+            if at.last {
+                measure_end(world, reports, body, tissue, metres, &mut result);
+                // The pressure of the last step's inputs; internal stress units are pascals times
+                // the file's metres per unit.
+                let inputs = world.inputs(at.step.saturating_sub(1))?;
+                result.implant_pressure_kpa =
+                    f64::from(world.bodies[body].pressure(&inputs[body])) / (1e3 * metres);
+                if let Some(r) = renderer.as_mut() {
+                    result.pictures = pictures(r, world, body, tissue, &config.out, &folder, units)?;
+                }
             }
-        }
-        Ok(())
-    })?;
+            Ok(())
+        },
+    )?;
     result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
     result.max_tissue_displacement =
         tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);

@@ -11,7 +11,6 @@ pub mod compare; //  `voxcollide compare`: implant candidates through one scene,
 pub mod matrix; //   the contact test matrix: every gap, stiffness, volume, spacing and modulus
 pub mod output; //   VTK / ParaView files of the bodies
 pub mod plots; //    line charts as SVG (compare's report)
-pub mod render; //   offscreen PNG pictures with wgpu
 pub mod scenario; // a scene run end to end: backend, frames, files, summary
 pub mod scene_run; // a scene file run end to end: any bodies and contacts
 pub mod view; //     `voxcollide view`: a scene live in a window

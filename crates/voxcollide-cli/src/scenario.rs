@@ -9,9 +9,9 @@ use serde::Serialize;
 
 use crate::backend::{Backend, context};
 use crate::output::{BodyFrame, PvdSeries};
-use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
+use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::SceneFile;

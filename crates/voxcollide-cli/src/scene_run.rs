@@ -13,9 +13,9 @@ use serde::Serialize;
 
 use crate::backend::{Backend, context, cpu_first};
 use crate::output::{BodyFrame, PvdSeries};
-use crate::render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
+use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
 use voxcollide_sim::scene_file::{BodyKind, SceneFile};
@@ -256,25 +256,49 @@ pub fn run_scene(
     note: &mut dyn FnMut(&str),
     observe: &mut Observer<'_>,
 ) -> Result<FileSummary, Error> {
+    let (ctx, without) = context(config.backend, file.output.images, note)?;
+    run_scene_on(ctx.as_ref(), &without, file, built, config, progress, note, observe)
+}
+
+/// [`run_scene`] on the caller's device (`ctx`; `None`: no adapter, for the reason `without`),
+/// so that a command running many scenes (`compare`) opens one. `config.backend` still says
+/// where the world steps; `ctx` draws the pictures.
+///
+/// # Errors
+/// As [`run_scene`]; [`Error::NoAdapter`] for `Backend::Gpu` without `ctx`.
+#[allow(clippy::too_many_arguments)]
+pub fn run_scene_on(
+    ctx: Option<&voxcollide::GpuContext>,
+    without: &str,
+    file: &SceneFile,
+    built: Built,
+    config: &FileRunConfig,
+    progress: &mut dyn FnMut(u64, u64),
+    note: &mut dyn FnMut(&str),
+    observe: &mut Observer<'_>,
+) -> Result<FileSummary, Error> {
     for n in &built.notes {
         for r in &n.remarks {
             note(&format!("{}: {r}", n.name));
         }
     }
+    if config.backend == Backend::Gpu && ctx.is_none() {
+        return Err(Error::NoAdapter { message: without.to_string() });
+    }
     let on_cpu = if config.backend == Backend::Auto { cpu_first(&built.world) } else { None };
     let wants_pictures = file.output.images;
-    let (ctx, without) = context(config.backend, wants_pictures, note)?;
-    if let (Some(why), Some(_)) = (on_cpu, &ctx) {
+    let without = without.to_string();
+    if let (Some(why), Some(_)) = (on_cpu, ctx) {
         note(&format!("{why} steps on the CPU, on every core (the GPU draws the pictures)"));
     }
-    let (mut run, backend, adapter) = match (config.backend, &ctx) {
+    let (mut run, backend, adapter) = match (config.backend, ctx) {
         (_, Some(ctx)) if on_cpu.is_some() => {
             (simulation(None, built.world.clone())?, "cpu", format!("pictures on {}", ctx.adapter_name()))
         }
         (Backend::Cpu, _) | (Backend::Auto, None) => (
             simulation(None, built.world.clone())?,
             "cpu",
-            ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
+            ctx.map_or(without, |c| format!("pictures on {}", c.adapter_name())),
         ),
         (_, Some(ctx)) => (simulation(Some(ctx), built.world.clone())?, "gpu", ctx.adapter_name()),
         (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
@@ -282,7 +306,7 @@ pub fn run_scene(
     let scenario =
         config.path.file_stem().map_or_else(|| "scene".into(), |s| s.to_string_lossy().into_owned());
     note(&format!("{scenario} on the {backend} backend ({adapter})"));
-    let mut renderer = match (&ctx, wants_pictures) {
+    let mut renderer = match (ctx, wants_pictures) {
         (Some(ctx), true) => Some(Renderer::new(ctx, config.image.0, config.image.1)?),
         _ => None,
     };

@@ -52,7 +52,7 @@ impl CpuWorld {
     /// # Errors
     /// The contact-parameter errors of [`CpuContacts::new`].
     pub fn new(world: World) -> Result<CpuWorld, Error> {
-        let contacts = CpuContacts::new(&world)?;
+        let contacts = CpuContacts::new(&world.bodies, &world.contacts)?;
         Ok(CpuWorld {
             surface_stats: vec![SurfaceStats::default(); contacts.len()],
             reports: vec![ContactReport::default(); contacts.len()],
@@ -176,7 +176,12 @@ impl CpuWorld {
         inputs: &[StepInputs],
         implicit: Option<ImplicitSettings>,
     ) -> Result<Residual, Error> {
-        self.contacts.step(&self.world, &mut self.reports, &mut self.surface_stats)?;
+        self.contacts.step(
+            &self.world.bodies,
+            &self.world.contacts,
+            &mut self.reports,
+            &mut self.surface_stats,
+        )?;
         let w = &mut self.world;
         self.forces.resize_with(w.bodies.len(), Vec::new);
         for (k, body) in w.bodies.iter_mut().enumerate() {

@@ -8,42 +8,12 @@
 
 use std::sync::Arc;
 
-use voxcollide::{ContactParams, Error, Response, VoxelGrid};
+use voxcollide::Error;
 
 use crate::body::{MassSpring, StepInputs};
-use crate::contact::{ContactModel, SurfacePenalty};
+use crate::contact::ContactModel;
+pub use crate::contact::ContactPair;
 pub use crate::integrator::Integrator;
-
-/// One pair of bodies in contact: `a` is binned (its voxel model follows it under
-/// [`Anchor::FollowA`](voxcollide::Anchor::FollowA)), `b` probes.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ContactPair {
-    /// The indexed body, an index into [`World::bodies`].
-    pub a: usize,
-    /// The probing body.
-    pub b: usize,
-    /// The pair's voxel model.
-    pub grid: VoxelGrid,
-    /// The pair's contact parameters.
-    pub params: ContactParams,
-    /// How the pair finds its contacts and how strongly they push: the voxel model's report
-    /// or the surface contact ([`crate::contact`]).
-    pub model: ContactModel,
-}
-
-impl ContactPair {
-    /// The pair's response as the voxel model names it ([`ContactModel::response`]).
-    #[must_use]
-    pub fn response(&self) -> Response {
-        self.model.response()
-    }
-
-    /// The pair's surface contact, where it is one ([`ContactModel::surface`]).
-    #[must_use]
-    pub fn surface(&self) -> Option<SurfacePenalty> {
-        self.model.surface()
-    }
-}
 
 /// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
 pub type Schedule = Arc<dyn Fn(u64) -> Vec<StepInputs> + Send + Sync>;

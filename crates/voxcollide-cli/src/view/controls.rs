@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use crate::render::FOV_Y_DEGREES;
+use voxcollide_render::FOV_Y_DEGREES;
 
 /// A camera orbiting a target point, z up: where it is and where it looks.
 #[derive(Clone, Copy, Debug, PartialEq)]

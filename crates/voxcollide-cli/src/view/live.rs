@@ -23,10 +23,10 @@ use super::controls::{Action, Colouring, HELP, Orbit};
 use super::stepper::{Snapshot, Stepper};
 use super::{ViewConfig, ViewReport};
 use crate::backend::Backend;
-use crate::render::{
+use crate::scene_run::{contact_forces, meshes, shown_and_moved};
+use voxcollide_render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
 };
-use crate::scene_run::{contact_forces, meshes, shown_and_moved};
 use voxcollide_sim::simulation;
 
 /// The frame time aimed at: 40 frames a second, a margin over the 30 a live view needs. The

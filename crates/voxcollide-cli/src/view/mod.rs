@@ -8,7 +8,7 @@
 //! it falls behind. `--frames N --screenshot PATH` draws N frames,
 //! writes the last as PNG and exits; `--drag` scripts a drag; `--steps-per-frame` makes a run
 //! repeatable (a fixed number of steps a frame instead of real time). Each frame is drawn by
-//! [`Renderer`](crate::render::Renderer) offscreen, its legend and heads-up line added on the
+//! [`Renderer`](voxcollide_render::Renderer) offscreen, its legend and heads-up line added on the
 //! CPU, and copied onto the window: the screenshot is exactly the frame shown.
 
 mod blit;

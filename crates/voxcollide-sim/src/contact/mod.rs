@@ -20,10 +20,11 @@ pub use surface::{
 
 use glam::{Mat3, Vec3};
 
-use crate::integrator::implicit::Coupling;
-use crate::world::{ContactPair, World};
+use crate::body::MassSpring;
 use voxcollide::error::Error;
+use voxcollide::grid::VoxelGrid;
 use voxcollide::parallel::ParallelCpuCollision;
+use voxcollide::params::ContactParams;
 use voxcollide::params::Response;
 use voxcollide::report::ContactReport;
 
@@ -72,6 +73,83 @@ impl ContactModel {
     }
 }
 
+/// One pair of bodies in contact: `a` is binned (its voxel model follows it under
+/// [`Anchor::FollowA`](voxcollide::Anchor::FollowA)), `b` probes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ContactPair {
+    /// The indexed body, an index into [`World::bodies`](crate::World::bodies).
+    pub a: usize,
+    /// The probing body.
+    pub b: usize,
+    /// The pair's voxel model.
+    pub grid: VoxelGrid,
+    /// The pair's contact parameters.
+    pub params: ContactParams,
+    /// How the pair finds its contacts and how strongly they push: the voxel model's report
+    /// or the surface contact ([`crate::contact`]).
+    pub model: ContactModel,
+}
+
+impl ContactPair {
+    /// The pair's response as the voxel model names it ([`ContactModel::response`]).
+    #[must_use]
+    pub fn response(&self) -> Response {
+        self.model.response()
+    }
+
+    /// The pair's surface contact, where it is one ([`ContactModel::surface`]).
+    #[must_use]
+    pub fn surface(&self) -> Option<SurfacePenalty> {
+        self.model.surface()
+    }
+}
+
+/// One push of a surface contact, as the implicit solve couples the two bodies: a spring of
+/// stiffness `stiffness` along `normal` between vertex `vertex` of body `body` and the point of
+/// body `partner`'s triangle `triangle` at barycentric `weights`. Its Hessian `k·JᵀJ`, with
+/// `J = nᵀ[1, −w₀, −w₁, −w₂]`, joins the two bodies' unknowns in one system, so that a body
+/// pushing another carries it within the step instead of pressing into where it was.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Coupling {
+    /// The pushed point's body.
+    pub body: u32,
+    /// The pushed point, as its body's vertices and weights (a vertex: itself, weight 1; a
+    /// point of the surface a lattice carries: its cell's corners).
+    pub point: Stencil<POINT_VERTICES>,
+    /// The body whose surface pushes it.
+    pub partner: u32,
+    /// The nearest point of that surface, as the partner's vertices and weights (a triangle's
+    /// corners in its barycentric weights, each corner's own stencil scaled by its weight).
+    pub from: Stencil<{ 3 * POINT_VERTICES }>,
+    /// The push's direction (unit).
+    pub normal: Vec3,
+    /// The push's stiffness (force per unit depth).
+    pub stiffness: f32,
+    /// `gap − s` at the start of the step: positive where the vertex is pushed (its force is
+    /// in [`BodyStep::forces`](crate::integrator::implicit::BodyStep::forces)), at most 0 where it is only within the contact's margin. A pair
+    /// is in the solve where the solve ends it within the gap, with the force
+    /// `k·(gap − s − Δs)` it meets there: one within the margin joins where the solve carries it
+    /// in, one pushed now leaves where the solve carries it away (found by solving again, at
+    /// most four times; after the first solve pairs only join, so that the set cannot cycle).
+    pub depth: f32,
+}
+
+impl Coupling {
+    /// The coupling of push `p` of the surface contact `pair`, whose stiffness is `stiffness`.
+    pub(crate) fn of_push(p: &Push, pair: &ContactPair, stiffness: f32) -> Coupling {
+        let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
+        Coupling {
+            body: body as u32,
+            point: p.point,
+            partner: partner as u32,
+            from: p.from,
+            normal: p.normal,
+            stiffness,
+            depth: p.depth,
+        }
+    }
+}
+
 /// One contact's state on the CPU, by its model.
 enum CpuContact {
     Voxel(ParallelCpuCollision),
@@ -87,26 +165,28 @@ pub struct CpuContacts {
 }
 
 impl CpuContacts {
-    /// The contacts of `world` as its bodies are now.
+    /// The contacts `pairs` of a world's `bodies` as they are now.
     ///
     /// # Errors
     /// The contact-parameter errors of [`ParallelCpuCollision::new`] and
     /// [`SurfaceContact::new`].
-    pub fn new(world: &World) -> Result<CpuContacts, Error> {
-        let contacts = world
-            .contacts
+    pub fn new(bodies: &[MassSpring], pairs: &[ContactPair]) -> Result<CpuContacts, Error> {
+        let contacts = pairs
             .iter()
             .map(|c| match c.model {
                 ContactModel::Voxel(response) => ParallelCpuCollision::new(c.grid, c.params)
                     .and_then(|p| p.with_response(response))
                     .map(CpuContact::Voxel),
-                ContactModel::Surface(penalty) => {
-                    SurfaceContact::new(penalty, &world.bodies[c.a], &world.bodies[c.b])
-                        .map(|contact| CpuContact::Surface { contact, forces: SurfaceForces::default() })
-                }
+                ContactModel::Surface(penalty) => SurfaceContact::new(penalty, &bodies[c.a], &bodies[c.b])
+                    .map(|contact| CpuContact::Surface { contact, forces: SurfaceForces::default() }),
             })
             .collect::<Result<Vec<_>, _>>()?;
-        Ok(CpuContacts { contacts, contacts_of: world.contacts_of() })
+        let mut contacts_of = vec![Vec::new(); bodies.len()];
+        for (c, pair) in pairs.iter().enumerate() {
+            contacts_of[pair.a].push((c, true));
+            contacts_of[pair.b].push((c, false));
+        }
+        Ok(CpuContacts { contacts, contacts_of })
     }
 
     /// How many contacts there are.
@@ -121,19 +201,20 @@ impl CpuContacts {
         self.contacts.is_empty()
     }
 
-    /// Steps every contact of `world` at its bodies' positions: each one's report into
+    /// Steps every contact (`pairs`) at the `bodies`' positions: each one's report into
     /// `reports`, and a surface contact's findings into `stats` (one each per contact).
     ///
     /// # Errors
     /// The collision's errors ([`ParallelCpuCollision::step_into`]).
     pub fn step(
         &mut self,
-        world: &World,
+        bodies: &[MassSpring],
+        pairs: &[ContactPair],
         reports: &mut [ContactReport],
         stats: &mut [SurfaceStats],
     ) -> Result<(), Error> {
-        for (c, pair) in world.contacts.iter().enumerate() {
-            let (a, b) = (&world.bodies[pair.a], &world.bodies[pair.b]);
+        for (c, pair) in pairs.iter().enumerate() {
+            let (a, b) = (&bodies[pair.a], &bodies[pair.b]);
             let r = &mut reports[c];
             match &mut self.contacts[c] {
                 CpuContact::Voxel(collision) => collision.step_into(&a.pos, &b.pos, r)?,

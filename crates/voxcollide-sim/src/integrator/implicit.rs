@@ -46,10 +46,11 @@ use rayon::prelude::*;
 
 use super::{CpuIntegrator, Loads};
 use crate::body::{MassSpring, Mode, StepInputs, driven_target};
-use crate::contact::{POINT_VERTICES, Push, Stencil, entries};
+pub use crate::contact::Coupling;
+use crate::contact::{POINT_VERTICES, entries};
 use crate::material::neo_hookean::{TetStiffness, corner_of};
 use crate::material::springs;
-use crate::world::ContactPair;
+
 use voxcollide::math::cross;
 
 /// Vertices per parallel task; also the chunk of every dot product's fixed-order sum.
@@ -510,51 +511,7 @@ pub struct BodyStep<'a> {
     pub contact_vel: &'a [Vec3],
 }
 
-/// One push of a surface contact, as the implicit solve couples the two bodies: a spring of
-/// stiffness `stiffness` along `normal` between vertex `vertex` of body `body` and the point of
-/// body `partner`'s triangle `triangle` at barycentric `weights`. Its Hessian `k·JᵀJ`, with
-/// `J = nᵀ[1, −w₀, −w₁, −w₂]`, joins the two bodies' unknowns in one system, so that a body
-/// pushing another carries it within the step instead of pressing into where it was.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Coupling {
-    /// The pushed point's body.
-    pub body: u32,
-    /// The pushed point, as its body's vertices and weights (a vertex: itself, weight 1; a
-    /// point of the surface a lattice carries: its cell's corners).
-    pub point: Stencil<POINT_VERTICES>,
-    /// The body whose surface pushes it.
-    pub partner: u32,
-    /// The nearest point of that surface, as the partner's vertices and weights (a triangle's
-    /// corners in its barycentric weights, each corner's own stencil scaled by its weight).
-    pub from: Stencil<{ 3 * POINT_VERTICES }>,
-    /// The push's direction (unit).
-    pub normal: Vec3,
-    /// The push's stiffness (force per unit depth).
-    pub stiffness: f32,
-    /// `gap − s` at the start of the step: positive where the vertex is pushed (its force is
-    /// in [`BodyStep::forces`]), at most 0 where it is only within the contact's margin. A pair
-    /// is in the solve where the solve ends it within the gap, with the force
-    /// `k·(gap − s − Δs)` it meets there: one within the margin joins where the solve carries it
-    /// in, one pushed now leaves where the solve carries it away (found by solving again, at
-    /// most four times; after the first solve pairs only join, so that the set cannot cycle).
-    pub depth: f32,
-}
-
 impl Coupling {
-    /// The coupling of push `p` of the surface contact `pair`, whose stiffness is `stiffness`.
-    pub(crate) fn of_push(p: &Push, pair: &ContactPair, stiffness: f32) -> Coupling {
-        let (body, partner) = if p.of_a { (pair.a, pair.b) } else { (pair.b, pair.a) };
-        Coupling {
-            body: body as u32,
-            point: p.point,
-            partner: partner as u32,
-            from: p.from,
-            normal: p.normal,
-            stiffness,
-            depth: p.depth,
-        }
-    }
-
     /// Whether the vertex is pushed now.
     fn touching(&self) -> bool {
         self.depth > 0.0

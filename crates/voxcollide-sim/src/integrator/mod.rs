@@ -23,8 +23,8 @@ pub mod substep;
 use glam::Vec3;
 
 use crate::body::{MassSpring, StepInputs};
+use crate::contact::ContactPair;
 use crate::contact::CpuContacts;
-use crate::world::ContactPair;
 use implicit::{ImplicitSettings, Residual};
 use voxcollide::report::ContactReport;
 

@@ -1,4 +1,6 @@
 //! Offscreen pictures of the simulated bodies with wgpu: shaded, colour-mapped, cut away, as PNG.
+//! A library an app can use: it takes the app's [`GpuContext`] (its device and queue) and has no
+//! argument parser, window or progress bar; `voxcollide`'s command and its live view draw with it.
 //!
 //! One render pipeline (`shaders/render.wgsl`) draws every mesh of a [`Scene`] into a 4× MSAA
 //! target, which is resolved and read back as sRGB-encoded RGBA8. Triangles are expanded on the
@@ -13,7 +15,7 @@
 //!
 //! ```no_run
 //! use voxcollide::glam::Vec3;
-//! use voxcollide_cli::render::{Legend, Renderer, Scene, SceneMesh};
+//! use voxcollide_render::{Legend, Renderer, Scene, SceneMesh};
 //! let ctx = voxcollide::GpuContext::new()?;
 //! let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
 //! let scene = Scene {
@@ -33,6 +35,8 @@
 //! renderer.render_png_with_legend(&scene, Some(&legend), std::path::Path::new("triangle.png"))?;
 //! # Ok::<(), voxcollide::Error>(())
 //! ```
+
+#![deny(missing_docs)]
 
 use std::path::Path;
 
@@ -251,13 +255,34 @@ impl Renderer {
     /// # Errors
     /// As [`render`](Self::render), and [`Error::Invalid`] for an `eye` that is not finite.
     pub fn render_from(&mut self, scene: &Scene, eye: Option<Vec3>) -> Result<Vec<u8>, Error> {
+        self.render_clear_of(scene, eye, 0)
+    }
+
+    /// [`render`](Self::render)s `scene` with [`draw_legend`]'s `legend` over it, the bodies
+    /// framed in the part of the picture left of the legend's panel so that it never covers
+    /// them (where the legend does not fit, it is not drawn and the bodies take the whole
+    /// picture).
+    ///
+    /// # Errors
+    /// As [`render`](Self::render) and [`draw_legend`] (a non-finite legend range).
+    pub fn render_with_legend(&mut self, scene: &Scene, legend: &Legend) -> Result<Vec<u8>, Error> {
+        let clear = legend_panel(self.width, self.height, legend)?.map_or(0, |p| self.width - p.x);
+        let mut rgba = self.render_clear_of(scene, None, clear)?;
+        draw_legend(&mut rgba, self.width, self.height, legend)?;
+        Ok(rgba)
+    }
+
+    /// [`render_from`](Self::render_from), a framed picture keeping the rightmost `clear`
+    /// pixels free of the bodies.
+    fn render_clear_of(&mut self, scene: &Scene, eye: Option<Vec3>, clear: u32) -> Result<Vec<u8>, Error> {
         if let Some(e) = eye
             && !e.is_finite()
         {
             return Err(Error::Invalid { what: "eye", value: e.to_string(), rule: "must be finite".into() });
         }
         let aspect = f64::from(self.width) / f64::from(self.height);
-        let params = prepare(scene, aspect, eye, &mut self.scratch, &mut self.framed)?;
+        let keep = f64::from(self.width.saturating_sub(clear).max(1)) / f64::from(self.width);
+        let params = prepare(scene, aspect, eye, keep, &mut self.scratch, &mut self.framed)?;
         let bytes = VERTEX_BYTES * self.scratch.len() as u64;
         if bytes > self.max_buffer_size || self.scratch.len() > u32::MAX as usize {
             return Err(Error::Invalid {
@@ -299,10 +324,10 @@ impl Renderer {
         legend: Option<&Legend>,
         path: &Path,
     ) -> Result<(), Error> {
-        let mut rgba = self.render(scene)?;
-        if let Some(legend) = legend {
-            draw_legend(&mut rgba, self.width, self.height, legend)?;
-        }
+        let rgba = match legend {
+            Some(legend) => self.render_with_legend(scene, legend)?,
+            None => self.render(scene)?,
+        };
         write_png(path, self.width, self.height, &rgba)
     }
 
@@ -513,6 +538,15 @@ impl PixelRect {
     }
 }
 
+/// Where [`draw_legend`] would draw `legend` in a `width × height` picture (`None`: it does
+/// not fit, and nothing would be drawn).
+///
+/// # Errors
+/// [`Error::Invalid`] for a non-finite legend range.
+pub fn legend_panel(width: u32, height: u32, legend: &Legend) -> Result<Option<PixelRect>, Error> {
+    Ok(LegendLayout::of(width, height, legend)?.map(|l| l.panel))
+}
+
 /// Draws `legend` into the top-right corner of `rgba` (RGBA8, sRGB-encoded, top row first, as
 /// [`Renderer::render`] returns it) and returns the panel it covers; pixels outside it are
 /// untouched. The bar holds the shader's colour map, sampled as the shader samples it and
@@ -527,7 +561,7 @@ impl PixelRect {
 /// than 62 pixels.
 ///
 /// ```
-/// use voxcollide_cli::render::{Legend, draw_legend};
+/// use voxcollide_render::{Legend, draw_legend};
 /// let (width, height) = (320, 200);
 /// let mut rgba = vec![231; 4 * width * height];
 /// let legend = Legend::new("displacement (mm)", (0.0, 0.35));
@@ -546,15 +580,8 @@ pub fn draw_legend(
     legend: &Legend,
 ) -> Result<Option<PixelRect>, Error> {
     check_rgba(rgba, width, height)?;
-    if !legend.lo.is_finite() || !legend.hi.is_finite() {
-        return Err(Error::Invalid {
-            what: "legend range",
-            value: format!("({}, {})", legend.lo, legend.hi),
-            rule: "both ends must be finite".into(),
-        });
-    }
     let labels = legend.tick_labels();
-    let Some(layout) = LegendLayout::fit(width, height, &legend.title, &labels) else {
+    let Some(layout) = LegendLayout::of(width, height, legend)? else {
         return Ok(None);
     };
     let mut canvas = Canvas { rgba, width, height };
@@ -626,6 +653,21 @@ struct LegendLayout {
 }
 
 impl LegendLayout {
+    /// The layout of `legend` in a `width × height` picture ([`LegendLayout::fit`]).
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a non-finite legend range.
+    fn of(width: u32, height: u32, legend: &Legend) -> Result<Option<LegendLayout>, Error> {
+        if !legend.lo.is_finite() || !legend.hi.is_finite() {
+            return Err(Error::Invalid {
+                what: "legend range",
+                value: format!("({}, {})", legend.lo, legend.hi),
+                rule: "both ends must be finite".into(),
+            });
+        }
+        Ok(LegendLayout::fit(width, height, &legend.title, &legend.tick_labels()))
+    }
+
     /// The largest layout, at most at the picture's scale, that fits `width × height` with its
     /// margins; `None` when none does. `labels` are the tick labels, bottom to top.
     fn fit(width: u32, height: u32, title: &str, labels: &[String]) -> Option<LegendLayout> {
@@ -931,6 +973,7 @@ fn prepare(
     scene: &Scene,
     aspect: f64,
     eye: Option<Vec3>,
+    keep: f64,
     vertices: &mut Vec<GpuVertex>,
     framed: &mut Vec<DVec3>,
 ) -> Result<GpuRenderParams, Error> {
@@ -1031,6 +1074,19 @@ fn prepare(
     }
 
     let camera = match eye {
+        // Framed in the left `keep` of the picture: for that part's aspect, then moved there
+        // (x' = keep·x + (keep − 1)·w in clip space).
+        None if keep < 1.0 => {
+            let mut c = Camera::framing(framed, view_dir.normalize(), scene.up.as_dvec3(), aspect * keep);
+            let squeeze = DMat4::from_cols(
+                DVec4::new(keep, 0.0, 0.0, 0.0),
+                DVec4::Y,
+                DVec4::Z,
+                DVec4::new(keep - 1.0, 0.0, 0.0, 1.0),
+            );
+            c.view_proj = squeeze * c.view_proj;
+            c
+        }
         None => Camera::framing(framed, view_dir.normalize(), scene.up.as_dvec3(), aspect),
         Some(eye) => {
             Camera::looking(eye.as_dvec3(), framed, view_dir.normalize(), scene.up.as_dvec3(), aspect)

@@ -11,7 +11,9 @@ use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use voxcollide::Error;
 use voxcollide::glam::Vec3;
-use voxcollide_cli::render::{Legend, PixelRect, Renderer, SHADER, Scene, SceneMesh, draw_legend, write_png};
+use voxcollide_render::{
+    Legend, PixelRect, Renderer, SHADER, Scene, SceneMesh, draw_legend, legend_panel, write_png,
+};
 
 /// The background, sRGB-encoded: linear 0.8.
 const BACKGROUND: u8 = 231;
@@ -770,19 +772,73 @@ fn render_png_with_legend_writes_the_picture_with_its_legend() {
     renderer.render_png_with_legend(&s, Some(&legend), &path).unwrap();
     let (dw, dh, rgba) = decode(&path);
     assert_eq!((dw, dh), (w, h));
-    let mut expected = plain.clone();
-    let panel = draw_legend(&mut expected, w, h, &legend).unwrap().expect("it fits");
-    assert!(rgba == expected, "the file is not the render with draw_legend's legend");
+    assert!(rgba == renderer.render_with_legend(&s, &legend).unwrap(), "the file is not render_with_legend");
     assert!(rgba != plain, "no legend was drawn");
-    // The sphere's own colours are untouched outside the panel: its centre, for one.
-    assert!(!panel.contains(w / 2, h / 2));
-    assert_eq!(pixel(&rgba, w, w / 2, h / 2), pixel(&plain, w, w / 2, h / 2));
+    let panel = legend_panel(w, h, &legend).unwrap().expect("it fits");
+    assert_clear_under(&rgba, w, h, &legend, panel);
 
     let path = temp_png("sphere_no_legend");
     renderer.render_png_with_legend(&s, None, &path).unwrap();
     assert_eq!(decode(&path).2, plain, "without a legend it is render_png");
     let bad = renderer.render_png_with_legend(&s, Some(&Legend::new("x", (0.0, f32::NAN))), &path);
     assert!(matches!(bad, Err(Error::Invalid { what: "legend range", .. })), "{bad:?}");
+}
+
+/// Every pixel of `rgba` under the legend's `panel` is what the legend draws over the bare
+/// background: no body shows through its translucent panel.
+fn assert_clear_under(rgba: &[u8], w: u32, h: u32, legend: &Legend, panel: PixelRect) {
+    let mut bare = filled(w, h, [BACKGROUND; 3]);
+    draw_legend(&mut bare, w, h, legend).unwrap();
+    for y in panel.y..panel.y + panel.height {
+        for x in panel.x..panel.x + panel.width {
+            assert_eq!(pixel(rgba, w, x, y), pixel(&bare, w, x, y), "a body under the legend at ({x}, {y})");
+        }
+    }
+}
+
+#[test]
+fn the_legend_stays_clear_of_the_bodies_that_fill_the_picture() {
+    // A slab seen from above fills the picture from edge to edge, as a tissue layer does in
+    // `run implant`'s frames: framed alone it runs under the legend's corner; framed with its
+    // legend, it keeps to the left of the panel, and still fills the picture's height or the
+    // room left of the panel.
+    let Some(ctx) = common::gpu() else { return };
+    for (w, h) in [(320, 200), (640, 360), (200, 320)] {
+        let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+        let body = slab(24);
+        let s = scene(vec![body.mesh(true, [1.0; 3])], (0.0, 0.5), Vec3::new(0.0, -0.6, -1.0));
+        let legend = Legend::new("displacement (mm)", s.scalar_range);
+        let panel = legend_panel(w, h, &legend).unwrap().expect("it fits");
+        let plain = renderer.render(&s).unwrap();
+        let under = (panel.y..panel.y + panel.height)
+            .flat_map(|y| (panel.x..panel.x + panel.width).map(move |x| (x, y)))
+            .filter(|&(x, y)| !is_background(pixel(&plain, w, x, y)))
+            .count();
+        assert!(
+            under > 0,
+            "{w}×{h}: the slab framed alone should reach under the legend (the test's premise)"
+        );
+        let rgba = renderer.render_with_legend(&s, &legend).unwrap();
+        assert_clear_under(&rgba, w, h, &legend, panel);
+        // Framed in the room there is: it reaches near the room's left and right, or its top
+        // and bottom.
+        let covered: Vec<(u32, u32)> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&(x, y)| !panel.contains(x, y) && !is_background(pixel(&rgba, w, x, y)))
+            .collect();
+        let (x0, x1) =
+            (covered.iter().map(|p| p.0).min().unwrap(), covered.iter().map(|p| p.0).max().unwrap());
+        let (y0, y1) =
+            (covered.iter().map(|p| p.1).min().unwrap(), covered.iter().map(|p| p.1).max().unwrap());
+        let fills_width = x0 < w / 8 && x1 + w / 8 > panel.x;
+        let fills_height = y0 < h / 8 && y1 + h / 8 > h;
+        assert!(
+            fills_width || fills_height,
+            "{w}×{h}: the slab spans x {x0}..{x1}, y {y0}..{y1}, the panel starts at x {}",
+            panel.x
+        );
+        assert!(x1 < panel.x, "{w}×{h}: the slab reaches x {x1}, the panel starts at {}", panel.x);
+    }
 }
 
 #[test]
@@ -798,7 +854,7 @@ fn a_fixed_eye_at_the_framing_eye_draws_the_framed_picture_and_moves_with_it() {
     let mut renderer = Renderer::new(&ctx, w, h).unwrap();
     let framed = renderer.render(&s).unwrap();
     let eye =
-        voxcollide_cli::render::framing_eye(&ball.positions, view_dir, Vec3::Y, w as f32 / h as f32).unwrap();
+        voxcollide_render::framing_eye(&ball.positions, view_dir, Vec3::Y, w as f32 / h as f32).unwrap();
     let fixed = renderer.render_from(&s, Some(eye)).unwrap();
     let differ = framed
         .chunks(4)
@@ -821,7 +877,7 @@ fn a_caption_draws_its_lines_on_a_panel_at_the_top_left() {
     let (w, h) = (320u32, 200u32);
     let mut rgba = vec![BACKGROUND; (4 * w * h) as usize];
     let lines = ["120 steps/s  30.0 frames/s".to_string(), "behind real time: 0.50x".to_string()];
-    let panel = voxcollide_cli::render::draw_caption(&mut rgba, w, h, &lines).unwrap().expect("it fits");
+    let panel = voxcollide_render::draw_caption(&mut rgba, w, h, &lines).unwrap().expect("it fits");
     assert_eq!((panel.x, panel.y), (6, 6));
     assert_eq!(panel.width, 8 * lines[0].len() as u32 + 8, "the longer line's glyphs and the padding");
     let dark =
@@ -831,12 +887,9 @@ fn a_caption_draws_its_lines_on_a_panel_at_the_top_left() {
     assert!(dark.iter().all(|&(x, y)| panel.contains(x, y)), "text outside its panel");
     // A long line is cut at the picture's edge; a picture too small for one glyph gets nothing.
     let long = vec!["x".repeat(500)];
-    let cut = voxcollide_cli::render::draw_caption(&mut rgba, w, h, &long).unwrap().unwrap();
+    let cut = voxcollide_render::draw_caption(&mut rgba, w, h, &long).unwrap().unwrap();
     assert!(cut.x + cut.width <= w);
     let mut tiny = vec![0u8; 4 * 10 * 10];
-    assert_eq!(voxcollide_cli::render::draw_caption(&mut tiny, 10, 10, &long).unwrap(), None);
-    assert!(
-        voxcollide_cli::render::draw_caption(&mut tiny, 11, 10, &long).is_err(),
-        "a wrong length is an error"
-    );
+    assert_eq!(voxcollide_render::draw_caption(&mut tiny, 10, 10, &long).unwrap(), None);
+    assert!(voxcollide_render::draw_caption(&mut tiny, 11, 10, &long).is_err(), "a wrong length is an error");
 }

@@ -6,5 +6,5 @@ mod wgsl;
 
 #[test]
 fn the_render_shader_validates() {
-    wgsl::validate("render", voxcollide_cli::render::SHADER, &["vs_main", "fs_main"]);
+    wgsl::validate("render", voxcollide_render::SHADER, &["vs_main", "fs_main"]);
 }
