@@ -330,6 +330,9 @@ fn main() -> ExitCode {
                 s.steps_per_second,
                 s.steps_per_second * f64::from(s.dt)
             );
+            if let Some(w) = s.host_waits_per_step {
+                println!("{:<28} {w:.2} a step (frames excluded)", "waits for the device");
+            }
             println!("{:<28} {:.3} (voxel size {})", "max penetration", s.max_penetration, s.voxel_size);
             for c in s.contacts.iter().filter_map(|c| c.failure.as_ref()) {
                 println!("{:<28} {c}: these numbers are not a result", "warning:");
@@ -389,6 +392,9 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 "{:<28} {} × dt {:.2e} s = {:.3} s simulated, {:.0} steps/s, {:.3} simulated s per s",
                 "steps", s.steps, s.dt, s.simulated_time, s.steps_per_second, s.realtime_factor
             );
+            if let Some(w) = s.host_waits_per_step {
+                println!("{:<28} {w:.2} a step (frames excluded)", "waits for the device");
+            }
             if let (Some(split), Some(parts)) = (s.split_steps, s.most_parts)
                 && split > 0
             {

@@ -72,6 +72,10 @@ pub struct Summary {
     pub vertices_b: usize,
     /// Steps per second over the run, frames excluded.
     pub steps_per_second: f64,
+    /// On the GPU only: how many times, on average, a step waited for the device to hand data
+    /// back to the host, frames excluded (docs/design.md §5). 0: every step stays on the device.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub host_waits_per_step: Option<f64>,
     /// Largest `max_penetration` of the frames after contact is established (the first 10 %
     /// of the run excluded).
     pub max_penetration: f32,
@@ -307,6 +311,10 @@ pub fn run(
         summary.files.extend(["tissue.pvd".to_string(), format!("{name}.pvd")]);
     }
     summary.steps_per_second = if stepping > 0.0 { steps as f64 / stepping } else { 0.0 };
+    summary.host_waits_per_step = match &sim {
+        Sim::Gpu(s) => Some(s.host_waits() as f64 / steps.max(1) as f64),
+        Sim::Cpu(_) => None,
+    };
     let settle = steps / 10;
     for f in summary.frames.iter().filter(|f| f.step > settle) {
         summary.max_penetration = summary.max_penetration.max(f.max_penetration);

@@ -125,6 +125,11 @@ pub struct FileSummary {
     pub simulated_time: f64,
     /// Steps per second over the run, frames excluded.
     pub steps_per_second: f64,
+    /// On the GPU only: how many times, on average, a step waited for the device to hand data
+    /// back to the host (a buffer mapped for reading), frames excluded (docs/design.md §5). 0
+    /// where a step stays on the device.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub host_waits_per_step: Option<f64>,
     /// Simulated seconds per wall-clock second.
     pub realtime_factor: f64,
     /// Whether the bodies came to rest (`[time] settle`: over a settling window after the
@@ -552,6 +557,7 @@ pub fn run_scene_on(
         summary.files.extend(world.names.iter().map(|n| format!("{n}.pvd")));
     }
     summary.steps = done;
+    summary.host_waits_per_step = run.host_waits().map(|w| w as f64 / done.max(1) as f64);
     summary.simulated_time = simulated_time(&*run, done, built.dt);
     summary.steps_per_second = if stepping > 0.0 { done as f64 / stepping } else { 0.0 };
     summary.realtime_factor = if stepping > 0.0 { summary.simulated_time / stepping } else { 0.0 };

@@ -418,3 +418,71 @@ fn settling_goes_on_past_the_schedule_until_the_bodies_rest() {
     assert!(capped["rest_window"].as_f64().unwrap() > 0.01, "{capped}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
+    // docs/design.md §5: `host_waits_per_step` in a `--backend gpu` run's summary.json. The
+    // explicit step with the voxel model's contacts stays on the device (0); the surface
+    // contact reads the two bodies' positions back once a step (1); the implicit solve reads
+    // its scalars every few iterations (more than 0). A CPU run has no such key.
+    let Some(_) = common::gpu() else { return };
+    let dir = std::env::temp_dir().join(format!("voxcollide-waits-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = |response: &str, integrator: &str| {
+        format!(
+            "units = \"mm\"\n[time]\nsteps = 30\nintegrator = \"{integrator}\"\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = {{ box = [20, 20, 6] }}\nspacing = 2.5\nmaterial = {{ young_kpa = 3.0, density = 1000.0, damping = 0.5 }}\nfixed = [{{ below = {{ z = -2.9 }} }}]\n[[body]]\nname = \"ball\"\nkind = \"rigid\"\nshape = {{ sphere = 4 }}\nspacing = 2.0\nposition = [0, 0, 7.5]\nmotion = [{{ t = 0.0, position = [0, 0, 7.5] }}, {{ t = 0.02, position = [0, 0, 6] }}]\n[[contact]]\na = \"ball\"\nb = \"block\"\nresponse = \"{response}\"\n[output]\nframes = 3\nimages = false\nvtk = false\n"
+        )
+    };
+    let waits = |name: &str, text: String, backend: &str| -> Option<f64> {
+        let path = dir.join(format!("{name}.toml"));
+        std::fs::write(&path, text).unwrap();
+        let out = dir.join(name);
+        let output = voxcollide()
+            .arg("run")
+            .arg(&path)
+            .args(["--backend", backend, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(output.status.success(), "{name}: {}", String::from_utf8_lossy(&output.stderr));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+        assert_eq!(s["steps"].as_u64(), Some(30), "{name}: {s}");
+        s.get("host_waits_per_step").map(|w| w.as_f64().unwrap())
+    };
+    assert_eq!(waits("penalty", scene("penalty", "explicit"), "gpu"), Some(0.0), "the voxel model's step");
+    assert_eq!(waits("surface", scene("surface", "explicit"), "gpu"), Some(1.0), "the surface contact's");
+    let implicit = waits("implicit", scene("penalty", "implicit"), "gpu").unwrap();
+    assert!(implicit >= 1.0, "the implicit solve reads its scalars: {implicit}");
+    assert_eq!(
+        waits("cpu", scene("penalty", "explicit"), "cpu"),
+        None,
+        "a CPU run has no device to wait for"
+    );
+    // The paper's scene, stepped on the device, waits for nothing.
+    let out = dir.join("paper");
+    let output = voxcollide()
+        .args([
+            "run",
+            "implant",
+            "--backend",
+            "gpu",
+            "--resolution",
+            "8",
+            "--steps",
+            "40",
+            "--frames",
+            "2",
+            "--no-images",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["host_waits_per_step"].as_f64(), Some(0.0), "{s}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -54,6 +54,10 @@ pub trait Simulation {
     /// Implicit only: the steps taken in parts so far.
     fn parts(&self) -> Option<&Parts>;
 
+    /// How many times the steps so far waited for the device to hand data back to the host,
+    /// frames excluded (docs/design.md §5); `None` on the CPU, where nothing lives on a device.
+    fn host_waits(&self) -> Option<u64>;
+
     /// Which backend steps it, in words (for summaries and messages).
     fn backend(&self) -> &'static str;
 }
@@ -106,6 +110,10 @@ impl Simulation for CpuWorld {
         (self.world.integrator != Integrator::Explicit).then_some(&self.parts)
     }
 
+    fn host_waits(&self) -> Option<u64> {
+        None
+    }
+
     fn backend(&self) -> &'static str {
         "cpu"
     }
@@ -147,6 +155,10 @@ impl Simulation for GpuWorld {
 
     fn parts(&self) -> Option<&Parts> {
         GpuWorld::parts(self)
+    }
+
+    fn host_waits(&self) -> Option<u64> {
+        Some(GpuWorld::host_waits(self))
     }
 
     fn backend(&self) -> &'static str {

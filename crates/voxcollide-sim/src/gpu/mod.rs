@@ -270,6 +270,10 @@ pub struct GpuWorld {
     bound: Option<Bound>,
     max_per_dim: u32,
     step: u64,
+    /// How many times the steps so far waited for the device to hand data back (mapped a
+    /// buffer), frames ([`sync`](Self::sync)) excluded: docs/design.md §5's
+    /// `host_waits_per_step`.
+    host_waits: u64,
     /// Implicit only: the passes, and what they carry from step to step.
     implicit: Option<Implicit>,
 }
@@ -444,6 +448,7 @@ impl GpuWorld {
             bound: None,
             world,
             step: 0,
+            host_waits: 0,
             implicit,
         })
     }
@@ -464,7 +469,8 @@ impl GpuWorld {
     /// error becomes this value instead of reaching wgpu's default handler).
     pub fn step(&mut self) -> Result<(), Error> {
         let device = self.ctx.device().clone();
-        scoped(&device, || {
+        let before = voxcollide::gpu::host_waits();
+        let result = scoped(&device, || {
             if self.implicit.is_some() {
                 self.implicit_step()
             } else {
@@ -474,7 +480,19 @@ impl GpuWorld {
                 self.step += 1;
                 Ok(())
             }
-        })?
+        });
+        self.host_waits += voxcollide::gpu::host_waits() - before;
+        result?
+    }
+
+    /// How many times the steps so far waited for the device to hand data back to the host
+    /// (a buffer mapped for reading), frames ([`sync`](Self::sync)) excluded. 0 where every
+    /// step stays on the device: the explicit integrator with the voxel model's contacts. A
+    /// surface contact's search on the host reads positions back once a step, and the implicit
+    /// solve reads its few scalars every few iterations.
+    #[must_use]
+    pub fn host_waits(&self) -> u64 {
+        self.host_waits
     }
 
     /// Records one step's collisions and, for every body, its contact sums, its fill's pressure
@@ -982,6 +1000,12 @@ impl GpuSim {
     /// As [`GpuWorld::step`].
     pub fn step(&mut self) -> Result<(), Error> {
         self.world.step()
+    }
+
+    /// The world's [`GpuWorld::host_waits`].
+    #[must_use]
+    pub fn host_waits(&self) -> u64 {
+        self.world.host_waits()
     }
 
     /// Reads both bodies' positions and velocities back into [`scene`](Self::scene), checks

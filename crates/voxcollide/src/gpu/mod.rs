@@ -10,7 +10,8 @@
 //!
 //! For an app's (or a crate's) own compute passes beside the collision's, on the same device:
 //! [`kernel::Kernel`] (a pass, its layout and its dispatch over any number of items),
-//! [`scoped`] (device errors as values), [`read_buffers`] and [`map_read`] (readback).
+//! [`scoped`] (device errors as values), [`read_buffers`] and [`map_read`] (readback, counted
+//! per thread by [`host_waits`]).
 
 mod context;
 pub mod kernel;
@@ -1046,6 +1047,21 @@ pub fn read_buffers(ctx: &GpuContext, parts: &[(&Buffer, u64)]) -> Result<Vec<Ve
     Ok(out)
 }
 
+thread_local! {
+    /// This thread's count of waits for the device to hand data back ([`host_waits`]).
+    static HOST_WAITS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times this thread has waited for the device to hand data back to the host: every
+/// buffer mapped for reading through [`map_read`] or [`read_buffers`] (which is how every
+/// readback of this workspace waits). A caller measures a piece of work by the count before
+/// and after it, on the thread that does it: the simulator's `host_waits_per_step`
+/// (docs/design.md §5). Per thread, so that work on other threads does not count.
+#[must_use]
+pub fn host_waits() -> u64 {
+    HOST_WAITS.with(std::cell::Cell::get)
+}
+
 /// Maps the first `size` bytes of `buffer` for reading, waits, and copies them out.
 ///
 /// # Errors
@@ -1062,6 +1078,7 @@ pub(crate) fn map_read_with<T>(
     size: u64,
     f: impl FnOnce(&[u8]) -> T,
 ) -> Result<T, Error> {
+    HOST_WAITS.with(|w| w.set(w.get() + 1));
     let slice = buffer.slice(..size);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
