@@ -519,9 +519,98 @@ fn segment_distance2(p: DVec3, a: DVec3, b: DVec3) -> f64 {
     (a + ab * t).distance_squared(p)
 }
 
-/// Squared distance from `p` to the triangle, through its closest point found by Voronoi regions
-/// (Ericson, *Real-Time Collision Detection*, §5.1.5). Zero-area triangles, for which the face
-/// region's barycentric denominator vanishes, are measured on their three edges instead.
+/// Coordinates that [`closest_region`] works in: `f32` ([`Vec3`], the surface contact's) or
+/// `f64` ([`DVec3`], the penetration measure's), with the same operations in the same order.
+pub(crate) trait Coords: Copy + std::ops::Sub<Output = Self> {
+    /// The scalar.
+    type S: Copy
+        + PartialOrd
+        + std::ops::Add<Output = Self::S>
+        + std::ops::Sub<Output = Self::S>
+        + std::ops::Mul<Output = Self::S>
+        + std::ops::Div<Output = Self::S>;
+    /// Zero.
+    const ZERO: Self::S;
+    /// The dot product.
+    fn dot(self, other: Self) -> Self::S;
+}
+
+impl Coords for Vec3 {
+    type S = f32;
+    const ZERO: f32 = 0.0;
+    fn dot(self, other: Vec3) -> f32 {
+        Vec3::dot(self, other)
+    }
+}
+
+impl Coords for DVec3 {
+    type S = f64;
+    const ZERO: f64 = 0.0;
+    fn dot(self, other: DVec3) -> f64 {
+        DVec3::dot(self, other)
+    }
+}
+
+/// Where on triangle `abc` the point nearest to `p` lies ([`closest_region`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Region<S> {
+    /// Corner 0, 1 or 2.
+    Vertex(u8),
+    /// Edge `ab` at `a + t·(b − a)` (0), `bc` at `b + t·(c − b)` (1), or `ca` at `a + t·(c − a)` (2).
+    Edge(u8, S),
+    /// Inside the face: `a + (vb/sum)·(b − a) + (vc/sum)·(c − a)`, where `sum` (`|ab × ac|²` up
+    /// to rounding) is positive; a sliver can round it to 0 or below, which the caller handles.
+    Face {
+        /// The weight of `b`, times `sum`.
+        vb: S,
+        /// The weight of `c`, times `sum`.
+        vc: S,
+        /// `va + vb + vc`.
+        sum: S,
+    },
+}
+
+/// The Voronoi region of triangle `abc` that holds the point nearest to `p` (Ericson,
+/// *Real-Time Collision Detection*, §5.1.5), in `f32` or `f64` alike: the one closest-point
+/// routine of the crate, which the surface contact ([`crate::contact::surface`]) and the
+/// penetration measure ([`ClosedSurface`]) both build on. An edge's parameter is 0 where its
+/// ratio's denominator is not positive (an edge of no length).
+pub(crate) fn closest_region<V: Coords>(p: V, a: V, b: V, c: V) -> Region<V::S> {
+    let zero = V::ZERO;
+    let ratio = |n: V::S, d: V::S| if d > zero { n / d } else { zero };
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= zero && d2 <= zero {
+        return Region::Vertex(0);
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= zero && d4 <= d3 {
+        return Region::Vertex(1);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= zero && d1 >= zero && d3 <= zero {
+        return Region::Edge(0, ratio(d1, d1 - d3));
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= zero && d5 <= d6 {
+        return Region::Vertex(2);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= zero && d2 >= zero && d6 <= zero {
+        return Region::Edge(2, ratio(d2, d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= zero && d4 - d3 >= zero && d5 - d6 >= zero {
+        return Region::Edge(1, ratio(d4 - d3, (d4 - d3) + (d5 - d6)));
+    }
+    Region::Face { vb, vc, sum: va + vb + vc }
+}
+
+/// Squared distance from `p` to the triangle, through its closest point ([`closest_region`]).
+/// Zero-area triangles, for which the face region's barycentric denominator vanishes, are
+/// measured on their three edges instead.
 fn triangle_distance2(t: &Triangle, p: DVec3) -> f64 {
     let edges = || {
         segment_distance2(p, t.a, t.b).min(segment_distance2(p, t.b, t.c)).min(segment_distance2(p, t.c, t.a))
@@ -530,41 +619,18 @@ fn triangle_distance2(t: &Triangle, p: DVec3) -> f64 {
         return edges();
     }
     let (a, b, c) = (t.a, t.b, t.c);
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a.distance_squared(p); // vertex region A
+    let (ab, ac) = (b - a, c - a);
+    match closest_region(p, a, b, c) {
+        Region::Vertex(0) => a.distance_squared(p),
+        Region::Vertex(1) => b.distance_squared(p),
+        Region::Vertex(_) => c.distance_squared(p),
+        Region::Edge(0, t) => (a + ab * t).distance_squared(p),
+        Region::Edge(1, t) => (b + (c - b) * t).distance_squared(p),
+        Region::Edge(_, t) => (a + ac * t).distance_squared(p),
+        // A sliver whose denominator rounds to 0 (or below) is measured on its edges.
+        Region::Face { sum, .. } if sum <= 0.0 => edges(),
+        Region::Face { vb, vc, sum } => (a + ab * (vb / sum) + ac * (vc / sum)).distance_squared(p),
     }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return b.distance_squared(p); // vertex region B
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return (a + ab * ratio(d1, d1 - d3)).distance_squared(p); // edge AB
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return c.distance_squared(p); // vertex region C
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return (a + ac * ratio(d2, d2 - d6)).distance_squared(p); // edge AC
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
-        let w = ratio(d4 - d3, (d4 - d3) + (d5 - d6));
-        return (b + (c - b) * w).distance_squared(p); // edge BC
-    }
-    // Face region. The denominator is |ab × ac|² up to rounding; a sliver can round it to 0 (or
-    // below).
-    let denom = va + vb + vc;
-    if denom <= 0.0 {
-        return edges();
-    }
-    (a + ab * (vb / denom) + ac * (vc / denom)).distance_squared(p)
 }
 
 /// Builds the hierarchy and the fans, bottom-up.

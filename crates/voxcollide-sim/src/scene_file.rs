@@ -151,7 +151,7 @@ pub struct Time {
     #[serde(default = "default_max_steps")]
     pub max_steps: u64,
     /// The integrator (docs/design.md §12): the paper's semi-implicit Euler, `"explicit"` (the
-    /// default), or `"implicit"`: backward Euler ([`crate::implicit`]).
+    /// default), or `"implicit"`: backward Euler ([`crate::integrator::implicit`]).
     #[serde(default)]
     pub integrator: IntegratorSpec,
 }
@@ -163,7 +163,7 @@ pub enum IntegratorSpec {
     /// The paper's semi-implicit (symplectic) Euler, its step within the stability bound.
     #[default]
     Explicit,
-    /// Backward Euler, whose step is not bound by stability ([`crate::implicit`]).
+    /// Backward Euler, whose step is not bound by stability ([`crate::integrator::implicit`]).
     Implicit,
 }
 

@@ -34,7 +34,7 @@
 //! index); the forces are then summed in probe order on one thread, so the result is the same on
 //! any number of threads.
 
-use crate::geometry::HashMap;
+use crate::geometry::{HashMap, Region, closest_region};
 use std::borrow::Cow;
 
 use glam::{IVec3, Mat3, Vec3};
@@ -189,47 +189,26 @@ enum Feature {
     Vertex(u8),
 }
 
-/// The nearest point of triangle `abc` to `p` (Ericson, *Real-Time Collision Detection*,
-/// §5.1.5): its barycentric weights and the feature it lies on. `None` for a degenerate
-/// triangle (its neighbours cover its edges).
+/// The nearest point of triangle `abc` to `p` ([`closest_region`]): its barycentric weights
+/// and the feature it lies on. `None` for a degenerate triangle (its neighbours cover its
+/// edges).
 fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Option<([f32; 3], Feature)> {
-    let (ab, ac, ap) = (b - a, c - a, p - a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return Some(([1.0, 0.0, 0.0], Feature::Vertex(0)));
-    }
-    let bp = p - b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return Some(([0.0, 1.0, 0.0], Feature::Vertex(1)));
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return Some(([1.0 - v, v, 0.0], Feature::Edge(0)));
-    }
-    let cp = p - c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return Some(([0.0, 0.0, 1.0], Feature::Vertex(2)));
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return Some(([1.0 - w, 0.0, w], Feature::Edge(2)));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return Some(([0.0, 1.0 - w, w], Feature::Edge(1)));
-    }
-    let sum = va + vb + vc;
-    // (Written so that a NaN sum is refused too.)
-    if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !sum.is_finite() {
-        return None;
-    }
-    let (v, w) = (vb / sum, vc / sum);
-    Some(([1.0 - v - w, v, w], Feature::Face))
+    Some(match closest_region(p, a, b, c) {
+        Region::Vertex(0) => ([1.0, 0.0, 0.0], Feature::Vertex(0)),
+        Region::Vertex(1) => ([0.0, 1.0, 0.0], Feature::Vertex(1)),
+        Region::Vertex(_) => ([0.0, 0.0, 1.0], Feature::Vertex(2)),
+        Region::Edge(0, v) => ([1.0 - v, v, 0.0], Feature::Edge(0)),
+        Region::Edge(1, w) => ([0.0, 1.0 - w, w], Feature::Edge(1)),
+        Region::Edge(_, w) => ([1.0 - w, 0.0, w], Feature::Edge(2)),
+        Region::Face { vb, vc, sum } => {
+            // (Written so that a NaN sum is refused too.)
+            if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) || !sum.is_finite() {
+                return None;
+            }
+            let (v, w) = (vb / sum, vc / sum);
+            ([1.0 - v - w, v, w], Feature::Face)
+        }
+    })
 }
 
 /// Per triangle, the triangle across each of its edges (edge `e` from corner `e` to `e + 1`);

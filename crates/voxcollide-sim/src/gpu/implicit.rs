@@ -2,7 +2,7 @@
 //! spring lattices and Neo-Hookean tetrahedra, with the voxel model's contacts or the surface
 //! contact's couplings, in WGSL (`shaders/implicit.wgsl`, `elements.wgsl`, `couple.wgsl`).
 //!
-//! Each body's step is the CPU's ([`crate::implicit`]) term by term: the same forces, the same
+//! Each body's step is the CPU's ([`crate::integrator::implicit`]) term by term: the same forces, the same
 //! blocks of `A = M − h·D − h²·K` (springs, tetrahedra, a fill's rank-one term, each contact's
 //! `k·nnᵀ` and its critical damping), the same block-Jacobi preconditioner, the conjugate
 //! gradient started from the last step's answer where that leaves less to solve, the floor's

@@ -1,7 +1,7 @@
 //! Sub-stepping, the bookkeeping both worlds (CPU and GPU) share around their implicit steps:
 //! a step that would carry a vertex farther than its largest move taken again in parts
-//! ([`Parts`]), and the step grown towards rest as the residual falls ([`next_dt_scale`]).
-//! A world takes part in it by implementing [`Stepper`].
+//! ([`Parts`]), and the step grown towards rest as the residual falls (`next_dt_scale`).
+//! A world takes part in it by implementing `Stepper`.
 
 use crate::body::StepInputs;
 use crate::integrator::implicit::{ImplicitSettings, Residual, StepStats};
