@@ -331,13 +331,6 @@ fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
     return r;
 }
 
-fn driven_target(rest: vec3<f32>) -> vec3<f32> {
-    if sim.turn_x.w != 0.0 {
-        return sim.turn_x.xyz * rest.x + sim.turn_y.xyz * rest.y + sim.turn_z.xyz * rest.z + sim.drive.xyz;
-    }
-    return rest + sim.drive.xyz;
-}
-
 fn inverse3(m: mat3x3<f32>) -> mat3x3<f32> {
     // glam's Mat3::inverse: the columns' cross products over the determinant, transposed.
     let t0 = cross3(m[1], m[2]);
@@ -723,17 +716,13 @@ fn pass_move(i: u32) {
                 v -= away * n;
             }
         }
-        if x.z < sim.floor {
-            x.z = sim.floor;
-            v.z = max(v.z, 0.0);
-        }
-    } else if mode == MODE_PINNED {
-        x = info[i].xyz;
-        v = vec3<f32>(0.0);
+        let m = onto_floor(x, v);
+        x = m.x;
+        v = m.v;
     } else {
-        let t = driven_target(info[i].xyz);
-        v = (t - x) / h;
-        x = t;
+        let m = move_held(mode, info[i].xyz, x, h);
+        x = m.x;
+        v = m.v;
     }
     pos[i] = vec4<f32>(x, 1.0);
     vel[i] = vec4<f32>(v, vel[i].w);

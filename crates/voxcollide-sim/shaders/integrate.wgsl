@@ -1,6 +1,7 @@
 // Simulation pass 2: semi-implicit Euler for free vertices (kept above the floor), rest
 // positions for pinned ones, (turn ·) rest + drive for driven ones; a non-finite position or a runaway
-// speed records the first step and vertex where it happened. CPU twin: MassSpring::integrate.
+// speed records the first step and vertex where it happened (the modes and the floor: held.wgsl).
+// CPU twin: MassSpring::integrate.
 
 @group(0) @binding(0) var<uniform> sim: SimParams;
 @group(0) @binding(1) var<storage, read_write> pos: array<vec4<f32>>;
@@ -19,25 +20,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let rest = info[i].xyz;
     var x = pos[i].xyz;
     var v = vel[i].xyz;
+    var m: Moved;
     if mode == MODE_FREE {
         v += sim.dt * acc[i].xyz;
         x += sim.dt * v;
-        if x.z < sim.floor {
-            x.z = sim.floor;
-            v.z = max(v.z, 0.0);
-        }
-    } else if mode == MODE_PINNED {
-        x = rest;
-        v = vec3<f32>(0.0);
+        m = onto_floor(x, v);
     } else {
-        var target_pos = rest + sim.drive.xyz;
-        if sim.turn_x.w != 0.0 {
-            target_pos = sim.turn_x.xyz * rest.x + sim.turn_y.xyz * rest.y + sim.turn_z.xyz * rest.z
-                + sim.drive.xyz;
-        }
-        v = (target_pos - x) / sim.dt;
-        x = target_pos;
+        m = move_held(mode, rest, x, sim.dt);
     }
+    x = m.x;
+    v = m.v;
     pos[i] = vec4<f32>(x, 1.0);
     vel[i] = vec4<f32>(v, vel[i].w);
     let finite = is_finite_f32(x.x) && is_finite_f32(x.y) && is_finite_f32(x.z)

@@ -4,6 +4,7 @@
 
 use glam::{Mat3, Vec3};
 
+use crate::integrator::{move_held, onto_floor};
 use crate::material::{self, springs::Springs};
 use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
@@ -440,20 +441,9 @@ impl MassSpring {
                 Mode::Free => {
                     *vel += inputs.dt * (f[i] * inv_mass[i]);
                     *pos += inputs.dt * *vel;
-                    if pos.z < inputs.floor {
-                        pos.z = inputs.floor;
-                        vel.z = vel.z.max(0.0);
-                    }
+                    onto_floor(pos, vel, inputs.floor);
                 }
-                Mode::Pinned => {
-                    *pos = rest_pos[i];
-                    *vel = Vec3::ZERO;
-                }
-                Mode::Driven => {
-                    let target = driven_target(inputs, rest_pos[i]);
-                    *vel = (target - *pos) / inputs.dt;
-                    *pos = target;
-                }
+                held => move_held(held, inputs, rest_pos[i], pos, vel, inputs.dt),
             },
         );
     }

@@ -44,6 +44,7 @@ pub const IMPLICIT: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
     include_str!("../../shaders/implicit_slots.wgsl"),
     include_str!("../../shaders/springs.wgsl"),
+    include_str!("../../shaders/held.wgsl"),
     include_str!("../../shaders/elements.wgsl"),
     include_str!("../../shaders/implicit.wgsl")
 );

@@ -44,8 +44,11 @@ pub const FORCES: &str = concat!(
     include_str!("../../shaders/forces.wgsl")
 );
 /// Pass 2: integration.
-pub const INTEGRATE: &str =
-    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/integrate.wgsl"));
+pub const INTEGRATE: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/held.wgsl"),
+    include_str!("../../shaders/integrate.wgsl")
+);
 
 /// A body's step parameters. Keep in sync with `SimParams` in `shaders/sim_common.wgsl`.
 #[repr(C)]

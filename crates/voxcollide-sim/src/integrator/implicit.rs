@@ -44,7 +44,7 @@
 use glam::{Mat3, Vec3};
 use rayon::prelude::*;
 
-use super::{CpuIntegrator, Loads};
+use super::{CpuIntegrator, Loads, move_held, onto_floor};
 use crate::body::{MassSpring, Mode, StepInputs, driven_target};
 pub use crate::contact::Coupling;
 use crate::contact::{POINT_VERTICES, entries};
@@ -833,20 +833,9 @@ pub fn integrate_implicit_together(
                             *vel -= away * n;
                         }
                     }
-                    if pos.z < inputs.floor {
-                        pos.z = inputs.floor;
-                        vel.z = vel.z.max(0.0);
-                    }
+                    onto_floor(pos, vel, inputs.floor);
                 }
-                Mode::Pinned => {
-                    *pos = *rest;
-                    *vel = Vec3::ZERO;
-                }
-                Mode::Driven => {
-                    let target = driven_target(inputs, *rest);
-                    *vel = (target - *pos) / h;
-                    *pos = target;
-                }
+                held => move_held(*held, inputs, *rest, pos, vel, h),
             });
     }
     inelastic_impulses(bodies, couplings, &active);

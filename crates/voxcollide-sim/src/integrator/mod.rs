@@ -22,7 +22,7 @@ pub mod substep;
 
 use glam::Vec3;
 
-use crate::body::{MassSpring, StepInputs};
+use crate::body::{MassSpring, Mode, StepInputs, driven_target};
 use crate::contact::ContactPair;
 use crate::contact::CpuContacts;
 use implicit::{ImplicitSettings, Residual};
@@ -64,4 +64,38 @@ pub trait CpuIntegrator {
     /// Moves a world's `bodies` under `loads`; returns the residual at rest at the step's
     /// start where the integrator measures one (the implicit integrator's), else zero.
     fn integrate(&mut self, bodies: &mut [MassSpring], loads: &Loads<'_>) -> Residual;
+}
+
+/// The end of a step for a vertex that is not free, under either integrator: a pinned one back
+/// at `rest` and still; a driven one at its target, at the speed that took it there over `dt`.
+/// Nothing for a free one. CPU twin of `shaders/integrate.wgsl`'s and `implicit.wgsl`'s.
+pub(crate) fn move_held(
+    mode: Mode,
+    inputs: &StepInputs,
+    rest: Vec3,
+    pos: &mut Vec3,
+    vel: &mut Vec3,
+    dt: f32,
+) {
+    match mode {
+        Mode::Free => {}
+        Mode::Pinned => {
+            *pos = rest;
+            *vel = Vec3::ZERO;
+        }
+        Mode::Driven => {
+            let target = driven_target(inputs, rest);
+            *vel = (target - *pos) / dt;
+            *pos = target;
+        }
+    }
+}
+
+/// A free vertex that ended its step below its floor (the chest wall) is put on it, moving up
+/// at most, under either integrator.
+pub(crate) fn onto_floor(pos: &mut Vec3, vel: &mut Vec3, floor: f32) {
+    if pos.z < floor {
+        pos.z = floor;
+        vel.z = vel.z.max(0.0);
+    }
 }
