@@ -344,44 +344,43 @@ fn the_matrixs_stiffest_corner_holds_under_the_implicit_integrator() {
     }
 }
 
-#[test]
-fn a_comparison_with_a_failed_candidate_marks_it_everywhere_and_exits_non_zero() {
-    let d = dir("failed-compare");
-    // The paper's constant response with a force far too small for a filling implant: the
-    // tissue goes into it, and the candidate is marked failed, not shown as an answer.
-    let scene = r#"units = "mm"
+/// `voxcollide compare` on the CPU, in `d`, of a 150 × 150 × 20 mm tissue layer held at its
+/// rim over a 300 mL implant filling on the chest wall, capped at `max_steps`, its contact
+/// given `contact` (keys of the `[[contact]]` table besides `a` and `b`), with one 300 mL
+/// candidate: the command's output and its output folder.
+fn compare_one(d: &Path, max_steps: u32, contact: &str) -> (std::process::Output, PathBuf) {
+    let scene = format!(
+        r#"units = "mm"
 [time]
 duration = 0.3
 settle = true
-max_steps = 3000
+max_steps = {max_steps}
 [[body]]
 name = "tissue"
 kind = "soft"
-shape = { box = [150, 150, 20] }
+shape = {{ box = [150, 150, 20] }}
 spacing = 10
 position = [0, 0, 30]
-material = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }
-fixed = [{ rim = 1 }]
+material = {{ young_kpa = 3.0, density = 1000.0, damping = 0.5 }}
+fixed = [{{ rim = 1 }}]
 [[body]]
 name = "implant"
 kind = "shell"
-shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+shape = {{ implant = {{ volume_ml = 300, base_mm = 115, projection_mm = 40 }} }}
 spacing = 10
 position = [0, 0, 0]
-material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
+material = {{ young_kpa = 30.0, density = 1000.0, damping = 0.5 }}
 floor = 0.0
-inflate = { volume_ml = 300, ramp = 0.2, ease = "smooth" }
+inflate = {{ volume_ml = 300, ramp = 0.2, ease = "smooth" }}
 [[contact]]
 a = "implant"
 b = "tissue"
-direction = "plane-normal"
-response = "constant"
-magnitude = 0.00001
-[output]
+{contact}[output]
 frames = 1
 vtk = false
 images = false
-"#;
+"#
+    );
     std::fs::write(d.join("scene.toml"), scene).unwrap();
     std::fs::write(
         d.join("candidates.toml"),
@@ -398,6 +397,16 @@ images = false
         .arg(&out)
         .output()
         .unwrap();
+    (output, out)
+}
+
+#[test]
+fn a_comparison_with_a_failed_candidate_marks_it_everywhere_and_exits_non_zero() {
+    let d = dir("failed-compare");
+    // The paper's constant response with a force far too small for a filling implant: the
+    // tissue goes into it, and the candidate is marked failed, not shown as an answer.
+    let contact = "direction = \"plane-normal\"\nresponse = \"constant\"\nmagnitude = 0.00001\n";
+    let (output, out) = compare_one(&d, 3000, contact);
     let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
     // Non-zero, after writing its files.
     assert_eq!(output.status.code(), Some(2), "{stdout}\n{stderr}");
@@ -433,52 +442,7 @@ fn a_comparison_with_an_unfinished_candidate_marks_it_everywhere_and_exits_non_z
     let d = dir("unfinished-compare");
     // Contacts that hold, but a cap of 40 steps: the implant is nowhere near its volume and
     // nothing is at rest. Its numbers must not be shown as an answer.
-    let scene = r#"units = "mm"
-[time]
-duration = 0.3
-settle = true
-max_steps = 40
-[[body]]
-name = "tissue"
-kind = "soft"
-shape = { box = [150, 150, 20] }
-spacing = 10
-position = [0, 0, 30]
-material = { young_kpa = 3.0, density = 1000.0, damping = 0.5 }
-fixed = [{ rim = 1 }]
-[[body]]
-name = "implant"
-kind = "shell"
-shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
-spacing = 10
-position = [0, 0, 0]
-material = { young_kpa = 30.0, density = 1000.0, damping = 0.5 }
-floor = 0.0
-inflate = { volume_ml = 300, ramp = 0.2, ease = "smooth" }
-[[contact]]
-a = "implant"
-b = "tissue"
-[output]
-frames = 1
-vtk = false
-images = false
-"#;
-    std::fs::write(d.join("scene.toml"), scene).unwrap();
-    std::fs::write(
-        d.join("candidates.toml"),
-        "[[candidate]]\nname = \"300 mL\"\nshape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }\n",
-    )
-    .unwrap();
-    let out = d.join("out");
-    let output = Command::new(env!("CARGO_BIN_EXE_voxcollide"))
-        .arg("compare")
-        .arg(d.join("scene.toml"))
-        .args(["--body", "implant", "--backend", "cpu", "--candidates"])
-        .arg(d.join("candidates.toml"))
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let (output, out) = compare_one(&d, 40, "");
     let (stdout, stderr) = (String::from_utf8_lossy(&output.stdout), String::from_utf8_lossy(&output.stderr));
     // Non-zero, after writing its files.
     assert_eq!(output.status.code(), Some(2), "{stdout}\n{stderr}");
