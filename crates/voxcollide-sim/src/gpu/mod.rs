@@ -5,7 +5,7 @@
 //! instead, which read back a few numbers (has the solve converged, how far would a vertex
 //! move) where the host must decide.
 //!
-//! **A surface contact** (`response = "surface"`, [`SurfaceContact`]) steps here with its search
+//! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact)) steps here with its search
 //! on the host: each step reads back the positions of the two bodies, finds the pushes as the
 //! CPU world does (the same code over the same positions), and uploads the two force buffers
 //! that the `forces` pass reads as it reads a collision's: under the explicit integrator, the
@@ -14,6 +14,7 @@
 //! ([`crate::gpu::implicit`]), and the inelastic impulses after the step are the host's. Its
 //! nearest-triangle search has no WGSL passes yet (docs/integrator.md, "On the GPU").
 
+mod contact;
 pub mod implicit;
 
 use bytemuck::{Pod, Zeroable};
@@ -21,16 +22,17 @@ use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
-use crate::contact::{ContactModel, SurfaceContact, SurfaceForces, SurfaceStats};
+use crate::contact::SurfaceStats;
 use crate::integrator::implicit::Coupling;
 use crate::integrator::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::integrator::substep::{Parts, Stepper, after_implicit_step};
 use crate::scene::Scene;
 use crate::world::{Integrator, World};
+use contact::DeviceContact;
 use implicit::{BodyBuffers, CoupledPair, Couplings, ImplicitBody, ImplicitKernels, Setup, Sums};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot};
-use voxcollide::gpu::{GpuCollision, GpuContext, scoped};
+use voxcollide::gpu::{GpuContext, scoped};
 use voxcollide::report::ContactReport;
 
 /// The simulation passes' WGSL, composed with `sim_common.wgsl`.
@@ -229,25 +231,6 @@ enum ContactSource {
     Sum(Buffer, Vec<(usize, bool, Buffer)>),
 }
 
-/// A contact as a [`GpuWorld`] steps it.
-enum DeviceContact {
-    /// The voxel model's collision passes (through the embedding API).
-    Voxel(Box<GpuCollision>),
-    /// A surface contact, found on the host.
-    Surface(Box<HostSurface>),
-}
-
-/// A surface contact's host side in a [`GpuWorld`]: its search over the positions read back
-/// each step, and the device buffers its forces are uploaded to.
-struct HostSurface {
-    contact: SurfaceContact,
-    forces: SurfaceForces,
-    stats: SurfaceStats,
-    /// The forces on `a`'s and `b`'s vertices, as the `forces` pass reads a collision's.
-    force_a: Buffer,
-    force_b: Buffer,
-}
-
 /// A world stepping on the GPU: every contact's collision passes (through the embedding API),
 /// each body's contact forces summed where it has several, then `forces` and `integrate` for
 /// every body — one command encoder and one submit a step, nothing read back until
@@ -314,7 +297,7 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`] and [`SurfaceContact::new`]. Both integrators step here (the
+    /// [`GpuCollision::new`](voxcollide::GpuCollision::new) and [`SurfaceContact::new`](crate::contact::SurfaceContact::new). Both integrators step here (the
     /// implicit one in [`crate::gpu::implicit`]'s passes), with every contact response.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
@@ -322,34 +305,9 @@ impl GpuWorld {
         let collisions = world
             .contacts
             .iter()
-            .map(|c| match c.model {
-                ContactModel::Voxel(response) => GpuCollision::new(ctx, c.grid, c.params)
-                    .and_then(|g| g.with_response(response))
-                    .map(|g| DeviceContact::Voxel(Box::new(g))),
-                ContactModel::Surface(penalty) => {
-                    let (a, b) = (&world.bodies[c.a], &world.bodies[c.b]);
-                    let contact = SurfaceContact::new(penalty, a, b)?;
-                    let buffer = |n: usize| {
-                        scoped(device, || {
-                            device.create_buffer(&wgpu::BufferDescriptor {
-                                label: Some("sim surface contact forces"),
-                                size: 16 * n.max(1) as u64,
-                                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
-                                mapped_at_creation: false,
-                            })
-                        })
-                    };
-                    Ok(DeviceContact::Surface(Box::new(HostSurface {
-                        contact,
-                        forces: SurfaceForces::default(),
-                        stats: SurfaceStats::default(),
-                        force_a: buffer(a.len())?,
-                        force_b: buffer(b.len())?,
-                    })))
-                }
-            })
+            .map(|c| DeviceContact::new(ctx, c, &world.bodies))
             .collect::<Result<Vec<_>, _>>()?;
-        let on_host = collisions.iter().any(|c| matches!(c, DeviceContact::Surface(_)));
+        let on_host = collisions.iter().any(DeviceContact::on_host);
         use Slot::{Read, ReadWrite, Uniform};
         let contacts_of = world.contacts_of();
         let (forces, integrate, accumulate, volume, bodies, sources) = scoped(device, || {
@@ -517,20 +475,13 @@ impl GpuWorld {
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
         for (collision, pair) in self.collisions.iter_mut().zip(&self.world.contacts) {
-            match collision {
-                DeviceContact::Voxel(collision) => {
-                    let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
-                    collision.record(&mut encoder, &a.pos, a.n, &b.pos, b.n)?;
-                }
-                DeviceContact::Surface(s) => {
-                    let (a, b) = (&self.world.bodies[pair.a], &self.world.bodies[pair.b]);
-                    s.stats = s.contact.step(a, b, &mut s.forces);
-                    let padded =
-                        |f: &[glam::Vec3]| -> Vec<Vec4> { f.iter().map(|f| f.extend(0.0)).collect() };
-                    queue.write_buffer(&s.force_a, 0, bytemuck::cast_slice(&padded(&s.forces.force_a)));
-                    queue.write_buffer(&s.force_b, 0, bytemuck::cast_slice(&padded(&s.forces.force_b)));
-                }
-            }
+            let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
+            collision.record(
+                &mut encoder,
+                queue,
+                (&a.pos, a.n, &self.world.bodies[pair.a]),
+                (&b.pos, b.n, &self.world.bodies[pair.b]),
+            )?;
         }
         if self.bound.is_none() {
             let (bound, implicit_bodies, sums) = self.bind(&device)?;
@@ -638,14 +589,7 @@ impl GpuWorld {
 
     /// The bind groups, once the collisions have their force buffers.
     fn bind(&self, device: &wgpu::Device) -> Result<(Bound, Vec<ImplicitBody>, Option<Sums>), Error> {
-        let force_buffer = |c: usize, as_a: bool| match &self.collisions[c] {
-            DeviceContact::Voxel(collision) => {
-                if as_a { collision.force_a_buffer() } else { collision.force_b_buffer() }.ok_or_else(|| {
-                    Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
-                })
-            }
-            DeviceContact::Surface(s) => Ok(if as_a { &s.force_a } else { &s.force_b }),
-        };
+        let force_buffer = |c: usize, as_a: bool| self.collisions[c].force_buffer(as_a);
         let mut accumulate = Vec::with_capacity(self.bodies.len());
         let mut forces = Vec::with_capacity(self.bodies.len());
         let mut integrate = Vec::with_capacity(self.bodies.len());
@@ -737,13 +681,7 @@ impl GpuWorld {
     /// of the voxel model), as [`CpuWorld::surface_stats`](crate::CpuWorld::surface_stats).
     #[must_use]
     pub fn surface_stats(&self) -> Vec<SurfaceStats> {
-        self.collisions
-            .iter()
-            .map(|c| match c {
-                DeviceContact::Voxel(_) => SurfaceStats::default(),
-                DeviceContact::Surface(s) => s.stats,
-            })
-            .collect()
+        self.collisions.iter().map(DeviceContact::surface_stats).collect()
     }
 
     /// Reads the positions of the bodies in a surface contact back into
@@ -751,7 +689,7 @@ impl GpuWorld {
     fn read_positions(&mut self) -> Result<(), Error> {
         let mut wanted = vec![false; self.bodies.len()];
         for (c, pair) in self.collisions.iter().zip(&self.world.contacts) {
-            if matches!(c, DeviceContact::Surface(_)) {
+            if c.on_host() {
                 wanted[pair.a] = true;
                 wanted[pair.b] = true;
             }
@@ -779,18 +717,7 @@ impl GpuWorld {
             self.collisions
                 .iter_mut()
                 .zip(&self.world.contacts)
-                .map(|(c, pair)| match c {
-                    DeviceContact::Voxel(collision) => collision.read_report(),
-                    // As the CPU world reports it.
-                    DeviceContact::Surface(s) => Ok(ContactReport {
-                        force_a: s.forces.force_a.clone(),
-                        force_b: s.forces.force_b.clone(),
-                        colliding_b: s.forces.touching_b.clone(),
-                        binned_a: self.world.bodies[pair.a].len() as u32,
-                        discarded_a: 0,
-                        grid_center: pair.grid.center(),
-                    }),
-                })
+                .map(|(c, pair)| c.read_report(pair, self.world.bodies[pair.a].len()))
                 .collect::<Result<Vec<_>, _>>()?
         } else {
             vec![ContactReport::default(); self.collisions.len()]
@@ -847,16 +774,7 @@ impl Stepper for GpuWorld {
                 .collisions
                 .iter()
                 .zip(&self.world.contacts)
-                .filter_map(|(c, pair)| match c {
-                    DeviceContact::Surface(s) => Some(
-                        s.forces
-                            .pushes
-                            .iter()
-                            .map(|p| Coupling::of_push(p, pair, s.contact.penalty.stiffness))
-                            .collect(),
-                    ),
-                    DeviceContact::Voxel(_) => None,
-                })
+                .filter_map(|(c, pair)| c.couplings(pair))
                 .collect();
             let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
             couplings.upload(
@@ -974,7 +892,7 @@ impl GpuSim {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`].
+    /// [`GpuCollision::new`](voxcollide::GpuCollision::new).
     pub fn new(ctx: &GpuContext, scene: Scene) -> Result<GpuSim, Error> {
         let world = GpuWorld::new(ctx, scene.world()?)?;
         Ok(GpuSim { scene, world })
