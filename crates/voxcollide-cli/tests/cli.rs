@@ -9,28 +9,22 @@ fn voxcollide() -> Command {
     Command::new(env!("CARGO_BIN_EXE_voxcollide"))
 }
 
+/// `run implant` on `backend`, small (a resolution of 8, 40 steps, 2 frames, no pictures),
+/// writing to `out`.
+fn small_implant(backend: &str, out: &std::path::Path) -> std::process::Output {
+    voxcollide()
+        .args(["run", "implant", "--backend", backend, "--resolution", "8", "--steps", "40", "--frames", "2"])
+        .args(["--no-images", "--out"])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 #[test]
 fn run_implant_prints_a_table_and_writes_its_files() {
     let out = std::env::temp_dir().join(format!("voxcollide-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
-    let output = voxcollide()
-        .args([
-            "run",
-            "implant",
-            "--backend",
-            "cpu",
-            "--resolution",
-            "8",
-            "--steps",
-            "40",
-            "--frames",
-            "2",
-            "--no-images",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let output = small_implant("cpu", &out);
     let stdout = String::from_utf8_lossy(&output.stdout);
     assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
     for line in ["scenario", "backend", "max penetration", "penetrating tissue", "max tissue displacement"] {
@@ -462,24 +456,7 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     );
     // The paper's scene, stepped on the device, waits for nothing.
     let out = dir.join("paper");
-    let output = voxcollide()
-        .args([
-            "run",
-            "implant",
-            "--backend",
-            "gpu",
-            "--resolution",
-            "8",
-            "--steps",
-            "40",
-            "--frames",
-            "2",
-            "--no-images",
-            "--out",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let output = small_implant("gpu", &out);
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();

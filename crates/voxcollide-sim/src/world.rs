@@ -143,12 +143,7 @@ impl World {
     /// For each body, the contacts that push it, in contact order: `(contact, as_a)`.
     #[must_use]
     pub fn contacts_of(&self) -> Vec<Vec<(usize, bool)>> {
-        let mut of = vec![Vec::new(); self.bodies.len()];
-        for (c, pair) in self.contacts.iter().enumerate() {
-            of[pair.a].push((c, true));
-            of[pair.b].push((c, false));
-        }
-        of
+        crate::contact::contacts_of(self.bodies.len(), &self.contacts)
     }
 }
 

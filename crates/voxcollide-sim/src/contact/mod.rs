@@ -150,6 +150,18 @@ impl Coupling {
     }
 }
 
+/// For each of `bodies` bodies, the contacts of `pairs` that push it, in contact order:
+/// `(contact, as_a)`. A body's contact forces are summed in this order on the CPU and the GPU.
+#[must_use]
+pub fn contacts_of(bodies: usize, pairs: &[ContactPair]) -> Vec<Vec<(usize, bool)>> {
+    let mut of = vec![Vec::new(); bodies];
+    for (c, pair) in pairs.iter().enumerate() {
+        of[pair.a].push((c, true));
+        of[pair.b].push((c, false));
+    }
+    of
+}
+
 /// One contact's state on the CPU, by its model.
 enum CpuContact {
     Voxel(ParallelCpuCollision),
@@ -181,12 +193,7 @@ impl CpuContacts {
                     .map(|contact| CpuContact::Surface { contact, forces: SurfaceForces::default() }),
             })
             .collect::<Result<Vec<_>, _>>()?;
-        let mut contacts_of = vec![Vec::new(); bodies.len()];
-        for (c, pair) in pairs.iter().enumerate() {
-            contacts_of[pair.a].push((c, true));
-            contacts_of[pair.b].push((c, false));
-        }
-        Ok(CpuContacts { contacts, contacts_of })
+        Ok(CpuContacts { contacts, contacts_of: contacts_of(bodies.len(), pairs) })
     }
 
     /// How many contacts there are.
