@@ -418,7 +418,13 @@ pub fn run_scene_on(
         // slow a body still out of balance (a fill judged still at a residual of 3e-3 had its
         // lift 4.5 % short of the equilibrium the residual then reached).
         let still = done >= planned && long_enough && motion <= REST_TOLERANCE && residual.is_none();
-        let balanced = done >= planned && done > 0 && residual.is_some_and(|r| r <= RESIDUAL_TOLERANCE);
+        // Balanced: within the tolerance, or as finely as single-precision positions resolve
+        // the forces (a column of 6,561 vertices hanging under its own weight stalled at
+        // 2.6e-3 of its loads, below its floor of 4.0e-3, its stretch within 0.1 % of the
+        // closed form).
+        let balanced = done >= planned
+            && done > 0
+            && residual.is_some_and(|r| r <= RESIDUAL_TOLERANCE || floor.is_some_and(|f| r <= f));
         let at_rest = still || balanced;
         // Settling whose residual has stopped falling is said as soon as it is seen, not only
         // after max_steps.

@@ -1,5 +1,5 @@
 // Simulation pass 1: the force on every vertex of a body — its springs (nonlinear, damped),
-// viscous damping, the internal pressure on its surface triangles and its contact force —
+// viscous damping, the internal pressure on its surface triangles, its weight and its contact force —
 // summed per vertex in adjacency order (a body's tetrahedra after its springs: elements.wgsl),
 // then divided by its mass; the spring law is springs.wgsl's. CPU twin: MassSpring::forces.
 
@@ -15,6 +15,7 @@
 @group(0) @binding(9) var<storage, read> fill: array<f32>;             // [0]: the pressure of a fill
 @group(0) @binding(10) var<storage, read> tet_index: array<u32>;       // elements.wgsl
 @group(0) @binding(11) var<storage, read> tet_rest: array<vec4<f32>>;
+@group(0) @binding(12) var<storage, read> mass: array<f32>;            // what gravity pulls
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -47,6 +48,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
             let c = pos[t.z].xyz;
             f += (pressure / 6.0) * cross3(b - a, c - a);
         }
+    }
+    if sim.gravity.w != 0.0 {
+        f += mass[i] * sim.gravity.xyz;
     }
     acc[i] = vec4<f32>(f * vel[i].w, 0.0);
 }

@@ -110,6 +110,7 @@ struct ImplicitParams {
 @group(0) @binding(14) var<storage, read> tet_index: array<u32>;          // elements.wgsl
 @group(0) @binding(15) var<storage, read> tet_rest: array<vec4<f32>>;
 @group(0) @binding(16) var<storage, read_write> tet_work: array<vec4<f32>>;
+@group(0) @binding(17) var<storage, read> mass: array<f32>;                // what gravity pulls
 
 var<workgroup> lanes: array<f32, 64>;
 
@@ -426,6 +427,7 @@ fn pass_prepare(i: u32) -> vec2<f32> {
     var f = contact[i].xyz - sim.damping * v;
     var rest_f = contact[i].xyz;
     var gross = sqrt(dot3(contact[i].xyz, contact[i].xyz));
+    var outside = gross;      // contact, pressure and weight: the loads (under gravity)
     let range = vec2<u32>(offsets[i].x, offsets[i + 1u].x);
     for (var e = range.x; e < range.y; e++) {
         let j = adjacency[2u * e];
@@ -459,7 +461,15 @@ fn pass_prepare(i: u32) -> vec2<f32> {
             f += p;
             rest_f += p;
             gross += sqrt(dot3(p, p));
+            outside += sqrt(dot3(p, p));
         }
+    }
+    if sim.gravity.w != 0.0 {
+        let w = mass[i] * sim.gravity.xyz;
+        f += w;
+        rest_f += w;
+        gross += sqrt(dot3(w, w));
+        outside += sqrt(dot3(w, w));
     }
     if x.z <= sim.floor && rest_f.z < 0.0 {
         rest_f.z = 0.0;
@@ -475,6 +485,14 @@ fn pass_prepare(i: u32) -> vec2<f32> {
         held = (driven_target(info[i].xyz) - x) / ip.h - v;
     }
     vput(SLOT_HELD, i, held);
+    // Under gravity the residual is judged against the loads that act: each free vertex's
+    // contact, pressure and weight, and each held one's reaction (CPU: MassSpring::residual).
+    if sim.gravity.w != 0.0 {
+        if free {
+            return vec2<f32>(dot3(rest_f, rest_f), outside * outside);
+        }
+        return vec2<f32>(0.0, dot3(rest_f, rest_f));
+    }
     if free {
         return vec2<f32>(dot3(rest_f, rest_f), gross * gross);
     }

@@ -32,6 +32,7 @@ struct SimParams {
     lambda: f32,
     alpha: f32,
     _pad1: u32,
+    gravity: vec4<f32>,    // xyz: the acceleration of gravity; w: 1 where there is any
 }
 
 fn item_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {

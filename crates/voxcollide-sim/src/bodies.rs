@@ -827,6 +827,7 @@ pub fn tetrahedral_body(
     let modes = p.iter().map(|q| mode(*q)).collect();
     let mut body = MassSpring::new(p.clone(), modes, springs, mesh.boundary.clone(), material)?;
     body.inv_mass = mass.iter().map(|&m| (1.0 / m) as f32).collect();
+    body.mass = mass.iter().map(|&m| m as f32).collect();
     Ok(body)
 }
 

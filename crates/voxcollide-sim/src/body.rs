@@ -82,6 +82,12 @@ pub struct MassSpring {
     pub offsets: Vec<u32>,
     /// See `offsets`.
     pub adjacency: Vec<[u32; 2]>,
+    /// Per vertex, its share of the body's mass in kilograms: what gravity pulls
+    /// ([`StepInputs::gravity`]). A lattice's vertex carries an eighth of each cell it is a
+    /// corner of (a quarter of each tetrahedron), so that the body weighs its density times
+    /// its volume; its inertia is the lumped [`inv_mass`](Self::inv_mass), which weighs
+    /// boundary vertices as whole cells for the springs' stable step.
+    pub mass: Vec<f32>,
     /// Per vertex, `1 / mass`: the material's mass scaled by the vertex's spring count over
     /// [`REFERENCE_DEGREE`] (at least 1), so that hubs (poles, axes) are not the stiffest
     /// oscillators and do not dictate the time step.
@@ -146,6 +152,10 @@ impl Embedding {
 /// get proportionally more mass.
 pub const REFERENCE_DEGREE: f32 = 18.0;
 
+/// The strain whose forces set a body's [`MassSpring::quiet_force`]: a load that strains it
+/// less is judged against these forces, so that with nothing acting the body is at rest at once.
+pub const REST_STRAIN: f64 = 1e-5;
+
 /// Vertices per parallel task of the force and integration loops: below this a body runs on
 /// one thread.
 const PAR_CHUNK: usize = 2048;
@@ -184,6 +194,10 @@ pub struct StepInputs {
     pub fill_hold: f32,
     /// Free vertices are kept at `z >= floor` (the chest wall); `f32::MIN` for none.
     pub floor: f32,
+    /// The acceleration of gravity, in file units per second squared (docs/design.md §13):
+    /// each free vertex is pulled by its share of the body's mass ([`MassSpring::mass`]) times
+    /// it. Zero for none (the paper's scenes).
+    pub gravity: Vec3,
 }
 
 impl StepInputs {
@@ -201,6 +215,7 @@ impl StepInputs {
             fill_bulk: 0.0,
             fill_hold: 0.0,
             floor: f32::MIN,
+            gravity: Vec3::ZERO,
         }
     }
 
@@ -229,6 +244,11 @@ impl StepInputs {
             fill_bulk: mix(self.fill_bulk, to.fill_bulk),
             fill_hold: to.fill_hold * share,
             floor: mix(self.floor, to.floor),
+            gravity: if self.gravity == to.gravity || t >= 1.0 {
+                to.gravity
+            } else {
+                self.gravity.lerp(to.gravity, t)
+            },
         }
     }
 }
@@ -301,10 +321,11 @@ impl MassSpring {
                 fill[a as usize] += 1;
             }
         }
-        let inv_mass =
+        let inv_mass: Vec<f32> =
             degree.iter().map(|&d| 1.0 / (material.mass * (d as f32 / REFERENCE_DEGREE).max(1.0))).collect();
         let (tri_offsets, tri_adjacency) = surface.triangles_at(n);
         Ok(MassSpring {
+            mass: inv_mass.iter().map(|w| 1.0 / w).collect(),
             inv_mass,
             tri_offsets,
             tri_adjacency,
@@ -399,6 +420,26 @@ impl MassSpring {
         if omega2 > 0.0 { 0.5 * 2.0 / omega2.sqrt() } else { f32::INFINITY }
     }
 
+    /// The net force at rest below which the body is at rest whatever acts on it
+    /// (docs/design.md §13): over its free vertices (in quadrature), the force its materials
+    /// answer a move of [`REST_STRAIN`] of its mean spring's length with. A body that carries
+    /// less than that has nothing acting on it worth the name, and its residual is judged
+    /// against this instead of against rounding noise.
+    #[must_use]
+    pub fn quiet_force(&self) -> f64 {
+        let bounds: Vec<Vec<f32>> = self.materials().map(|m| m.stiffness_bounds(self, 0.0)).collect();
+        let h = if self.springs.is_empty() {
+            0.0
+        } else {
+            self.springs.iter().map(|s| f64::from(s.rest)).sum::<f64>() / self.springs.len() as f64
+        };
+        let sum: f64 = (0..self.len())
+            .filter(|&i| self.mode[i] == Mode::Free)
+            .map(|i| (f64::from(bounds.iter().map(|b| b[i]).sum::<f32>()) * h * REST_STRAIN).powi(2))
+            .sum();
+        sum.sqrt()
+    }
+
     /// The body's materials, in the order their forces are summed: its springs, then its
     /// elements if it has them.
     pub fn materials(&self) -> impl Iterator<Item = &dyn material::Material> {
@@ -406,8 +447,8 @@ impl MassSpring {
             .chain(self.elements.as_ref().map(|e| e as &dyn material::Material))
     }
 
-    /// The force on every vertex (its materials', viscous damping, the fill's pressure and
-    /// `contact`), summed per vertex in the materials' order. CPU twin of `shaders/forces.wgsl`.
+    /// The force on every vertex (its materials', viscous damping, the fill's pressure, its
+    /// weight and `contact`), summed per vertex in the materials' order. CPU twin of `shaders/forces.wgsl`.
     pub fn forces(&self, inputs: &StepInputs, contact: &[Vec3], out: &mut Vec<Vec3>) {
         use rayon::prelude::*;
         out.clear();
@@ -427,8 +468,23 @@ impl MassSpring {
                     f += (pressure / 6.0) * cross(b - a, c - a);
                 }
             }
+            if inputs.gravity != Vec3::ZERO {
+                f += self.weight(inputs, i);
+            }
             f
         }));
+    }
+
+    /// Vertex `i`'s weight under `inputs`' gravity: its [`mass`](Self::mass) times it.
+    #[must_use]
+    pub fn weight(&self, inputs: &StepInputs, i: usize) -> Vec3 {
+        self.mass[i] * inputs.gravity
+    }
+
+    /// The body's mass in kilograms: the sum of its vertices' shares ([`mass`](Self::mass)).
+    #[must_use]
+    pub fn total_mass(&self) -> f64 {
+        self.mass.iter().map(|&m| f64::from(m)).sum()
     }
 
     /// One integration step with the forces `f`. CPU twin of `shaders/integrate.wgsl`; each

@@ -273,9 +273,8 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         segments: (6 * rings).max(12),
                         layers: ((height / h).round() as u32).max(2) + 1,
                     };
-                    if neo_hookean {
-                        mesh_tets = Some(crate::bodies::cylinder_tets(&shape));
-                    }
+                    // Its tetrahedra: the elements' (neo-hookean), and its mass's shares.
+                    mesh_tets = Some(crate::bodies::cylinder_tets(&shape));
                     (cylinder(shape, kspring, material)?, kspring)
                 }
                 Geometry::Mesh(path)
@@ -460,9 +459,18 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         ));
     }
     note.vertices = body.len();
+    // A soft body's tetrahedra: a mesh's own, or six per cell of its lattice.
+    let tets = (spec.kind == BodyKind::Soft).then(|| {
+        mesh_tets
+            .unwrap_or_else(|| crate::material::neo_hookean::lattice_tets(&body.rest_pos, h.unwrap_or(1.0)))
+    });
+    // What gravity pulls: each vertex a quarter of each of its tetrahedra's mass, so that the
+    // body weighs its density times its volume (a shell's vertex its wall's, as it was built).
+    if let Some(tets) = &tets {
+        body.mass = tet_masses(&body.rest_pos, tets, m.density * s.powi(3));
+    }
     if neo_hookean {
-        let h = h.unwrap_or(1.0);
-        let tets = mesh_tets.unwrap_or_else(|| crate::material::neo_hookean::lattice_tets(&body.rest_pos, h));
+        let tets = tets.unwrap_or_default();
         let young = m.young_kpa * 1e3 * s;
         let mut elements =
             crate::material::neo_hookean::Elements::new(&body.rest_pos, &tets, young, m.poisson)
@@ -517,6 +525,20 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     Ok((body, note, kspring))
 }
 
+/// Each vertex's share of the mass of the tetrahedra `tets` over `rest`, a quarter of each
+/// one's volume times `density` (kg per cubic file unit).
+fn tet_masses(rest: &[Vec3], tets: &[[u32; 4]], density: f64) -> Vec<f32> {
+    let mut mass = vec![0.0f64; rest.len()];
+    for t in tets {
+        let [a, b, c, d] = t.map(|i| rest[i as usize].as_dvec3());
+        let volume = ((b - a).dot((c - a).cross(d - a)) / 6.0).abs();
+        for &v in t {
+            mass[v as usize] += density * volume / 4.0;
+        }
+    }
+    mass.into_iter().map(|m| m as f32).collect()
+}
+
 /// A body's schedule: keyframes (time, offset from the first, rotation in degrees, ease) about
 /// its pivot, final pressure or volume ratio, ramp and its ease, and floor.
 struct BodySchedule {
@@ -536,6 +558,8 @@ struct BodySchedule {
     sink: f32,
     /// A fill's integral gain per step once it is full ([`StepInputs::fill_hold`]).
     hold: f32,
+    /// Gravity, in file units per second squared (zero for none, and for a rigid body).
+    gravity: Vec3,
 }
 
 impl BodySchedule {
@@ -590,6 +614,7 @@ impl BodySchedule {
             // still under way would overshoot it.
             fill_hold: if ramped >= 1.0 { self.hold } else { 0.0 },
             floor: if self.sink > 0.0 { self.floor - self.sink * (1.0 - ramped) } else { self.floor },
+            gravity: self.gravity,
         }
     }
 }
@@ -620,6 +645,12 @@ fn fill_bulk(shell: &MassSpring, k: f32, target: f64, full: Option<(f64, f64)>) 
     let grown = start * (target / shell.enclosed_volume()).cbrt().powi(2).max(1.0);
     let area = full.map_or(grown, |(a, _)| a.max(start));
     (0.5 * f64::from(k) * target * shell.len() as f64 / (area * area)) as f32
+}
+
+/// The scene's gravity (`[world] gravity`, m/s²) in file units per second squared.
+#[must_use]
+pub fn gravity(file: &SceneFile) -> Vec3 {
+    file.world.gravity.map_or(Vec3::ZERO, |g| (DVec3::from_array(g) / file.metres()).as_vec3())
 }
 
 /// Builds the world of `file`.
@@ -932,6 +963,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             floor: b.floor.map_or(f32::MIN, |f| f as f32),
             sink: b.sink as f32,
             hold: if fill.is_some() && !implicit { hold } else { 0.0 },
+            gravity: if b.kind == BodyKind::Rigid { Vec3::ZERO } else { gravity(file) },
         });
     }
     let schedule = std::sync::Arc::new(move |step: u64| {

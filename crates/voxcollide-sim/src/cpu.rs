@@ -53,6 +53,7 @@ impl CpuWorld {
     /// The contact-parameter errors of [`CpuContacts::new`].
     pub fn new(world: World) -> Result<CpuWorld, Error> {
         let contacts = CpuContacts::new(&world.bodies, &world.contacts)?;
+        let quiet = world.quiet_force();
         Ok(CpuWorld {
             surface_stats: vec![SurfaceStats::default(); contacts.len()],
             reports: vec![ContactReport::default(); contacts.len()],
@@ -63,7 +64,7 @@ impl CpuWorld {
             world,
             step: 0,
             time: 0.0,
-            residual: Residual::default(),
+            residual: Residual { quiet, ..Residual::default() },
             dt_scale: 1.0,
             accelerate_to: 1.0,
             guess: Guess::default(),
@@ -110,7 +111,7 @@ impl CpuWorld {
             .map(|((b, i), c)| b.residual_floor(i, c).powi(2))
             .sum::<f64>()
             .sqrt();
-        let scale = self.residual.gross.max(crate::integrator::implicit::UNLOADED * self.residual.peak_gross);
+        let scale = self.residual.scale();
         (scale > 0.0).then(|| net / scale)
     }
 

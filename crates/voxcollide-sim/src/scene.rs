@@ -340,6 +340,7 @@ impl SceneSchedule {
     fn at(&self, step: u64) -> (StepInputs, StepInputs) {
         let progress = smoothstep((step + 1) as f32 / (ACTIVE_FRACTION * self.steps as f32));
         let tissue = StepInputs {
+            gravity: Vec3::ZERO,
             dt: self.dt,
             rest_scale: 1.0,
             drive: Vec3::ZERO,

@@ -178,6 +178,53 @@ impl IntegratorSpec {
     }
 }
 
+/// `[world]` (docs/design.md §13): gravity, and which axis pictures draw upward.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldSpec {
+    /// The acceleration of gravity in m/s², in the scene's axes (whatever `units` says);
+    /// `None`: none.
+    #[serde(default)]
+    pub gravity: Option<[f64; 3]>,
+    /// Which axis pictures draw upward (default z).
+    #[serde(default)]
+    pub up: Axis,
+}
+
+/// An axis of the scene: `"x"`, `"y"` or `"z"`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Axis {
+    /// x.
+    X,
+    /// y.
+    Y,
+    /// z (the default up).
+    #[default]
+    Z,
+}
+
+impl Axis {
+    /// Its index: 0, 1 or 2.
+    #[must_use]
+    pub fn index(self) -> usize {
+        match self {
+            Axis::X => 0,
+            Axis::Y => 1,
+            Axis::Z => 2,
+        }
+    }
+}
+
+/// `reference = { gravity }` (docs/design.md §13): the shape given was measured under this
+/// gravity (m/s², the scene's axes), with the body's held vertices held.
+#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Reference {
+    /// The gravity the shape was measured under.
+    pub gravity: [f64; 3],
+}
+
 /// A material's model (docs/design.md §12).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -524,6 +571,7 @@ struct RawBody {
     #[serde(default = "unspanned")]
     motion: Spanned<Vec<Keyframe>>,
     inflate: Option<Spanned<Inflate>>,
+    reference: Option<Spanned<Reference>>,
 }
 
 /// A default value, at no place in the file (defaults are valid, so no error points there).
@@ -632,6 +680,8 @@ struct RawScene {
     units: Units,
     #[serde(default)]
     time: Time,
+    #[serde(default = "unspanned")]
+    world: Spanned<WorldSpec>,
     #[serde(default)]
     body: Vec<RawBody>,
     #[serde(default)]
@@ -687,6 +737,10 @@ pub struct BodySpec {
     /// however close it lies; not a file key). Filled to a volume, it fills from what it
     /// holds flattened, its rest shape unchanged.
     pub flatten: Option<f64>,
+    /// The gravity the shape given was measured under, in m/s² (`reference = { gravity }`):
+    /// the run first finds the unloaded shape that comes to it (docs/design.md §13). `None`:
+    /// the shape given is unloaded.
+    pub reference: Option<[f64; 3]>,
     /// How far below its place a shell starts, its floor as far below, both rising back over
     /// its inflation ramp (file units; 0: none): where the tissue lies on the chest wall, a
     /// flattened shell starts under it and lifts it as it fills (set by `voxcollide compare`;
@@ -728,6 +782,8 @@ pub struct SceneFile {
     pub units: Units,
     /// The schedule.
     pub time: Time,
+    /// Gravity, and the axis pictures draw upward.
+    pub world: WorldSpec,
     /// The bodies, in file order.
     pub bodies: Vec<BodySpec>,
     /// The contacts, in file order.
@@ -1171,7 +1227,28 @@ impl SceneFile {
                     Some(i)
                 }
             };
+            let reference = match b.reference {
+                None => None,
+                Some(r) => {
+                    let span = r.span();
+                    let g = r.into_inner().gravity;
+                    if !g.iter().all(|v| v.is_finite()) {
+                        return Err(err(span, "reference.gravity must be finite, in m/s²".into()));
+                    }
+                    if b.kind != BodyKind::Soft {
+                        return Err(err(
+                            span,
+                            format!(
+                                "only a soft body's shape is recovered from a loaded one; {name:?} is {:?}",
+                                b.kind
+                            ),
+                        ));
+                    }
+                    Some(g)
+                }
+            };
             bodies.push(BodySpec {
+                reference,
                 name,
                 kind: b.kind,
                 geometry,
@@ -1250,6 +1327,15 @@ impl SceneFile {
                 gap: *c.gap.get_ref(),
             });
         }
+        let world_span = raw.world.span();
+        let world = raw.world.into_inner();
+        if let Some(g) = world.gravity
+            && !g.iter().all(|v| v.is_finite())
+        {
+            let offset = find_key(text, "world", "gravity");
+            let offset = if offset == 0 { world_span.start } else { offset };
+            return Err(at(&file, text, offset..offset, Some("world.gravity"), "must be finite, in m/s²"));
+        }
         if raw.output.frames == 0 {
             let offset = find_key(text, "output", "frames");
             return Err(at(&file, text, offset..offset, Some("output.frames"), "at least 1 frame"));
@@ -1258,6 +1344,7 @@ impl SceneFile {
             path: path.to_path_buf(),
             units: raw.units,
             time,
+            world,
             bodies,
             contacts,
             output: raw.output,

@@ -140,6 +140,13 @@ impl World {
         Ok(inputs)
     }
 
+    /// The world's quiet force: its bodies' [`MassSpring::quiet_force`] in quadrature (the
+    /// implicit integrator's residual at rest is judged against no less).
+    #[must_use]
+    pub fn quiet_force(&self) -> f64 {
+        self.bodies.iter().map(|b| b.quiet_force().powi(2)).sum::<f64>().sqrt()
+    }
+
     /// For each body, the contacts that push it, in contact order: `(contact, as_a)`.
     #[must_use]
     pub fn contacts_of(&self) -> Vec<Vec<(usize, bool)>> {

@@ -34,6 +34,7 @@ fn plucked(dt: f32, integrator: Integrator) -> World {
             fill_bulk: 0.0,
             fill_hold: 0.0,
             floor: f32::MIN,
+            gravity: Vec3::ZERO,
         }]
     });
     World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)

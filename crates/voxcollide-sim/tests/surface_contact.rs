@@ -345,22 +345,7 @@ fn moving_ball_on_block() -> World {
         params,
         model: ContactModel::Surface(SurfacePenalty { stiffness, gap: 0.0, reach: 4.0, margin: 1.0 }),
     };
-    let schedule = std::sync::Arc::new(|_| {
-        vec![
-            StepInputs {
-                dt: 0.1,
-                rest_scale: 1.0,
-                drive: Vec3::ZERO,
-                turn: voxcollide::glam::Mat3::IDENTITY,
-                pressure: 0.0,
-                fill_volume: 0.0,
-                fill_bulk: 0.0,
-                fill_hold: 0.0,
-                floor: f32::MIN,
-            };
-            2
-        ]
-    });
+    let schedule = std::sync::Arc::new(|_| vec![StepInputs::at_rest(0.1); 2]);
     World::new(vec!["ball".into(), "block".into()], vec![ball, block], vec![contact], 1e6, schedule)
         .unwrap()
         .with_integrator(Integrator::Implicit(ImplicitSettings {

@@ -157,7 +157,7 @@ impl ImplicitKernels {
         use Slot::{Read, ReadWrite, Uniform};
         let slots = [
             Uniform, Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read, Read, Read, ReadWrite,
-            ReadWrite, ReadWrite, Read, Read, ReadWrite,
+            ReadWrite, ReadWrite, Read, Read, ReadWrite, Read,
         ];
         let passes = PASS_IDS
             .iter()
@@ -243,6 +243,7 @@ pub(crate) struct BodyBuffers<'a> {
     pub status: &'a Buffer,
     pub tet_index: &'a Buffer,
     pub tet_rest: &'a Buffer,
+    pub mass: &'a Buffer,
 }
 
 impl ImplicitBody {
@@ -303,6 +304,7 @@ impl ImplicitBody {
                         b.tet_index,
                         b.tet_rest,
                         &tet_work,
+                        b.mass,
                     ],
                 )
             })
@@ -590,6 +592,7 @@ pub(crate) fn solve(
                 net: f64::from(o[B_NET2]).sqrt(),
                 gross: f64::from(o[B_GROSS2]).sqrt(),
                 peak_gross: 0.0,
+                quiet: 0.0,
             },
         })
         .collect())

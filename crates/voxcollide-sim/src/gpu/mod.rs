@@ -82,8 +82,10 @@ struct GpuSimParams {
     lambda: f32,
     alpha: f32,
     _pad: u32,
+    /// The acceleration of gravity; `gravity[3]` is 1 where there is any.
+    gravity: [f32; 4],
 }
-const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 144);
+const _: () = assert!(std::mem::size_of::<GpuSimParams>() == 160);
 
 /// One body's device buffers.
 struct GpuBody {
@@ -103,6 +105,8 @@ struct GpuBody {
     /// (`shaders/elements.wgsl`); 16 bytes each for springs alone.
     tet_index: Buffer,
     tet_rest: Buffer,
+    /// Each vertex's share of the body's mass, which gravity pulls ([`MassSpring::mass`]).
+    mass: Buffer,
     acc: Buffer,
     status: Buffer,
     /// A fill's pressure and volume, written by the `volume` pass.
@@ -168,6 +172,7 @@ impl GpuBody {
             triangles: init("sim triangles", bytemuck::cast_slice(&triangles), storage),
             tet_index: init("sim tetrahedra", bytemuck::cast_slice(&tet_index), storage),
             tet_rest: init("sim tetrahedra rest", bytemuck::cast_slice(&tet_rest), storage),
+            mass: init("sim mass", bytemuck::cast_slice(&body.mass), storage),
             acc: init("sim acc", &vec![0; 16 * body.len()], storage),
             status: init("sim status", &[0; 8], storage),
             fill: init("sim fill", &[0; 16], storage),
@@ -206,6 +211,10 @@ impl GpuBody {
             lambda: body.elements.as_ref().map_or(0.0, |e| e.lambda),
             alpha: body.elements.as_ref().map_or(0.0, crate::material::neo_hookean::Elements::alpha),
             _pad: 0,
+            gravity: inputs
+                .gravity
+                .extend(f32::from(u8::from(inputs.gravity != glam::Vec3::ZERO)))
+                .to_array(),
         }
     }
 }
@@ -355,7 +364,7 @@ impl GpuWorld {
                     device,
                     "voxcollide forces",
                     FORCES,
-                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite, Read, Read, Read],
+                    &[Uniform, Read, Read, Read, Read, Read, Read, Read, ReadWrite, Read, Read, Read, Read],
                 ),
                 Kernel::new(
                     device,
@@ -389,7 +398,7 @@ impl GpuWorld {
                 guess_h: 0.0,
                 dt_scale: 1.0,
                 accelerate_to: 1.0,
-                residual: Residual::default(),
+                residual: Residual { quiet: world.quiet_force(), ..Residual::default() },
                 stats: vec![StepStats::default(); world.bodies.len()],
                 time: 0.0,
                 parts: Parts::default(),
@@ -629,6 +638,7 @@ impl GpuWorld {
                     &b.fill,
                     &b.tet_index,
                     &b.tet_rest,
+                    &b.mass,
                 ],
             ));
             volume.push(self.volume.bind(device, &[&b.params, &b.pos, &b.triangles, &b.fill]));
@@ -657,6 +667,7 @@ impl GpuWorld {
                     status: &b.status,
                     tet_index: &b.tet_index,
                     tet_rest: &b.tet_rest,
+                    mass: &b.mass,
                 };
                 let body = ImplicitBody::new(
                     device,

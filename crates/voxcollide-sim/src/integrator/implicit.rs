@@ -137,6 +137,9 @@ pub struct Residual {
     /// The largest gross force seen so far over a run, so that a body coming back to rest
     /// unloaded (net and gross both falling to 0) is judged against a share of the load it had.
     pub peak_gross: f64,
+    /// The bodies' [`MassSpring::quiet_force`] (in quadrature): the scale below which a load
+    /// is nothing, so that a world with nothing acting is at rest at once.
+    pub quiet: f64,
 }
 
 /// The share of the run's largest gross force below which [`Residual::relative`] no longer
@@ -144,14 +147,21 @@ pub struct Residual {
 pub const UNLOADED: f64 = 0.01;
 
 impl Residual {
-    /// `net / max(gross, UNLOADED · peak_gross)` (0 when nothing has pushed): the net force
-    /// against the loads the bodies carry now. Against the run's largest load instead, a fill
+    /// `net / max(gross, UNLOADED · peak_gross, quiet)` (0 when nothing has pushed): the net
+    /// force against the loads the bodies carry now. Against the run's largest load instead, a fill
     /// that had pushed hard while filling was taken for at rest at 1e-3 with its lift 24 %
     /// short of its equilibrium (the net force then 2 % of the gross).
     #[must_use]
     pub fn relative(&self) -> f64 {
-        let scale = self.gross.max(UNLOADED * self.peak_gross);
+        let scale = self.scale();
         if scale > 0.0 { self.net / scale } else { 0.0 }
+    }
+
+    /// What [`relative`](Self::relative) divides by: the gross force, or a share of the run's
+    /// largest, or the quiet force, whichever is largest.
+    #[must_use]
+    pub fn scale(&self) -> f64 {
+        self.gross.max(UNLOADED * self.peak_gross).max(self.quiet)
     }
 
     /// The sum of two bodies' residuals (in quadrature).
@@ -161,6 +171,7 @@ impl Residual {
             net: self.net.hypot(other.net),
             gross: self.gross.hypot(other.gross),
             peak_gross: self.peak_gross.max(other.peak_gross),
+            quiet: self.quiet.hypot(other.quiet),
         }
     }
 }
@@ -405,21 +416,34 @@ impl MassSpring {
         }
     }
 
-    /// The body's net and gross force at rest (springs without damping, pressure, `contact`),
+    /// The body's net and gross force at rest (springs without damping, pressure, weight, `contact`),
     /// over its free vertices: what a static answer drives to zero.
+    ///
+    /// Under gravity the gross force is the loads that act instead (docs/design.md §13): each
+    /// free vertex's weight, contact and pressure, and each held vertex's reaction (the net
+    /// force its support takes). A body's internal forces under its own weight are far larger
+    /// than its weight, and against them a hanging column was taken for at rest 5 % short of
+    /// its stretch (a residual of 1e-3 of them is a smooth error they hardly see).
     #[must_use]
     pub fn residual(&self, inputs: &StepInputs, contact: &[Vec3]) -> Residual {
         let pressure = self.pressure(inputs);
+        let loads = inputs.gravity != Vec3::ZERO;
         let (net, gross) = (0..self.len())
             .into_par_iter()
             .with_min_len(CHUNK)
-            .filter(|&i| self.mode[i] == Mode::Free)
+            .filter(|&i| loads || self.mode[i] == Mode::Free)
             .map(|i| {
-                let (f, g) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
-                (f64::from(f.length_squared()), f64::from(g) * f64::from(g))
+                let (f, g, external) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
+                match (loads, self.mode[i] == Mode::Free) {
+                    (false, _) => (f64::from(f.length_squared()), f64::from(g) * f64::from(g)),
+                    (true, true) => {
+                        (f64::from(f.length_squared()), f64::from(external) * f64::from(external))
+                    }
+                    (true, false) => (0.0, f64::from(f.length_squared())),
+                }
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-        Residual { net: net.sqrt(), gross: gross.sqrt(), peak_gross: 0.0 }
+        Residual { net: net.sqrt(), gross: gross.sqrt(), peak_gross: 0.0, quiet: 0.0 }
     }
 
     /// How finely the body's positions resolve its net force at rest: half the change of that
@@ -451,8 +475,8 @@ impl MassSpring {
             .with_min_len(CHUNK)
             .filter(|&i| self.mode[i] == Mode::Free)
             .map(|i| {
-                let (a, _) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
-                let (b, _) = self.force_at_rest(&jittered, i, inputs, contact, pressure);
+                let (a, ..) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
+                let (b, ..) = self.force_at_rest(&jittered, i, inputs, contact, pressure);
                 f64::from((b - a).length_squared())
             })
             .sum();
@@ -460,8 +484,9 @@ impl MassSpring {
     }
 
     /// Vertex `i`'s net force at rest with the body at `pos` (springs without damping,
-    /// elements, `pressure` on its triangles, `contact`), and its gross force (the sum of the
-    /// terms' magnitudes). Whether the floor holds it up is judged where the body stands now
+    /// elements, `pressure` on its triangles, its weight, `contact`), its gross force (the sum
+    /// of the terms' magnitudes), and the part of that gross from outside the body (contact,
+    /// pressure, weight). Whether the floor holds it up is judged where the body stands now
     /// (`self.pos`), so that `pos` may differ from it by a rounding without lifting it off.
     fn force_at_rest(
         &self,
@@ -470,9 +495,10 @@ impl MassSpring {
         inputs: &StepInputs,
         contact: &[Vec3],
         pressure: f32,
-    ) -> (Vec3, f32) {
+    ) -> (Vec3, f32, f32) {
         let mut f = contact[i];
         let mut g = contact[i].length();
+        let mut external = g;
         for material in self.materials() {
             material.for_each_term(self, pos, inputs.rest_scale, i, &mut |t| {
                 f += t;
@@ -485,13 +511,20 @@ impl MassSpring {
                 let p = (pressure / 6.0) * cross(b - a, c - a);
                 f += p;
                 g += p.length();
+                external += p.length();
             }
+        }
+        if inputs.gravity != Vec3::ZERO {
+            let w = self.weight(inputs, i);
+            f += w;
+            g += w.length();
+            external += w.length();
         }
         // A vertex held up by the floor is at rest whatever pushes it down.
         if self.pos[i].z <= inputs.floor && f.z < 0.0 {
             f.z = 0.0;
         }
-        (f, g)
+        (f, g, external)
     }
 }
 

@@ -52,7 +52,7 @@ pub(crate) fn after_implicit_step(
     settings: &ImplicitSettings,
 ) -> f32 {
     let before = held.net;
-    *held = Residual { peak_gross: held.peak_gross.max(now.gross), ..now };
+    *held = Residual { peak_gross: held.peak_gross.max(now.gross), quiet: held.quiet, ..now };
     next_dt_scale(dt_scale, accelerate_to, before, now.net, stats, settings)
 }
 
