@@ -17,12 +17,14 @@ use voxcollide::{ContactReport, Error};
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
-use voxcollide_sim::scene_file::{BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
+use voxcollide_sim::scene_file::{Axis, BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
 use voxcollide_sim::{MassSpring, World};
 
 use crate::backend::Backend;
 use crate::plots::{Chart, Series, line_chart_svg};
-use crate::scene_run::{FileRunConfig, mean_spring, meshes, run_scene_on, shown_and_moved, shown_surface};
+use crate::scene_run::{
+    FileRunConfig, axes, mean_spring, meshes, run_scene_on, shown_and_moved, shown_surface,
+};
 use plotters::prelude::SeriesLabelPosition;
 use voxcollide_render::{Legend, Renderer, Scene as RenderScene};
 
@@ -530,7 +532,8 @@ fn run_candidate(
                 result.implant_pressure_kpa =
                     f64::from(world.bodies[body].pressure(&inputs[body])) / (1e3 * metres);
                 if let Some(r) = renderer.as_mut() {
-                    result.pictures = pictures(r, world, body, tissue, &config.out, &folder, units)?;
+                    result.pictures =
+                        pictures(r, world, body, tissue, &config.out, &folder, units, s.world.up)?;
                 }
             }
             Ok(())
@@ -788,9 +791,11 @@ fn measure_end(
     out.mean_contact_pressure_kpa = if area > 0.0 { total / (area * metres * metres) / 1e3 } else { 0.0 };
 }
 
-/// The candidate's resting shape from the front (looking along +y) and the side (along +x),
-/// cut open through the compared body's centre, the tissue coloured by displacement on one
-/// scale for every candidate (a tenth of the tissue's extent); returns the files written.
+/// The candidate's resting shape from the front (looking along +y where z is up) and the side
+/// (along +x), `up` drawn upward ([`axes`]), cut open through the compared body's centre, the
+/// tissue coloured by displacement on one scale for every candidate (a tenth of the tissue's
+/// extent); returns the files written.
+#[allow(clippy::too_many_arguments)]
 fn pictures(
     renderer: &mut Renderer,
     world: &World,
@@ -799,7 +804,9 @@ fn pictures(
     out: &Path,
     folder: &str,
     units: &str,
+    up: Axis,
 ) -> Result<Vec<String>, Error> {
+    let [side, forward, up] = axes(up);
     let shown = shown_and_moved(world);
     let extent = tissue
         .iter()
@@ -812,7 +819,8 @@ fn pictures(
     };
     let mut files = Vec::new();
     // From a little above, so the tissue's surface shows its colours beside the cut.
-    for (view, dir) in [("front", Vec3::new(0.0, 1.0, -0.35)), ("side", Vec3::new(1.0, 0.0, -0.35))] {
+    for (view, across) in [("front", forward), ("side", side)] {
+        let dir = across - 0.35 * up;
         let scene = RenderScene {
             meshes: meshes(
                 world,
@@ -821,9 +829,9 @@ fn pictures(
                 |k| if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
             ),
             scalar_range: range,
-            clip: Some((centre, Vec3::new(dir.x, dir.y, 0.0))),
+            clip: Some((centre, across)),
             view_dir: dir,
-            up: Vec3::Z,
+            up,
         };
         let name = format!("{folder}/{view}.png");
         let legend =

@@ -18,7 +18,7 @@ use voxcollide::report::ContactReport;
 use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
-use voxcollide_sim::scene_file::{BodyKind, SceneFile};
+use voxcollide_sim::scene_file::{Axis, BodyKind, SceneFile};
 use voxcollide_sim::{Integrator, MassSpring, Simulation, World, simulation};
 
 /// A body in `summary.json`.
@@ -49,6 +49,24 @@ pub struct BodySummary {
     /// What it is made of, as the run used it (a scene file's soft bodies and shells).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub material: Option<MaterialSummary>,
+    /// For a body given as measured under gravity (`reference = { gravity }`, docs/design.md
+    /// §13): how well its unloaded shape was recovered.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferenceSummary>,
+}
+
+/// The recovery of a body's unloaded shape in `summary.json` (docs/design.md §13).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ReferenceSummary {
+    /// The largest distance, in the file's units, between the shape given and the unloaded
+    /// shape loaded again with the reference gravity.
+    pub residual: f32,
+    /// The fixed-point iterations taken.
+    pub iterations: u32,
+    /// The body's spacing (its springs' mean rest length), in the file's units.
+    pub spacing: f32,
+    /// Whether the residual is within a tenth of the spacing; if not, the run is not a result.
+    pub valid: bool,
 }
 
 /// A body's material in `summary.json` (docs/design.md §12).
@@ -177,6 +195,9 @@ pub struct FileSummary {
     pub contacts: Vec<ContactSummary>,
     /// Whether every contact held (`contacts[].held`): the run's numbers are a result only then.
     pub held: bool,
+    /// Why the run's numbers are not a result, besides a contact that failed (`held`): a
+    /// body whose unloaded shape was not recovered to a tenth of its spacing. Empty: nothing.
+    pub not_a_result: Vec<String>,
     /// Files written, relative to the output directory.
     pub files: Vec<String>,
 }
@@ -282,9 +303,27 @@ pub fn run_scene_on(
     note: &mut dyn FnMut(&str),
     observe: &mut Observer<'_>,
 ) -> Result<FileSummary, Error> {
+    let mut not_a_result = Vec::new();
     for n in &built.notes {
         for r in &n.remarks {
             note(&format!("{}: {r}", n.name));
+        }
+        if let Some(r) = n.reference {
+            let units = file.units.symbol();
+            let said = format!(
+                "{}: its unloaded shape, recovered from the shape given under the reference gravity in {} iterations ({} solve steps): loaded again, it misses the shape given by {:.3} {units} at most (spacing {:.3} {units})",
+                n.name, r.iterations, r.solve_steps, r.residual, r.spacing
+            );
+            if r.is_valid() {
+                note(&said);
+            } else {
+                let why = format!(
+                    "{}: its unloaded shape was not recovered: loaded again it misses the shape given by {:.3} {units}, more than a tenth of its spacing {:.3} {units}",
+                    n.name, r.residual, r.spacing
+                );
+                note(&format!("warning: {said}; the run is not a result"));
+                not_a_result.push(why);
+            }
         }
     }
     if config.backend == Backend::Gpu && ctx.is_none() {
@@ -347,6 +386,12 @@ pub fn run_scene_on(
                     poisson_honoured: body.elements.is_some(),
                     tetrahedra: body.elements.as_ref().map(|e| e.tets.len()),
                 }),
+                reference: n.reference.map(|r| ReferenceSummary {
+                    residual: r.residual,
+                    iterations: r.iterations,
+                    spacing: r.spacing,
+                    valid: r.is_valid(),
+                }),
                 ..BodySummary::default()
             })
             .collect(),
@@ -363,6 +408,7 @@ pub fn run_scene_on(
             })
             .collect(),
         held: true,
+        not_a_result,
         integrator: if built.world.integrator == Integrator::Explicit { "explicit" } else { "implicit" }
             .into(),
         ..FileSummary::default()
@@ -449,7 +495,7 @@ pub fn run_scene_on(
         if let Some(r) = renderer.as_mut() {
             let name = format!("{scenario}_{frame:04}.png");
             let shown = shown_and_moved(world);
-            let scene = picture(world, &shown, &soft, size);
+            let scene = picture(world, &shown, &soft, size, file.world.up);
             let legend = Legend::new(format!("displacement ({})", summary.units), scene.scalar_range)
                 .above(scene.largest_scalar());
             r.render_png_with_legend(&scene, Some(&legend), &config.out.join(&name))?;
@@ -912,22 +958,36 @@ pub(crate) fn meshes<'a>(
         .collect()
 }
 
+/// The scene's axes as pictures see them (`[world] up`, docs/design.md §13): `[side,
+/// forward, up]`, `up` drawn upward and a picture from the front looking along `forward`, a
+/// turn of x, y, z (z up: x, y, z; y up: z, x, y; x up: y, z, x).
+#[must_use]
+pub fn axes(up: Axis) -> [Vec3; 3] {
+    match up {
+        Axis::Z => [Vec3::X, Vec3::Y, Vec3::Z],
+        Axis::Y => [Vec3::Z, Vec3::X, Vec3::Y],
+        Axis::X => [Vec3::Y, Vec3::Z, Vec3::X],
+    }
+}
+
 /// Every body by its shown surface (`shown`: positions and how far each moved), the soft ones
 /// coloured by that distance (up to a tenth of the scene), the others in plain colours, seen
-/// from the front and a little above.
+/// from the front and a little above, `up` drawn upward.
 fn picture<'a>(
     world: &'a World,
     shown: &'a [(Vec<Vec3>, Vec<f32>)],
     soft: &[bool],
     size: f32,
+    up: Axis,
 ) -> RenderScene<'a> {
+    let [side, forward, up] = axes(up);
     const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
     RenderScene {
         meshes: meshes(world, shown, |k| soft[k], |k| COLOURS[k % COLOURS.len()]),
         scalar_range: (0.0, 0.1 * size),
         clip: None,
-        view_dir: Vec3::new(0.3, 1.0, -0.35).normalize(),
-        up: Vec3::Z,
+        view_dir: (0.3 * side + forward - 0.35 * up).normalize(),
+        up,
     }
 }
 

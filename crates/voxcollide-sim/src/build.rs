@@ -62,6 +62,9 @@ pub struct BodyNote {
     /// For a shell that starts flattened ([`BodySpec::flatten`](crate::scene_file::BodySpec)):
     /// its full shape's surface area and enclosed volume (cubic and square file units).
     pub full_shape: Option<(f64, f64)>,
+    /// For a body given as measured under gravity (`reference = { gravity }`): what the
+    /// recovery of its unloaded shape found ([`crate::reference`]).
+    pub reference: Option<crate::reference::Recovered>,
 }
 
 /// A world built from a scene file, with its run length.
@@ -157,6 +160,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         coverage: None,
         remarks: Vec::new(),
         full_shape: None,
+        reference: None,
     };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
@@ -673,6 +677,16 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         bodies.push(body);
         notes.push(note);
         stiffness.push(kspring);
+    }
+    // A body given as measured under gravity: its unloaded shape, found before anything else
+    // is sized from it (docs/design.md §13).
+    for (k, spec) in file.bodies.iter().enumerate() {
+        let Some(g) = spec.reference else { continue };
+        let g = (DVec3::from_array(g) / s).as_vec3();
+        let recovered = crate::reference::unload(&mut bodies[k], g).map_err(|e| {
+            file.body_error(k, "reference", format!("recovering the unloaded shape failed: {e}"))
+        })?;
+        notes[k].reference = Some(recovered);
     }
     // Per shell filled to a volume: the volume it encloses at first and its target, in cubic
     // file units (the voxel model's margin and the schedule both follow from them).
