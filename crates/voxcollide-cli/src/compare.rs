@@ -621,8 +621,7 @@ fn apex_lift(world: &World, tissue: &[usize]) -> f32 {
         .map(|&t| {
             let b = &world.bodies[t];
             let (now, _) = shown_surface(b);
-            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
-            top(&now) - top(rest)
+            top(&now) - top(&b.shown_start())
         })
         .fold(f32::MIN, f32::max)
 }
@@ -638,7 +637,7 @@ fn sample(
 ) -> Sample {
     let moved = |t: usize| {
         let b = &world.bodies[t];
-        b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r))
+        b.pos.iter().zip(b.start()).map(|(p, r)| p.distance(*r))
     };
     Sample {
         time,
@@ -673,7 +672,7 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
             on_top
                 .iter()
                 .filter(|&&i| (b.rest_pos[i].y - y).abs() <= 0.5 * h)
-                .map(|&i| [b.rest_pos[i].x - centre.x, b.pos[i].z - b.rest_pos[i].z]),
+                .map(|&i| [b.rest_pos[i].x - centre.x, b.pos[i].z - b.start()[i].z]),
         );
     }
     points.sort_by(|a, b| a[0].total_cmp(&b[0]));
@@ -701,7 +700,7 @@ fn footprint(world: &World, tissue: &[usize], lift: f32) -> f64 {
     let mut area = 0.0;
     for &t in tissue {
         let b = &world.bodies[t];
-        let rose = |i: u32| b.pos[i as usize].z - b.rest_pos[i as usize].z > 0.5 * lift;
+        let rose = |i: u32| b.pos[i as usize].z - b.start()[i as usize].z > 0.5 * lift;
         for tri in outer(b).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
             let [p, q, r] = tri.map(|i| b.rest_pos[i as usize].as_dvec3());
             area += 0.5 * (q - p).cross(r - p).length();
@@ -725,7 +724,7 @@ fn measure_end(
     let mut strain = 0.0f32;
     for &t in tissue {
         let b = &world.bodies[t];
-        moved += b.pos.iter().zip(&b.rest_pos).map(|(p, r)| f64::from(p.distance(*r))).sum::<f64>();
+        moved += b.pos.iter().zip(b.start()).map(|(p, r)| f64::from(p.distance(*r))).sum::<f64>();
         vertices += b.len();
         for s in &b.springs {
             let length = b.pos[s.i as usize].distance(b.pos[s.j as usize]);

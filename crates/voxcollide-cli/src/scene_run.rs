@@ -515,7 +515,7 @@ pub fn run_scene_on(
             match &body.embedded {
                 None => {
                     let displacement: Vec<Vec3> =
-                        body.pos.iter().zip(&body.rest_pos).map(|(p, r)| *p - *r).collect();
+                        body.pos.iter().zip(body.start()).map(|(p, r)| *p - *r).collect();
                     pvd.write_frame(
                         time,
                         &name,
@@ -532,7 +532,7 @@ pub fn run_scene_on(
                     // The user's surface, its values interpolated from the lattice.
                     let positions = e.positions(&body.pos, &body.rest_pos);
                     let displacement: Vec<Vec3> =
-                        positions.iter().zip(&e.rest).map(|(p, r)| *p - *r).collect();
+                        positions.iter().zip(body.shown_start().iter()).map(|(p, r)| *p - *r).collect();
                     let flags: Vec<Vec3> =
                         colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
                     let touching: Vec<bool> = e.interpolate(&flags).iter().map(|f| f.x > 0.0).collect();
@@ -856,8 +856,7 @@ pub(crate) fn shown_and_moved(world: &World) -> Vec<(Vec<Vec3>, Vec<f32>)> {
         .iter()
         .map(|b| {
             let (p, _) = shown_surface(b);
-            let rest = b.embedded.as_ref().map_or(&b.rest_pos, |e| &e.rest);
-            let moved = p.iter().zip(rest).map(|(p, r)| p.distance(*r)).collect();
+            let moved = p.iter().zip(b.shown_start().iter()).map(|(p, r)| p.distance(*r)).collect();
             (p.into_owned(), moved)
         })
         .collect()
@@ -931,7 +930,7 @@ fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
 /// [`ContactChecks::check`]'s, independent of the voxel model).
 fn measure(world: &World, summary: &mut FileSummary) {
     for (body, s) in world.bodies.iter().zip(summary.bodies.iter_mut()) {
-        let d = body.pos.iter().zip(&body.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+        let d = body.pos.iter().zip(body.start()).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
         s.max_displacement = s.max_displacement.max(d);
     }
 }

@@ -108,6 +108,10 @@ pub struct MassSpring {
     /// body of elements keeps its springs for its damping only, their stiffness 0); `None`
     /// for the paper's spring lattice.
     pub elements: Option<crate::material::neo_hookean::Elements>,
+    /// Where the body started, where that is not its rest shape: a body given as measured
+    /// under gravity starts loaded, at the shape given (docs/design.md §13). `None`: it started
+    /// at rest. What moved is measured from here ([`start`](Self::start)).
+    pub started: Option<Vec<Vec3>>,
 }
 
 /// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
@@ -341,6 +345,7 @@ impl MassSpring {
             embedded: None,
             elements: None,
             held_pressure: 0.0,
+            started: None,
         })
     }
 
@@ -473,6 +478,23 @@ impl MassSpring {
             }
             f
         }));
+    }
+
+    /// Where each vertex started: [`started`](Self::started), or its rest position.
+    #[must_use]
+    pub fn start(&self) -> &[Vec3] {
+        self.started.as_deref().unwrap_or(&self.rest_pos)
+    }
+
+    /// Where the surface the body is shown by started: its embedded surface's (the user's, its
+    /// vertices following their cells) or its own ([`start`](Self::start)).
+    #[must_use]
+    pub fn shown_start(&self) -> std::borrow::Cow<'_, [Vec3]> {
+        match (&self.embedded, &self.started) {
+            (None, _) => self.start().into(),
+            (Some(e), None) => e.rest.as_slice().into(),
+            (Some(e), Some(started)) => e.positions(started, &self.rest_pos).into(),
+        }
     }
 
     /// Vertex `i`'s weight under `inputs`' gravity: its [`mass`](Self::mass) times it.

@@ -177,6 +177,7 @@ pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> 
     }
     let (residual, rest, loaded) = best;
     set_rest_shape(body, &rest)?;
+    body.started = Some(loaded.clone());
     body.pos = loaded;
     body.vel.iter_mut().for_each(|v| *v = Vec3::ZERO);
     recovered.residual = residual;

@@ -62,6 +62,7 @@ fn elements_body(
 /// `max_steps`).
 fn solve_static(
     body: MassSpring,
+    gravity: Vec3,
     dt: f32,
     ramp_steps: u64,
     max_steps: u64,
@@ -71,7 +72,7 @@ fn solve_static(
     let schedule = Arc::new(move |step: u64| {
         let ramp = ((step + 1) as f32 / ramp_steps as f32).min(1.0);
         let (drive, turn) = drive(ramp);
-        vec![StepInputs { drive, turn, ..StepInputs::at_rest(dt) }]
+        vec![StepInputs { drive, turn, gravity: gravity * ramp, ..StepInputs::at_rest(dt) }]
     });
     let world = World::new(vec!["body".into()], vec![body], Vec::new(), f32::MAX, schedule)?
         .with_integrator(Integrator::Implicit(SETTINGS));
@@ -180,7 +181,7 @@ impl Cantilever {
         // Steps of a tenth of the beam's first period (E = 1, density 1).
         let omega = 3.516 * (self.width * self.width / 12.0).sqrt() / (self.length * self.length);
         let dt = 0.1 * std::f32::consts::TAU / omega;
-        let (body, solved) = solve_static(body, dt, 4, 200, 1e-5, move |ramp| {
+        let (body, solved) = solve_static(body, Vec3::ZERO, dt, 4, 200, 1e-5, move |ramp| {
             // Turned about y so that +x tips down, about the tip face's centre.
             // and drawn in by the length its bending takes up, `0.6·δ²/L` (else the beam is
             // held stretched, and its tension carries some of the load).
@@ -200,6 +201,99 @@ impl Cantilever {
             load,
             theory: self.theory(),
             moment,
+            vertices: body.len(),
+            steps: solved.steps,
+            residual: solved.residual,
+        })
+    }
+}
+
+/// A square beam of `length` and `width` (density 1), `across` cells through its width,
+/// clamped at `x = 0`, bending under its own weight: `gravity` down (−z).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfWeight {
+    /// Along x.
+    pub length: f32,
+    /// Along y and z.
+    pub width: f32,
+    /// Cells through the width.
+    pub across: u32,
+    /// Poisson's ratio (`E = 1`).
+    pub nu: f64,
+    /// The acceleration of gravity (density 1, so the load per length is `gravity · width²`).
+    pub gravity: f32,
+}
+
+/// What a [`SelfWeight`] gave.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SelfWeightResult {
+    /// The tip's deflection, down: the mean of the tip face's vertices.
+    pub deflection: f64,
+    /// Beam theory's, Timoshenko's with Cowper's shear factor for a square section.
+    pub theory: f64,
+    /// The beam's weight over its density, gravity and volume (1: it weighs what it should).
+    pub weight: f64,
+    /// Vertices.
+    pub vertices: usize,
+    /// Steps to rest.
+    pub steps: u64,
+    /// The residual at the end, of the loads that act.
+    pub residual: f64,
+}
+
+impl SelfWeight {
+    /// Length 10, width 1, 4 cells across, ν = 0.3, gravity for a tip deflection of 1 % of the
+    /// length.
+    #[must_use]
+    pub fn standard() -> SelfWeight {
+        SelfWeight { length: 10.0, width: 1.0, across: 4, nu: 0.3, gravity: 0.1 / 15_000.0 }
+    }
+
+    /// Beam theory's tip deflection under a uniform load `q`: `qL⁴/(8EI) + qL²/(2κGA)`.
+    #[must_use]
+    pub fn theory(&self) -> f64 {
+        let (l, b, nu) = (f64::from(self.length), f64::from(self.width), self.nu);
+        let q = f64::from(self.gravity) * b * b;
+        let i = b.powi(4) / 12.0;
+        let g = 1.0 / (2.0 * (1.0 + nu));
+        let kappa = 10.0 * (1.0 + nu) / (12.0 + 11.0 * nu);
+        q * l.powi(4) / (8.0 * i) + q * l * l / (2.0 * kappa * g * b * b)
+    }
+
+    /// Solves it.
+    ///
+    /// # Errors
+    /// The body's and the world's errors.
+    pub fn solve(&self) -> Result<SelfWeightResult, Error> {
+        let h = self.width / self.across as f32;
+        let along = (self.length / h).round() as u32;
+        let origin = -0.5 * Vec3::new(along as f32 * h, self.width, self.width);
+        let mut body = elements_body(UVec3::new(along, self.across, self.across), h, origin, self.nu, |v| {
+            if v.x == 0 { Mode::Pinned } else { Mode::Free }
+        })?;
+        // What gravity pulls: a quarter of each tetrahedron at each corner (density 1).
+        let mut mass = vec![0.0f64; body.len()];
+        if let Some(e) = &body.elements {
+            for (t, v) in e.tets.iter().zip(&e.volume) {
+                t.iter().for_each(|&c| mass[c as usize] += f64::from(*v) / 4.0);
+            }
+        }
+        body.mass = mass.iter().map(|&m| m as f32).collect();
+        let weight = body.total_mass() / f64::from(self.length * self.width * self.width);
+        let omega = 3.516 * (self.width * self.width / 12.0).sqrt() / (self.length * self.length);
+        let dt = 0.1 * std::f32::consts::TAU / omega;
+        let gravity = Vec3::new(0.0, 0.0, -self.gravity);
+        let (body, solved) =
+            solve_static(body, gravity, dt, 4, 200, 1e-5, move |_| (Vec3::ZERO, Mat3::IDENTITY))?;
+        let tip: Vec<usize> = (0..body.len())
+            .filter(|&i| (body.rest_pos[i].x - (origin.x + along as f32 * h)).abs() < 1e-3 * h)
+            .collect();
+        let deflection = tip.iter().map(|&i| f64::from(body.rest_pos[i].z - body.pos[i].z)).sum::<f64>()
+            / tip.len() as f64;
+        Ok(SelfWeightResult {
+            deflection,
+            theory: self.theory(),
+            weight,
             vertices: body.len(),
             steps: solved.steps,
             residual: solved.residual,
@@ -270,8 +364,9 @@ impl LargeStretch {
         let lift = (self.stretch - 1.0) * top as f32;
         // A P-wave crosses the bar in about `top / √(λ + 2μ)`; steps of a few such times.
         let dt = 4.0 * top as f32;
-        let (body, solved) =
-            solve_static(body, dt, 20, 400, 1e-5, move |ramp| (Vec3::Z * (ramp * lift), Mat3::IDENTITY))?;
+        let (body, solved) = solve_static(body, Vec3::ZERO, dt, 20, 400, 1e-5, move |ramp| {
+            (Vec3::Z * (ramp * lift), Mat3::IDENTITY)
+        })?;
         let layer = |k: f32| {
             body.rest_pos.iter().zip(&body.pos).filter(move |(r, _)| (r.z - k).abs() < 0.01).map(|(_, p)| *p)
         };

@@ -679,14 +679,14 @@ impl Live {
         self.displacement = world
             .bodies
             .iter()
-            .map(|b| b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max))
+            .map(|b| b.pos.iter().zip(b.start()).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max))
             .collect();
         self.displacement_centre = world
             .bodies
             .iter()
             .map(|b| {
                 let (mut sum, mut weight) = (glam::DVec3::ZERO, 0.0f64);
-                for (p, r) in b.pos.iter().zip(&b.rest_pos) {
+                for (p, r) in b.pos.iter().zip(b.start()) {
                     let w = f64::from(p.distance(*r));
                     sum += w * r.as_dvec3();
                     weight += w;

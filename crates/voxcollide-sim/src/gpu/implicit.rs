@@ -584,7 +584,9 @@ pub(crate) fn solve(
     let relative = if joint[S_NORM_B2] > 0.0 { (joint[S_RR] / joint[S_NORM_B2]).sqrt() } else { 0.0 };
     Ok(own
         .iter()
-        .map(|o| Solved {
+        .zip(inputs)
+        .map(|(o, i)| (o, i.gravity != glam::Vec3::ZERO))
+        .map(|(o, weighed)| Solved {
             iterations,
             relative_residual: relative,
             farthest: joint[S_FARTHEST],
@@ -593,6 +595,7 @@ pub(crate) fn solve(
                 gross: f64::from(o[B_GROSS2]).sqrt(),
                 peak_gross: 0.0,
                 quiet: 0.0,
+                weighed,
             },
         })
         .collect())

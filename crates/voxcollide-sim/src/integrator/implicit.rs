@@ -140,6 +140,10 @@ pub struct Residual {
     /// The bodies' [`MassSpring::quiet_force`] (in quadrature): the scale below which a load
     /// is nothing, so that a world with nothing acting is at rest at once.
     pub quiet: f64,
+    /// Whether gravity acts: `gross` is then the loads that act ([`MassSpring::residual`]),
+    /// never nothing, and `quiet` is no floor (a stiff beam's weight is less than the forces
+    /// of its quiet strain, and judged against them its sag was taken for at rest unfinished).
+    pub weighed: bool,
 }
 
 /// The share of the run's largest gross force below which [`Residual::relative`] no longer
@@ -158,10 +162,11 @@ impl Residual {
     }
 
     /// What [`relative`](Self::relative) divides by: the gross force, or a share of the run's
-    /// largest, or the quiet force, whichever is largest.
+    /// largest, or (without gravity) the quiet force, whichever is largest.
     #[must_use]
     pub fn scale(&self) -> f64 {
-        self.gross.max(UNLOADED * self.peak_gross).max(self.quiet)
+        let scale = self.gross.max(UNLOADED * self.peak_gross);
+        if self.weighed { scale } else { scale.max(self.quiet) }
     }
 
     /// The sum of two bodies' residuals (in quadrature).
@@ -172,6 +177,7 @@ impl Residual {
             gross: self.gross.hypot(other.gross),
             peak_gross: self.peak_gross.max(other.peak_gross),
             quiet: self.quiet.hypot(other.quiet),
+            weighed: self.weighed || other.weighed,
         }
     }
 }
@@ -443,7 +449,7 @@ impl MassSpring {
                 }
             })
             .reduce(|| (0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
-        Residual { net: net.sqrt(), gross: gross.sqrt(), peak_gross: 0.0, quiet: 0.0 }
+        Residual { net: net.sqrt(), gross: gross.sqrt(), peak_gross: 0.0, quiet: 0.0, weighed: loads }
     }
 
     /// How finely the body's positions resolve its net force at rest: half the change of that
