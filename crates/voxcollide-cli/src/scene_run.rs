@@ -18,7 +18,7 @@ use voxcollide::report::ContactReport;
 use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
-use voxcollide_sim::scene_file::{Axis, BodyKind, SceneFile};
+use voxcollide_sim::scene_file::{Axis, BodyKind, Geometry, SceneFile, Shape};
 use voxcollide_sim::{Integrator, MassSpring, Simulation, World, simulation};
 
 /// A body in `summary.json`.
@@ -37,9 +37,14 @@ pub struct BodySummary {
     /// scene in layer units has).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume: Option<f64>,
-    /// For a shell in a scene of physical units: the volume it encloses at the end, in mL.
+    /// For a shell in a scene of physical units: the volume it encloses at the end, in mL. For
+    /// a body between a skin and a chest wall (docs/design.md §14): the tissue's volume at the
+    /// start, in mL.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_ml: Option<f64>,
+    /// For a body between a skin and a chest wall: the tissue's volume at the end, in mL.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_ml_end: Option<f64>,
     /// For a lattice in a surface: the fraction of the surface's volume it covers.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage: Option<f64>,
@@ -53,6 +58,19 @@ pub struct BodySummary {
     /// §13): how well its unloaded shape was recovered.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference: Option<ReferenceSummary>,
+}
+
+/// A landmark in `summary.json` and `compare.json` (docs/design.md §14).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+pub struct LandmarkSummary {
+    /// Its body's name.
+    pub body: String,
+    /// Its name.
+    pub name: String,
+    /// Where it started: as given, moved onto the body's outer surface.
+    pub start: [f32; 3],
+    /// Where the body carried it by the end.
+    pub end: [f32; 3],
 }
 
 /// The recovery of a body's unloaded shape in `summary.json` (docs/design.md §13).
@@ -193,6 +211,10 @@ pub struct FileSummary {
     pub bodies: Vec<BodySummary>,
     /// Per contact.
     pub contacts: Vec<ContactSummary>,
+    /// The bodies' landmarks (docs/design.md §14): where each started, on its body's outer
+    /// surface, and where it ended, in the file's units.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub landmarks: Vec<LandmarkSummary>,
     /// Whether every contact held (`contacts[].held`): the run's numbers are a result only then.
     pub held: bool,
     /// Why the run's numbers are not a result, besides a contact that failed (`held`): a
@@ -356,6 +378,9 @@ pub fn run_scene_on(
     };
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let world = &built.world;
+    // Each body's enclosed volume at the start (cubic file units), for a body between a skin
+    // and a chest wall.
+    let starting_volumes: Vec<f64> = world.bodies.iter().map(|b| b.surface.volume(b.start())).collect();
     let mut series: Vec<PvdSeries> = if file.output.vtk {
         world.names.iter().map(|n| PvdSeries::new(config.out.join(format!("{n}.pvd")))).collect()
     } else {
@@ -555,7 +580,22 @@ pub fn run_scene_on(
         if last {
             summary.settled = file.time.settle && at_rest;
             checks.at_end(&mut summary, done, note);
-            for ((b, spec), out) in world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()) {
+            let cubic_ml = file.metres().powi(3) * 1e6;
+            for (k, ((b, spec), out)) in
+                world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()).enumerate()
+            {
+                if matches!(spec.geometry, Geometry::Shape(Shape::Between(_))) {
+                    out.volume_ml = Some(starting_volumes[k] * cubic_ml);
+                    out.volume_ml_end = Some(b.surface.volume(&b.pos) * cubic_ml);
+                }
+                for l in &built.notes[k].landmarks {
+                    summary.landmarks.push(LandmarkSummary {
+                        body: spec.name.clone(),
+                        name: l.name.clone(),
+                        start: l.at(b.start()).to_array(),
+                        end: l.at(&b.pos).to_array(),
+                    });
+                }
                 if spec.kind == BodyKind::Shell {
                     out.volume = Some(b.enclosed_volume());
                     if file.units.is_physical() {

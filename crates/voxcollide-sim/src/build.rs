@@ -29,7 +29,7 @@ use crate::body::{MassSpring, Material, Mode, StepInputs};
 use crate::contact::{ContactModel, SurfacePenalty};
 use crate::integrator::implicit::ImplicitSettings;
 use crate::mesh::TriangleMesh;
-use crate::mesh_io::{Surface, read_surface, read_tetrahedra};
+use crate::mesh_io::{Surface, read_sheet, read_surface, read_tetrahedra};
 use crate::scene_file::{
     Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, IntegratorSpec,
     MaterialModel, ResponseSpec, SceneFile, SearchSpec, Shape,
@@ -65,6 +65,29 @@ pub struct BodyNote {
     /// For a body given as measured under gravity (`reference = { gravity }`): what the
     /// recovery of its unloaded shape found ([`crate::reference`]).
     pub reference: Option<crate::reference::Recovered>,
+    /// Its landmarks (docs/design.md §14), each on its outer surface.
+    pub landmarks: Vec<Landmark>,
+}
+
+/// A named point on a body's outer surface, carried by it (docs/design.md §14).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Landmark {
+    /// Its name in the file.
+    pub name: String,
+    /// Where the file put it.
+    pub given: Vec3,
+    /// The triangle of the body's surface it sits on, and its weights over the corners.
+    pub triangle: [u32; 3],
+    /// See `triangle`.
+    pub weights: [f32; 3],
+}
+
+impl Landmark {
+    /// Where it is with the body's vertices at `pos`.
+    #[must_use]
+    pub fn at(&self, pos: &[Vec3]) -> Vec3 {
+        self.triangle.iter().zip(&self.weights).map(|(&v, &w)| w * pos[v as usize]).sum()
+    }
 }
 
 /// A world built from a scene file, with its run length.
@@ -161,6 +184,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         remarks: Vec::new(),
         full_shape: None,
         reference: None,
+        landmarks: Vec::new(),
     };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
@@ -224,6 +248,13 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                 ));
                 made
             }
+            Geometry::Shape(Shape::Between(_)) => {
+                return Err(Error::Invalid {
+                    what: "shape",
+                    value: "between".into(),
+                    rule: "is a soft body's tissue between two surfaces, not a closed surface".into(),
+                });
+            }
             Geometry::Mesh(path) => {
                 let (surface, report) = read_surface(path)?;
                 if report.flipped {
@@ -280,6 +311,37 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                     // Its tetrahedra: the elements' (neo-hookean), and its mass's shares.
                     mesh_tets = Some(crate::bodies::cylinder_tets(&shape));
                     (cylinder(shape, kspring, material)?, kspring)
+                }
+                Geometry::Shape(Shape::Between(b)) => {
+                    let outer = read_sheet(&b.outer)?;
+                    let inner = read_sheet(&b.inner)?;
+                    let corner = |c: [f64; 3]| Vec3::from_array(c.map(|v| v as f32));
+                    let made = crate::between::between_body(
+                        &outer,
+                        &inner,
+                        corner(b.min),
+                        corner(b.max),
+                        h,
+                        kspring,
+                        material,
+                    );
+                    let (body, report) = made.map_err(|e| match e {
+                        Ok(e) => {
+                            let key = match e {
+                                crate::between::BetweenError::Flat(which) => format!("shape.between.{which}"),
+                                crate::between::BetweenError::Uncovered(..) => "shape.between.outer".into(),
+                                crate::between::BetweenError::WallInFront => "shape.between.inner".into(),
+                                crate::between::BetweenError::Empty => "shape.between.min".into(),
+                            };
+                            file.body_error(index, &key, e.to_string())
+                        }
+                        Err(e) => e,
+                    })?;
+                    note.remarks.push(format!(
+                        "between the skin and the chest wall: {} cells of {h}, {} vertices held on the wall and {} on the box's faces",
+                        report.cells, report.on_wall, report.on_box
+                    ));
+                    (body, kspring)
                 }
                 Geometry::Mesh(path)
                     if path
@@ -433,7 +495,12 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     // Held vertices, and a rigid body's are all driven.
     let lo = body.pos.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
     let hi = body.pos.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+    // A body between two surfaces is held on its chest wall and box unless `fixed` says otherwise.
+    let between = matches!(spec.geometry, Geometry::Shape(Shape::Between(_)));
     for (i, p) in body.rest_pos.iter().enumerate() {
+        if between && spec.fixed.is_empty() && spec.driven.is_empty() {
+            break;
+        }
         body.mode[i] = if spec.kind == BodyKind::Rigid || held(&spec.driven, *p, lo, hi) {
             Mode::Driven
         } else if held(&spec.fixed, *p, lo, hi) {
@@ -687,6 +754,51 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             file.body_error(k, "reference", format!("recovering the unloaded shape failed: {e}"))
         })?;
         notes[k].reference = Some(recovered);
+    }
+    // Landmarks: each moved onto its body's outer surface, no farther than twice its spacing.
+    for (k, spec) in file.bodies.iter().enumerate() {
+        for (name, p) in &spec.landmarks {
+            let b = &bodies[k];
+            let given = Vec3::from_array(p.map(|v| v as f32));
+            let q = given.as_dvec3();
+            let mut best = (f64::INFINITY, [0u32; 3], DVec3::ZERO);
+            for t in &b.surface.triangles {
+                let corners = t.map(|i| b.pos[i as usize].as_dvec3());
+                let c = crate::between::closest_on_triangle(q, &corners);
+                let d = c.distance(q);
+                if d < best.0 {
+                    best = (d, *t, c);
+                }
+            }
+            let reach = 2.0 * f64::from(spec.spacing.unwrap_or(1.0) as f32);
+            if !(best.0 <= reach) {
+                return Err(file.body_error(
+                    k,
+                    "landmarks",
+                    format!(
+                        "landmark {name:?} at {p:?} is {:.3} {} from the body's surface, more than twice its spacing: put it on the skin",
+                        best.0,
+                        file.units.symbol()
+                    ),
+                ));
+            }
+            let [a, b2, c] = best.1.map(|i| b.pos[i as usize].as_dvec3());
+            // Barycentric weights of the closest point.
+            let (v0, v1, v2) = (b2 - a, c - a, best.2 - a);
+            let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+            let den = d00 * d11 - d01 * d01;
+            let (wb, wc) = if den > 0.0 {
+                ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den)
+            } else {
+                (0.0, 0.0)
+            };
+            notes[k].landmarks.push(Landmark {
+                name: name.clone(),
+                given,
+                triangle: best.1,
+                weights: [(1.0 - wb - wc) as f32, wb as f32, wc as f32],
+            });
+        }
     }
     // Per shell filled to a volume: the volume it encloses at first and its target, in cubic
     // file units (the voxel model's margin and the schedule both follow from them).

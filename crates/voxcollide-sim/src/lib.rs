@@ -5,6 +5,7 @@
 #![doc = include_str!("../README.md")]
 #![deny(missing_docs)]
 
+pub mod between; //  a breast from a scan: the tissue between the skin and the chest wall
 pub mod bodies; //   builders: box lattices, cylinders, ellipsoidal shells, lattices in surfaces
 pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integrator
 pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units

@@ -49,8 +49,20 @@ fn mesh_error(path: &Path, message: impl Into<String>) -> Error {
 /// malformed, it has no triangles or a coordinate that is not finite, or it fails
 /// [`check_closed`].
 pub fn read_surface(path: &Path) -> Result<(Surface, SurfaceReport), Error> {
+    let mut surface = read_sheet(path)?;
+    let report = check_closed(&mut surface).map_err(|m| mesh_error(path, m))?;
+    Ok((surface, report))
+}
+
+/// Reads the triangles in `path` (`.stl`, `.obj` or `.ply`) as they are, open or closed, facing
+/// as written: a skin scan (one sheet) or a chest wall (docs/design.md §14).
+///
+/// # Errors
+/// [`Error::Mesh`] naming the file: it cannot be read, its extension is none of those, it is
+/// malformed, or it has no triangles or a coordinate that is not finite.
+pub fn read_sheet(path: &Path) -> Result<Surface, Error> {
     let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-    let mut surface = match ext.as_deref() {
+    let surface = match ext.as_deref() {
         Some("stl") => read_stl(path)?,
         Some("obj") => read_obj(path)?,
         Some("ply") => read_ply(path)?,
@@ -64,8 +76,7 @@ pub fn read_surface(path: &Path) -> Result<(Surface, SurfaceReport), Error> {
     if let Some(i) = surface.positions.iter().position(|p| !p.is_finite()) {
         return Err(mesh_error(path, format!("vertex {i} is not finite: {}", surface.positions[i])));
     }
-    let report = check_closed(&mut surface).map_err(|m| mesh_error(path, m))?;
-    Ok((surface, report))
+    Ok(surface)
 }
 
 fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, Error> {

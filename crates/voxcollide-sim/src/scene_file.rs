@@ -335,8 +335,24 @@ fn implant_fields<'de, D: Deserializer<'de>>(d: D) -> Result<(f64, f64, f64, Imp
     Ok((t.volume_ml, t.base_mm, projection, t.style))
 }
 
-/// A built-in shape, centred at the origin.
-#[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
+/// `between = { outer, inner, min, max }` (docs/design.md §14): the tissue between the skin as
+/// scanned and the chest wall, inside a box.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Between {
+    /// The skin: an open sheet or a closed surface, facing away from the patient (resolved
+    /// against the scene file's folder).
+    pub outer: PathBuf,
+    /// The chest wall, behind `outer`, facing away from the patient.
+    pub inner: PathBuf,
+    /// The box's lowest corner (file units and axes).
+    pub min: [f64; 3],
+    /// Its highest corner.
+    pub max: [f64; 3],
+}
+
+/// A built-in shape, centred at the origin (but `between`, which lies where its surfaces do).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
 #[serde(rename_all = "lowercase", deny_unknown_fields)]
 pub enum Shape {
     /// `box = [x, y, z]`: sizes.
@@ -367,6 +383,8 @@ pub enum Shape {
         #[serde(default)]
         style: ImplantStyle,
     },
+    /// `between = { outer, inner, min, max }`: a breast from a scan ([`Between`]).
+    Between(Between),
 }
 
 /// A body's material.
@@ -572,6 +590,8 @@ struct RawBody {
     motion: Spanned<Vec<Keyframe>>,
     inflate: Option<Spanned<Inflate>>,
     reference: Option<Spanned<Reference>>,
+    #[serde(default)]
+    landmarks: Option<Spanned<std::collections::BTreeMap<String, [f64; 3]>>>,
 }
 
 /// A default value, at no place in the file (defaults are valid, so no error points there).
@@ -741,6 +761,9 @@ pub struct BodySpec {
     /// the run first finds the unloaded shape that comes to it (docs/design.md §13). `None`:
     /// the shape given is unloaded.
     pub reference: Option<[f64; 3]>,
+    /// Named points (`landmarks = { nipple = [x, y, z] }`, docs/design.md §14), in name order:
+    /// each moved onto the body's outer surface and carried by it through the run.
+    pub landmarks: Vec<(String, [f64; 3])>,
     /// How far below its place a shell starts, its floor as far below, both rising back over
     /// its inflation ramp (file units; 0: none): where the tissue lies on the chest wall, a
     /// flattened shell starts under it and lifts it as it fills (set by `voxcollide compare`;
@@ -965,6 +988,22 @@ pub(crate) fn missing_mesh<'a>(
     geometries: impl Iterator<Item = &'a Geometry>,
 ) -> Result<(), Error> {
     for (k, geometry) in geometries.enumerate() {
+        if let Geometry::Shape(Shape::Between(b)) = geometry {
+            for (key, path) in [("outer", &b.outer), ("inner", &b.inner)] {
+                if !path.is_file() {
+                    let offset = nth_table(text, table, k)
+                        .and_then(|t| text[t..].find(key).map(|i| t + i))
+                        .unwrap_or(0);
+                    return Err(at(
+                        file,
+                        text,
+                        offset..offset,
+                        Some(&format!("{table}[{k}].shape.between.{key}")),
+                        format!("{} does not exist or is not a file", path.display()),
+                    ));
+                }
+            }
+        }
         if let Geometry::Mesh(mesh) = geometry
             && !mesh.is_file()
         {
@@ -1055,12 +1094,28 @@ impl SceneFile {
                     format!("{name:?} is already the name of body[{first}]; names are unique"),
                 ));
             }
+            let b_kind = b.kind;
+            let b_kind_is_soft = |k: BodyKind| k == BodyKind::Soft;
             let geometry = match (b.mesh, b.shape) {
                 (Some(mesh), None) => Geometry::Mesh(dir.join(mesh.into_inner())),
                 (None, Some(shape)) => {
                     let span = shape.span();
-                    let shape = shape.into_inner();
-                    check_shape(&shape).map_err(|(k, m)| at(&file, text, span, Some(&key(k)), m))?;
+                    let mut shape = shape.into_inner();
+                    check_shape(&shape).map_err(|(k, m)| at(&file, text, span.clone(), Some(&key(k)), m))?;
+                    if let Shape::Between(b) = &mut shape {
+                        if b_kind_is_soft(b_kind) {
+                            b.outer = dir.join(&b.outer);
+                            b.inner = dir.join(&b.inner);
+                        } else {
+                            return Err(at(
+                                &file,
+                                text,
+                                span,
+                                Some(&key("shape.between")),
+                                format!("`between` makes a soft body's tissue; {name:?} is {b_kind:?}"),
+                            ));
+                        }
+                    }
                     Geometry::Shape(shape)
                 }
                 (Some(mesh), Some(_)) => {
@@ -1247,8 +1302,26 @@ impl SceneFile {
                     Some(g)
                 }
             };
+            let landmarks = match b.landmarks {
+                None => Vec::new(),
+                Some(l) => {
+                    let span = l.span();
+                    let l = l.into_inner();
+                    if b.kind != BodyKind::Soft {
+                        return Err(err(
+                            span,
+                            format!("only a soft body has landmarks; {name:?} is {:?}", b.kind),
+                        ));
+                    }
+                    if let Some((n, _)) = l.iter().find(|(_, p)| !p.iter().all(|v| v.is_finite())) {
+                        return Err(err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
+                    }
+                    l.into_iter().collect()
+                }
+            };
             bodies.push(BodySpec {
                 reference,
+                landmarks,
                 name,
                 kind: b.kind,
                 geometry,
@@ -1442,6 +1515,16 @@ pub(crate) fn check_shape(shape: &Shape) -> Result<(), (&'static str, String)> {
         Shape::Box(s) | Shape::Ellipsoid(s) => positive(s),
         Shape::Sphere(r) => positive(&[*r]),
         Shape::Cylinder { radius, height } => positive(&[*radius, *height]),
+        Shape::Between(b) => {
+            let finite = b.min.iter().chain(&b.max).all(|v| v.is_finite());
+            if !(finite && (0..3).all(|k| b.max[k] > b.min[k])) {
+                return Err((
+                    "shape.between.max",
+                    format!("the box {:?}..{:?} must be finite, each of max above min", b.min, b.max),
+                ));
+            }
+            true
+        }
         Shape::Implant { volume_ml, base_mm, projection_mm, .. } => {
             if positive(&[*volume_ml, *base_mm, *projection_mm]) {
                 // The catalogue's units, mL (1000 mm³) and mm, whatever the file's.

@@ -161,3 +161,39 @@ pub fn write_stl(path: &std::path::Path, s: &Surface) {
     let mut file = std::fs::File::create(path).unwrap();
     stl_io::write_stl(&mut file, triangles.iter()).unwrap();
 }
+
+/// An open sheet over the square `[-half, half]²` of the (x, y) plane at height `z(x, y)`,
+/// `cells` squares a side, each two triangles facing +z: a torso scan or a chest wall lying
+/// on its back, facing up (away from the patient).
+pub fn height_sheet(half: f64, cells: u32, z: impl Fn(f64, f64) -> f64) -> Surface {
+    let n = cells + 1;
+    let mut positions = Vec::with_capacity((n * n) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            let (x, y) = (
+                -half + 2.0 * half * f64::from(i) / f64::from(cells),
+                -half + 2.0 * half * f64::from(j) / f64::from(cells),
+            );
+            positions.push(DVec3::new(x, y, z(x, y)).as_vec3());
+        }
+    }
+    let mut mesh = TriangleMesh::default();
+    for j in 0..cells {
+        for i in 0..cells {
+            let v = |a: u32, b: u32| (i + a) + n * (j + b);
+            mesh.triangles.push([v(0, 0), v(1, 0), v(1, 1)]);
+            mesh.triangles.push([v(0, 0), v(1, 1), v(0, 1)]);
+        }
+    }
+    Surface { positions, mesh }
+}
+
+/// A breast lying on its back: the skin `base` above the chest wall (z = 0), rising by a mound
+/// of `height` over a disc of `radius` about the origin (a cos² profile), its apex at `apex_shift`
+/// along +x (ptosis, standing).
+pub fn breast_skin(base: f64, height: f64, radius: f64, apex_shift: f64) -> impl Fn(f64, f64) -> f64 {
+    move |x, y| {
+        let r = ((x - apex_shift).powi(2) + y * y).sqrt() / radius;
+        base + if r < 1.0 { height * (0.5 + 0.5 * (std::f64::consts::PI * r).cos()) } else { 0.0 }
+    }
+}

@@ -1,0 +1,418 @@
+//! A breast from a scan (docs/design.md §14): the tissue between the skin as scanned (`outer`,
+//! an open sheet or a closed surface) and the chest wall (`inner`), inside a box.
+//!
+//! **Which side.** Both surfaces face outward, away from the patient, as scanners write them.
+//! A point is *behind* a surface when a ray from it along the surface's mean facing direction
+//! (its area-weighted normal) crosses it an odd number of times: once for a point under a
+//! torso scan, none for a point in front of it; for a closed surface, the parity is inside or
+//! out whatever the direction. The tissue is the part of the box behind `outer` and in front
+//! of `inner`. The rays are cast against the triangles binned on the plane across the
+//! direction (slightly tilted, so that a lattice's rows never run along a scan's edges).
+//!
+//! **The lattice.** A cubic lattice of the spacing from the box's corner `min`; a cell is
+//! tissue when its eight corners are, and the body is its tissue cells: springs along their
+//! edges and face diagonals, its surface their faces not shared with another. Vertices on the
+//! chest wall (with a lattice neighbour behind `inner`) and on the box's faces are held.
+
+use glam::{DVec3, UVec3, Vec3};
+
+use crate::body::{MassSpring, Material, Mode, Spring};
+use crate::mesh::TriangleMesh;
+use crate::mesh_io::Surface;
+
+/// A surface's triangles, for asking which side of it a point lies on.
+pub struct Sheet {
+    triangles: Vec<[DVec3; 3]>,
+    /// The direction rays are cast along: the mean facing direction, tilted a little.
+    dir: DVec3,
+    /// Two axes across it, and the triangles binned on them.
+    u: DVec3,
+    v: DVec3,
+    lo: [f64; 2],
+    cell: f64,
+    dims: [usize; 2],
+    bins: Vec<Vec<u32>>,
+}
+
+impl Sheet {
+    /// The sheet of `surface`, its bins about `cell` wide; `None` for a surface with no area.
+    #[must_use]
+    pub fn new(surface: &Surface, cell: f64) -> Option<Sheet> {
+        let triangles: Vec<[DVec3; 3]> = surface
+            .mesh
+            .triangles
+            .iter()
+            .map(|t| t.map(|i| surface.positions[i as usize].as_dvec3()))
+            .collect();
+        let normal: DVec3 = triangles.iter().map(|[a, b, c]| (*b - *a).cross(*c - *a)).sum();
+        if !(normal.length() > 0.0) {
+            return None;
+        }
+        // Tilted by irrational fractions of a radian: no lattice row runs along it exactly.
+        let n = normal.normalize();
+        let any = if n.x.abs() < 0.9 { DVec3::X } else { DVec3::Y };
+        let (a, b) = (n.cross(any).normalize(), n.cross(n.cross(any)).normalize());
+        let dir = (n + 1.3e-3 * std::f64::consts::SQRT_2 * a + 0.7e-3 * std::f64::consts::PI * b).normalize();
+        let u = dir.cross(any).normalize();
+        let v = dir.cross(u);
+        let project = |p: DVec3| [p.dot(u), p.dot(v)];
+        let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+        for t in &triangles {
+            for p in t {
+                let q = project(*p);
+                for k in 0..2 {
+                    lo[k] = lo[k].min(q[k]);
+                    hi[k] = hi[k].max(q[k]);
+                }
+            }
+        }
+        let cell = cell.max((hi[0] - lo[0]).max(hi[1] - lo[1]) / 2048.0).max(f64::MIN_POSITIVE);
+        let dims = [((hi[0] - lo[0]) / cell) as usize + 1, ((hi[1] - lo[1]) / cell) as usize + 1];
+        let mut bins = vec![Vec::new(); dims[0] * dims[1]];
+        for (k, t) in triangles.iter().enumerate() {
+            let q = t.map(project);
+            let (mut a, mut b) = ([f64::MAX; 2], [f64::MIN; 2]);
+            for p in q {
+                for d in 0..2 {
+                    a[d] = a[d].min(p[d]);
+                    b[d] = b[d].max(p[d]);
+                }
+            }
+            let at = |x: f64, d: usize| (((x - lo[d]) / cell) as usize).min(dims[d] - 1);
+            for i in at(a[0], 0)..=at(b[0], 0) {
+                for j in at(a[1], 1)..=at(b[1], 1) {
+                    bins[i + dims[0] * j].push(k as u32);
+                }
+            }
+        }
+        Some(Sheet { triangles, dir, u, v, lo, cell, dims, bins })
+    }
+
+    /// The bin `p` projects into, if the sheet reaches there.
+    fn bin(&self, p: DVec3) -> Option<&[u32]> {
+        let (x, y) = ((p.dot(self.u) - self.lo[0]) / self.cell, (p.dot(self.v) - self.lo[1]) / self.cell);
+        if x < 0.0 || y < 0.0 || x >= self.dims[0] as f64 || y >= self.dims[1] as f64 {
+            return None;
+        }
+        Some(&self.bins[x as usize + self.dims[0] * y as usize])
+    }
+
+    /// How many times the ray from `p` along the sheet's facing direction crosses it.
+    #[must_use]
+    pub fn crossings(&self, p: DVec3) -> usize {
+        let Some(bin) = self.bin(p) else { return 0 };
+        bin.iter()
+            .filter(|&&k| {
+                let [a, b, c] = self.triangles[k as usize];
+                // Möller–Trumbore, t > 0; the tilted direction keeps rays off edges.
+                let (e1, e2) = (b - a, c - a);
+                let h = self.dir.cross(e2);
+                let det = e1.dot(h);
+                if det.abs() < 1e-300 {
+                    return false;
+                }
+                let s = p - a;
+                let w1 = s.dot(h) / det;
+                let q = s.cross(e1);
+                let w2 = self.dir.dot(q) / det;
+                let t = e2.dot(q) / det;
+                w1 >= 0.0 && w2 >= 0.0 && w1 + w2 <= 1.0 && t > 0.0
+            })
+            .count()
+    }
+
+    /// Whether `p` lies behind the sheet (an odd number of crossings).
+    #[must_use]
+    pub fn behind(&self, p: DVec3) -> bool {
+        self.crossings(p) % 2 == 1
+    }
+
+    /// Whether the sheet reaches across `p` at all (a triangle projects near it): where it does
+    /// not, a sheet with holes or too small leaves the side undecided.
+    #[must_use]
+    pub fn covers(&self, p: DVec3) -> bool {
+        self.bin(p).is_some_and(|b| !b.is_empty())
+    }
+
+    /// The nearest point of the sheet to `p`, and its distance.
+    #[must_use]
+    pub fn nearest(&self, p: DVec3) -> (DVec3, f64) {
+        let mut best = (p, f64::INFINITY);
+        for t in &self.triangles {
+            let q = closest_on_triangle(p, t);
+            let d = q.distance(p);
+            if d < best.1 {
+                best = (q, d);
+            }
+        }
+        best
+    }
+}
+
+/// The closest point to `p` on the triangle `t` (Ericson, Real-Time Collision Detection 5.1.5).
+#[must_use]
+pub fn closest_on_triangle(p: DVec3, [a, b, c]: &[DVec3; 3]) -> DVec3 {
+    let (ab, ac, ap) = (*b - *a, *c - *a, p - *a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return *a;
+    }
+    let bp = p - *b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return *b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return *a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - *c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return *c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return *a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return *b + (*c - *b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    *a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Why a `between` body could not be made (docs/design.md §14); each names the key at fault.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BetweenError {
+    /// A surface with no area: which (`"outer"` or `"inner"`).
+    Flat(&'static str),
+    /// The skin does not reach across the box where the tissue would be: the points it leaves
+    /// undecided, and one of them.
+    Uncovered(usize, Vec3),
+    /// The chest wall lies in front of the skin: no point of the box is both behind the skin
+    /// and in front of the wall, though each alone holds some.
+    WallInFront,
+    /// The box holds no tissue: no lattice cell is wholly behind the skin and in front of the
+    /// wall.
+    Empty,
+}
+
+impl std::fmt::Display for BetweenError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            BetweenError::Flat(which) => write!(f, "`{which}` has no area: its triangles face nowhere"),
+            BetweenError::Uncovered(n, p) => write!(
+                f,
+                "`outer` does not cover the box: {n} lattice points in front of the chest wall lie where the skin does not reach (one at {p}); give a scan that spans the box, or a smaller box"
+            ),
+            BetweenError::WallInFront => write!(
+                f,
+                "`inner` lies in front of `outer`: no point of the box is behind the skin and in front of the chest wall (both face outward, away from the patient)"
+            ),
+            BetweenError::Empty => write!(
+                f,
+                "the box holds no tissue: no lattice cell is wholly behind `outer` and in front of `inner`; widen the box or use a finer spacing"
+            ),
+        }
+    }
+}
+
+/// What [`between_body`] made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BetweenReport {
+    /// Tissue cells.
+    pub cells: usize,
+    /// Vertices held on the chest wall.
+    pub on_wall: usize,
+    /// Vertices held on the box's faces.
+    pub on_box: usize,
+}
+
+/// The tissue between `outer` and `inner` inside the box `min`..`max`, a lattice of spacing `h`
+/// (springs of stiffness `k`, `material`), held on the chest wall and the box's faces.
+///
+/// # Errors
+/// [`BetweenError`] for surfaces that do not bound tissue in the box; a lattice error
+/// ([`voxcollide::Error::Invalid`]) as a message.
+pub fn between_body(
+    outer: &Surface,
+    inner: &Surface,
+    min: Vec3,
+    max: Vec3,
+    h: f32,
+    k: f32,
+    material: Material,
+) -> Result<(MassSpring, BetweenReport), Result<BetweenError, voxcollide::Error>> {
+    let skin = Sheet::new(outer, f64::from(h)).ok_or(Ok(BetweenError::Flat("outer")))?;
+    let wall = Sheet::new(inner, f64::from(h)).ok_or(Ok(BetweenError::Flat("inner")))?;
+    let size = max - min;
+    let n = (size / h).floor().as_uvec3() + UVec3::ONE;
+    let count = (n.x * n.y * n.z) as usize;
+    if n.min_element() < 2 || count as u64 > crate::bodies::MAX_LATTICE_VERTICES {
+        return Err(Err(voxcollide::Error::Invalid {
+            what: "lattice spacing",
+            value: h.to_string(),
+            rule: format!(
+                "gives {n} lattice points in the box: at least 2 and at most {} in all",
+                crate::bodies::MAX_LATTICE_VERTICES
+            ),
+        }));
+    }
+    let idx = |x: u32, y: u32, z: u32| (x + n.x * (y + n.y * z)) as usize;
+    let at = |i: usize| {
+        let i = i as u32;
+        UVec3::new(i % n.x, i / n.x % n.y, i / (n.x * n.y))
+    };
+    let node = |c: UVec3| min + h * c.as_vec3();
+    use rayon::prelude::*;
+    // Per node: behind the skin, in front of the wall, and whether the skin reaches across it.
+    let sides: Vec<(bool, bool, bool)> = (0..count)
+        .into_par_iter()
+        .map(|i| {
+            let p = node(at(i)).as_dvec3();
+            (skin.behind(p), !wall.behind(p), skin.covers(p))
+        })
+        .collect();
+    let tissue: Vec<bool> = sides.iter().map(|(b, f, _)| *b && *f).collect();
+    let uncovered: Vec<usize> = (0..count).filter(|&i| sides[i].1 && !sides[i].2).collect();
+    // A cell is tissue when its eight corners are.
+    let full = |x: u32, y: u32, z: u32| {
+        x + 1 < n.x
+            && y + 1 < n.y
+            && z + 1 < n.z
+            && (0..8u32).all(|c| tissue[idx(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2 & 1))])
+    };
+    let mut cells = Vec::new();
+    for z in 0..n.z - 1 {
+        for y in 0..n.y - 1 {
+            for x in 0..n.x - 1 {
+                if full(x, y, z) {
+                    cells.push(UVec3::new(x, y, z));
+                }
+            }
+        }
+    }
+    if cells.is_empty() {
+        let behind = sides.iter().any(|s| s.0);
+        let front = sides.iter().any(|s| s.1);
+        return Err(Ok(if behind && front { BetweenError::WallInFront } else { BetweenError::Empty }));
+    }
+    // Where the tissue needs skin and the scan does not reach: undecided.
+    if let Some(&i) = uncovered.iter().find(|&&i| {
+        let c = at(i);
+        // Only where tissue cells are near: a box corner far from the breast does not matter.
+        cells.iter().any(|cell| (cell.as_ivec3() - c.as_ivec3()).abs().max_element() <= 1)
+    }) {
+        return Err(Ok(BetweenError::Uncovered(uncovered.len(), node(at(i)))));
+    }
+    // The vertices of tissue cells, the springs along their edges and face diagonals, and the
+    // faces not shared with another tissue cell.
+    let mut vertex = vec![u32::MAX; count];
+    let mut pos = Vec::new();
+    for c in &cells {
+        for k in 0..8u32 {
+            let i = idx(c.x + (k & 1), c.y + (k >> 1 & 1), c.z + (k >> 2 & 1));
+            if vertex[i] == u32::MAX {
+                vertex[i] = pos.len() as u32;
+                pos.push(node(at(i)));
+            }
+        }
+    }
+    let is_full: std::collections::HashSet<UVec3> = cells.iter().copied().collect();
+    let mut pairs: Vec<(u32, u32)> = Vec::new();
+    let mut mesh = TriangleMesh::default();
+    for c in &cells {
+        let v = |dx: u32, dy: u32, dz: u32| vertex[idx(c.x + dx, c.y + dy, c.z + dz)];
+        // 12 edges, 12 face diagonals.
+        let corners: [u32; 8] =
+            std::array::from_fn(|k| v(k as u32 & 1, k as u32 >> 1 & 1, k as u32 >> 2 & 1));
+        for (a, b) in [
+            (0, 1),
+            (2, 3),
+            (4, 5),
+            (6, 7),
+            (0, 2),
+            (1, 3),
+            (4, 6),
+            (5, 7),
+            (0, 4),
+            (1, 5),
+            (2, 6),
+            (3, 7),
+            (0, 3),
+            (1, 2),
+            (4, 7),
+            (5, 6),
+            (0, 5),
+            (1, 4),
+            (2, 7),
+            (3, 6),
+            (0, 6),
+            (2, 4),
+            (1, 7),
+            (3, 5),
+        ] {
+            let (i, j) = (corners[a], corners[b]);
+            pairs.push((i.min(j), i.max(j)));
+        }
+        let neighbour = |d: [i32; 3]| {
+            let q = c.as_ivec3() + glam::IVec3::from_array(d);
+            q.min_element() >= 0 && is_full.contains(&q.as_uvec3())
+        };
+        for (d, quad, out) in [
+            ([-1, 0, 0], [v(0, 0, 0), v(0, 1, 0), v(0, 1, 1), v(0, 0, 1)], Vec3::NEG_X),
+            ([1, 0, 0], [v(1, 0, 0), v(1, 1, 0), v(1, 1, 1), v(1, 0, 1)], Vec3::X),
+            ([0, -1, 0], [v(0, 0, 0), v(1, 0, 0), v(1, 0, 1), v(0, 0, 1)], Vec3::NEG_Y),
+            ([0, 1, 0], [v(0, 1, 0), v(1, 1, 0), v(1, 1, 1), v(0, 1, 1)], Vec3::Y),
+            ([0, 0, -1], [v(0, 0, 0), v(1, 0, 0), v(1, 1, 0), v(0, 1, 0)], Vec3::NEG_Z),
+            ([0, 0, 1], [v(0, 0, 1), v(1, 0, 1), v(1, 1, 1), v(0, 1, 1)], Vec3::Z),
+        ] {
+            if !neighbour(d) {
+                for t in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+                    let [a, b, c] = t.map(|i| pos[i as usize]);
+                    mesh.triangles.push(if (b - a).cross(c - a).dot(out) >= 0.0 {
+                        t
+                    } else {
+                        [t[0], t[2], t[1]]
+                    });
+                }
+            }
+        }
+    }
+    pairs.sort_unstable();
+    pairs.dedup();
+    let springs = pairs
+        .into_iter()
+        .map(|(i, j)| Spring { i, j, rest: pos[i as usize].distance(pos[j as usize]), k })
+        .collect();
+    // Held: on the chest wall (a lattice neighbour behind it) and on the box's faces.
+    let (mut on_wall, mut on_box) = (0, 0);
+    let mut modes = vec![Mode::Free; pos.len()];
+    for i in 0..count {
+        let v = vertex[i];
+        if v == u32::MAX {
+            continue;
+        }
+        let c = at(i);
+        let face = c.x == 0 || c.y == 0 || c.z == 0 || c.x + 1 == n.x || c.y + 1 == n.y || c.z + 1 == n.z;
+        let mut wallward = false;
+        for d in 0..27i32 {
+            let o = glam::IVec3::new(d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1);
+            let q = c.as_ivec3() + o;
+            if q.min_element() >= 0 && q.x < n.x as i32 && q.y < n.y as i32 && q.z < n.z as i32 {
+                wallward |= !sides[idx(q.x as u32, q.y as u32, q.z as u32)].1;
+            }
+        }
+        if wallward {
+            on_wall += 1;
+            modes[v as usize] = Mode::Pinned;
+        } else if face {
+            on_box += 1;
+            modes[v as usize] = Mode::Pinned;
+        }
+    }
+    let body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
+    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box }))
+}

@@ -1,0 +1,136 @@
+//! A breast from a scan (docs/design.md §14): the tissue between a skin sheet and a chest wall,
+//! inside a box, from generated parametric breasts; its held vertices, its landmarks and its
+//! volume; and each bad input named.
+
+mod common;
+
+use common::shapes::{breast_skin, height_sheet, write_stl};
+use voxcollide_sim::Mode;
+use voxcollide_sim::build::build_world;
+use voxcollide_sim::scene_file::SceneFile;
+
+/// A scene of a breast between `skin.stl` and `wall.stl` in `dir`, with `box_` and `extra` keys.
+fn scene(dir: &std::path::Path, min: [f64; 3], max: [f64; 3], extra: &str) -> String {
+    let _ = dir;
+    format!(
+        r#"
+units = "mm"
+[time]
+integrator = "implicit"
+[[body]]
+name = "breast"
+kind = "soft"
+shape = {{ between = {{ outer = "skin.stl", inner = "wall.stl", min = {min:?}, max = {max:?} }} }}
+spacing = 6
+material = {{ model = "neo-hookean", young_kpa = 3, poisson = 0.45 }}
+{extra}
+"#
+    )
+}
+
+fn folder(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("voxcollide-between-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// A skin 15 mm over a flat chest wall, a 40 mm mound of radius 60 mm on it; the wall and skin
+/// over a square of `half` a side.
+fn write_breast(dir: &std::path::Path, half: f64) {
+    write_stl(&dir.join("skin.stl"), &height_sheet(half, 48, breast_skin(15.0, 40.0, 60.0, 0.0)));
+    write_stl(&dir.join("wall.stl"), &height_sheet(half, 8, |_, _| 0.0));
+}
+
+fn read(dir: &std::path::Path, text: &str) -> Result<voxcollide_sim::build::Built, voxcollide::Error> {
+    let path = dir.join("breast.toml");
+    std::fs::write(&path, text).unwrap();
+    build_world(&SceneFile::read(&path)?)
+}
+
+#[test]
+fn the_tissue_between_a_skin_and_a_chest_wall_is_held_on_the_wall_and_box() {
+    let dir = folder("ok");
+    write_breast(&dir, 120.0);
+    let built = read(
+        &dir,
+        &scene(
+            &dir,
+            [-90.0, -90.0, -10.0],
+            [90.0, 90.0, 70.0],
+            "landmarks = { nipple = [0, 0, 55], side = [70, 0, 15] }",
+        ),
+    )
+    .unwrap();
+    let body = &built.world.bodies[0];
+    let h = 6.0f32;
+    // Every vertex lies between the wall (z = 0) and the skin, inside the box.
+    let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
+    for p in &body.pos {
+        assert!(p.z >= -1e-3 && f64::from(p.z) <= skin(f64::from(p.x), f64::from(p.y)) + 1e-3, "{p} outside");
+        assert!(p.x.abs() <= 90.0 + 1e-3 && p.y.abs() <= 90.0 + 1e-3);
+    }
+    // Held: the layer on the wall, and the box's sides; free: the rest, the mound's top.
+    let lowest = body.pos.iter().map(|p| p.z).fold(f32::MAX, f32::min);
+    for (p, m) in body.pos.iter().zip(&body.mode) {
+        if p.z <= lowest + 1e-3 || p.x.abs() >= 90.0 - 1e-3 || p.y.abs() >= 90.0 - 1e-3 {
+            assert_eq!(*m, Mode::Pinned, "{p} should be held");
+        }
+    }
+    let top = body.pos.iter().enumerate().max_by(|a, b| a.1.z.total_cmp(&b.1.z)).unwrap().0;
+    assert_eq!(body.mode[top], Mode::Free);
+    // Its volume: the region's, less about a cell layer under the skin.
+    let exact: f64 = {
+        let (n, step) = (360, 180.0 / 360.0);
+        (0..n * n)
+            .map(|k| {
+                let (x, y) =
+                    (-90.0 + step * (f64::from(k % n) + 0.5), -90.0 + step * (f64::from(k / n) + 0.5));
+                skin(x, y) * step * step
+            })
+            .sum()
+    };
+    let volume = body.surface.volume(&body.pos);
+    eprintln!("volume {volume:.0} mm³ of {exact:.0} ({} vertices)", body.len());
+    assert!(volume < exact && volume > 0.6 * exact, "volume {volume} of {exact}");
+    // Landmarks, each on the surface near where it was given.
+    let marks = &built.notes[0].landmarks;
+    assert_eq!(marks.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(), ["nipple", "side"]);
+    for l in marks {
+        let at = l.at(&body.pos);
+        assert!(at.distance(l.given) <= 2.0 * h, "{} at {at}, given {}", l.name, l.given);
+    }
+}
+
+#[test]
+fn bad_between_input_is_named_and_nothing_is_built() {
+    let dir = folder("bad");
+    write_breast(&dir, 120.0);
+    let box_ = ([-90.0, -90.0, -10.0], [90.0, 90.0, 70.0]);
+    let error = |text: String| read(&dir, &text).map(|_| ()).unwrap_err().to_string();
+    // The wall in front of the skin: the files swapped.
+    let swapped = scene(&dir, box_.0, box_.1, "")
+        .replace("outer = \"skin.stl\", inner = \"wall.stl\"", "outer = \"wall.stl\", inner = \"skin.stl\"");
+    let e = error(swapped);
+    assert!(
+        e.contains("breast.toml") && e.contains("shape.between.inner") && e.contains("in front of"),
+        "{e}"
+    );
+    // A box above the skin holds no tissue.
+    let e = error(scene(&dir, [-90.0, -90.0, 60.0], [90.0, 90.0, 90.0], ""));
+    assert!(e.contains("shape.between") && e.contains("no tissue"), "{e}");
+    // A landmark far from the surface.
+    let e = error(scene(&dir, box_.0, box_.1, "landmarks = { nipple = [0, 0, 120] }"));
+    assert!(e.contains("landmarks") && e.contains("nipple"), "{e}");
+    // A skin that does not reach across the box.
+    write_breast(&dir, 60.0);
+    std::fs::write(dir.join("wall.stl"), std::fs::read(dir.join("wall.stl")).unwrap()).unwrap();
+    write_stl(&dir.join("wall.stl"), &height_sheet(120.0, 8, |_, _| 0.0));
+    let e = error(scene(&dir, box_.0, box_.1, ""));
+    assert!(e.contains("shape.between.outer") && e.contains("does not cover"), "{e}");
+    // A missing file, and a box turned inside out.
+    let e = error(scene(&dir, box_.0, box_.1, "").replace("wall.stl", "nowhere.stl"));
+    assert!(e.contains("shape.between.inner") && e.contains("nowhere.stl"), "{e}");
+    let e = error(scene(&dir, [90.0, -90.0, -10.0], [-90.0, 90.0, 70.0], ""));
+    assert!(e.contains("shape.between.max"), "{e}");
+}
