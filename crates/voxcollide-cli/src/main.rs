@@ -411,10 +411,23 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     b.max_displacement,
                     s.units,
                     match (b.volume_ml, b.volume) {
+                        (Some(start), _) if let Some(end) = b.volume_ml_end => {
+                            format!(", {start:.1} mL of tissue at the start, {end:.1} mL at the end")
+                        }
                         (Some(ml), _) => format!(", {ml:.1} mL inside at the end"),
                         (None, Some(v)) => format!(", {v:.4} cubic {} inside at the end", s.units),
                         (None, None) => String::new(),
                     }
+                );
+            }
+            for l in &s.landmarks {
+                let f = |p: [f32; 3]| format!("[{:.1}, {:.1}, {:.1}]", p[0], p[1], p[2]);
+                println!(
+                    "{:<28} {} to {} {}",
+                    format!("landmark {}.{}", l.body, l.name),
+                    f(l.start),
+                    f(l.end),
+                    s.units
                 );
             }
             for c in &s.contacts {

@@ -531,3 +531,92 @@ fn a_body_scanned_standing_is_recovered_and_run_in_a_posture() {
         assert!(!out.exists(), "a run that fails to set up writes nothing");
     }
 }
+
+/// An open sheet `z = height(x, y)` over `[-half, half]²` as ASCII STL, facing +z.
+fn sheet_stl(half: f32, cells: u32, height: impl Fn(f32, f32) -> f32) -> String {
+    let at = |i: u32, j: u32| {
+        let (x, y) =
+            (-half + 2.0 * half * i as f32 / cells as f32, -half + 2.0 * half * j as f32 / cells as f32);
+        [x, y, height(x, y)]
+    };
+    let mut out = String::from("solid sheet\n");
+    for j in 0..cells {
+        for i in 0..cells {
+            for t in [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]]
+            {
+                out += "facet normal 0 0 0\nouter loop\n";
+                for v in t {
+                    out += &format!("vertex {:e} {:e} {:e}\n", v[0], v[1], v[2]);
+                }
+                out += "endloop\nendfacet\n";
+            }
+        }
+    }
+    out + "endsolid sheet\n"
+}
+
+/// A breast between a skin sheet and a chest wall (docs/design.md §14), standing (gravity
+/// along −x, the patient's feet): `summary.json` gives its tissue's volume at the start and at
+/// the end (the same, to a percent, at ν = 0.45) and its nipple, moved onto the skin and carried
+/// down by its weight.
+#[test]
+fn a_breast_between_its_skin_and_chest_wall_reports_its_landmarks_and_volume() {
+    let dir = std::env::temp_dir().join(format!("voxcollide-between-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let skin = |x: f32, y: f32| {
+        let r = (x * x + y * y).sqrt() / 60.0;
+        15.0 + if r < 1.0 { 40.0 * (0.5 + 0.5 * (std::f32::consts::PI * r).cos()) } else { 0.0 }
+    };
+    std::fs::write(dir.join("skin.stl"), sheet_stl(120.0, 48, skin)).unwrap();
+    std::fs::write(dir.join("wall.stl"), sheet_stl(120.0, 4, |_, _| 0.0)).unwrap();
+    let scene = r#"
+units = "mm"
+[time]
+duration = 0.5
+settle = true
+integrator = "implicit"
+max_steps = 3000
+[world]
+gravity = [-9.81, 0, 0]
+up = "x"
+[[body]]
+name = "breast"
+kind = "soft"
+shape = { between = { outer = "skin.stl", inner = "wall.stl", min = [-90, -90, -10], max = [90, 90, 70] } }
+spacing = 9
+material = { model = "neo-hookean", young_kpa = 3, poisson = 0.45, density = 1000, damping = 0.5 }
+landmarks = { nipple = [0, 0, 55] }
+[output]
+frames = 2
+images = false
+vtk = false
+"#;
+    std::fs::write(dir.join("standing.toml"), scene).unwrap();
+    let out = dir.join("out");
+    let output = voxcollide()
+        .args(["run"])
+        .arg(dir.join("standing.toml"))
+        .args(["--backend", "cpu", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(output.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&output.stderr));
+    assert!(stdout.contains("landmark breast.nipple"), "{stdout}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["settled"], true, "{s}");
+    let body = &s["bodies"][0];
+    let (start, end) = (body["volume_ml"].as_f64().unwrap(), body["volume_ml_end"].as_f64().unwrap());
+    // The region holds 620.5 mL (the mound on its 15 mm layer, over the box).
+    assert!((start / 620.5 - 1.0).abs() < 0.05, "{start} mL");
+    assert!((end / start - 1.0).abs() < 0.01, "{start} mL became {end} mL");
+    let l = &s["landmarks"][0];
+    assert_eq!((l["body"].as_str(), l["name"].as_str()), (Some("breast"), Some("nipple")));
+    let (p, q) = (&l["start"], &l["end"]);
+    let get = |v: &serde_json::Value, k: usize| v[k].as_f64().unwrap();
+    // On the skin's lattice, under the apex; standing, it comes down (−x) by millimetres.
+    assert!(get(p, 0).abs() < 5.0 && get(p, 1).abs() < 5.0 && get(p, 2) > 40.0, "{l}");
+    assert!(get(q, 0) < get(p, 0) - 1.0, "the nipple did not come down: {l}");
+}

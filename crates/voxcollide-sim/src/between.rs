@@ -10,9 +10,15 @@
 //! direction (slightly tilted, so that a lattice's rows never run along a scan's edges).
 //!
 //! **The lattice.** A cubic lattice of the spacing from the box's corner `min`; a cell is
-//! tissue when its eight corners are, and the body is its tissue cells: springs along their
-//! edges and face diagonals, its surface their faces not shared with another. Vertices on the
-//! chest wall (with a lattice neighbour behind `inner`) and on the box's faces are held.
+//! tissue when its centre is, and the body is its tissue cells: springs along their edges and
+//! face diagonals, six tetrahedra each (the Freudenthal split), its surface their faces not
+//! shared with another. A corner that lies in front of the skin is moved back onto it, and one
+//! behind the chest wall forward onto it, along the surface's facing direction (by at most
+//! [`SNAP`] of the spacing, so that no cell turns inside out): the body's outer face is then
+//! the scanned skin and its volume the region's, not a staircase a half cell off (kept as
+//! cubes, a breast on a 15 mm layer measured 14 % under its volume at a 6 mm spacing and
+//! 13 % over at 9 mm). Vertices on the chest wall (behind `inner`, or with a lattice
+//! neighbour behind it) and on the box's faces are held.
 
 use glam::{DVec3, UVec3, Vec3};
 
@@ -45,7 +51,7 @@ impl Sheet {
             .map(|t| t.map(|i| surface.positions[i as usize].as_dvec3()))
             .collect();
         let normal: DVec3 = triangles.iter().map(|[a, b, c]| (*b - *a).cross(*c - *a)).sum();
-        if !(normal.length() > 0.0) {
+        if normal.length().is_nan() || normal.length() <= 0.0 {
             return None;
         }
         // Tilted by irrational fractions of a radian: no lattice row runs along it exactly.
@@ -121,6 +127,31 @@ impl Sheet {
             .count()
     }
 
+    /// Where the line through `p` along the sheet's facing direction meets it nearest to `p`
+    /// on the side `sign` (+1: ahead, −1: behind), within `reach`: the point `p` is moved to
+    /// when it is snapped onto the sheet.
+    #[must_use]
+    pub fn along(&self, p: DVec3, sign: f64, reach: f64) -> Option<DVec3> {
+        let bin = self.bin(p)?;
+        let mut best: Option<f64> = None;
+        for &k in bin {
+            let [a, b, c] = self.triangles[k as usize];
+            let (e1, e2) = (b - a, c - a);
+            let h = self.dir.cross(e2);
+            let det = e1.dot(h);
+            if det.abs() < 1e-300 {
+                continue;
+            }
+            let s = p - a;
+            let (w1, q) = (s.dot(h) / det, s.cross(e1));
+            let (w2, t) = (self.dir.dot(q) / det, e2.dot(q) / det);
+            if w1 >= 0.0 && w2 >= 0.0 && w1 + w2 <= 1.0 && t * sign >= 0.0 && t.abs() <= reach {
+                best = Some(best.map_or(t, |b: f64| if t.abs() < b.abs() { t } else { b }));
+            }
+        }
+        best.map(|t| p + t * self.dir)
+    }
+
     /// Whether `p` lies behind the sheet (an odd number of crossings).
     #[must_use]
     pub fn behind(&self, p: DVec3) -> bool {
@@ -183,6 +214,9 @@ pub fn closest_on_triangle(p: DVec3, [a, b, c]: &[DVec3; 3]) -> DVec3 {
     *a + ab * (vb * denom) + ac * (vc * denom)
 }
 
+/// The farthest a lattice corner is moved onto the skin or the wall, in spacings.
+pub const SNAP: f64 = 0.45;
+
 /// Why a `between` body could not be made (docs/design.md §14); each names the key at fault.
 #[derive(Clone, Debug, PartialEq)]
 pub enum BetweenError {
@@ -230,6 +264,9 @@ pub struct BetweenReport {
     pub on_box: usize,
 }
 
+/// What [`between_body`] makes: the body, what it found, and its tetrahedra (six per cell).
+pub type Made = (MassSpring, BetweenReport, Vec<[u32; 4]>);
+
 /// The tissue between `outer` and `inner` inside the box `min`..`max`, a lattice of spacing `h`
 /// (springs of stiffness `k`, `material`), held on the chest wall and the box's faces.
 ///
@@ -244,7 +281,7 @@ pub fn between_body(
     h: f32,
     k: f32,
     material: Material,
-) -> Result<(MassSpring, BetweenReport), Result<BetweenError, voxcollide::Error>> {
+) -> Result<Made, Result<BetweenError, voxcollide::Error>> {
     let skin = Sheet::new(outer, f64::from(h)).ok_or(Ok(BetweenError::Flat("outer")))?;
     let wall = Sheet::new(inner, f64::from(h)).ok_or(Ok(BetweenError::Flat("inner")))?;
     let size = max - min;
@@ -275,25 +312,19 @@ pub fn between_body(
             (skin.behind(p), !wall.behind(p), skin.covers(p))
         })
         .collect();
-    let tissue: Vec<bool> = sides.iter().map(|(b, f, _)| *b && *f).collect();
     let uncovered: Vec<usize> = (0..count).filter(|&i| sides[i].1 && !sides[i].2).collect();
-    // A cell is tissue when its eight corners are.
-    let full = |x: u32, y: u32, z: u32| {
-        x + 1 < n.x
-            && y + 1 < n.y
-            && z + 1 < n.z
-            && (0..8u32).all(|c| tissue[idx(x + (c & 1), y + (c >> 1 & 1), z + (c >> 2 & 1))])
-    };
-    let mut cells = Vec::new();
-    for z in 0..n.z - 1 {
-        for y in 0..n.y - 1 {
-            for x in 0..n.x - 1 {
-                if full(x, y, z) {
-                    cells.push(UVec3::new(x, y, z));
-                }
-            }
-        }
-    }
+    // A cell is tissue when its centre is: the lattice then holds the region's volume to a
+    // half cell either way at its surface, not a whole cell short of it (cells wholly inside
+    // kept 116 of 620 mL of a breast on a 15 mm layer at a 9 mm spacing).
+    let m = n - UVec3::ONE;
+    let cells: Vec<UVec3> = (0..m.x * m.y * m.z)
+        .into_par_iter()
+        .map(|i| UVec3::new(i % m.x, i / m.x % m.y, i / (m.x * m.y)))
+        .filter(|c| {
+            let p = (node(*c) + 0.5 * h).as_dvec3();
+            skin.behind(p) && !wall.behind(p)
+        })
+        .collect();
     if cells.is_empty() {
         let behind = sides.iter().any(|s| s.0);
         let front = sides.iter().any(|s| s.1);
@@ -311,13 +342,34 @@ pub fn between_body(
     // faces not shared with another tissue cell.
     let mut vertex = vec![u32::MAX; count];
     let mut pos = Vec::new();
+    let reach = SNAP * f64::from(h);
+    let mut moved = Vec::new();
     for c in &cells {
         for k in 0..8u32 {
             let i = idx(c.x + (k & 1), c.y + (k >> 1 & 1), c.z + (k >> 2 & 1));
             if vertex[i] == u32::MAX {
                 vertex[i] = pos.len() as u32;
-                pos.push(node(at(i)));
+                let p = node(at(i)).as_dvec3();
+                // Onto the skin (back along its facing direction) or onto the wall (forward).
+                let snapped = match sides[i] {
+                    (false, ..) => skin.along(p, -1.0, reach),
+                    (true, false, _) => wall.along(p, 1.0, reach),
+                    (true, true, _) => None,
+                };
+                moved.push(snapped.is_some());
+                pos.push(snapped.unwrap_or(p).as_vec3());
             }
+        }
+    }
+    // Six tetrahedra per cell, along its main diagonal (as `lattice_tets` cuts a lattice).
+    let mut tets = Vec::with_capacity(6 * cells.len());
+    for c in &cells {
+        let corner = |d: UVec3| vertex[idx(c.x + d.x, c.y + d.y, c.z + d.z)];
+        let axes = [UVec3::X, UVec3::Y, UVec3::Z];
+        for path in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+            let a = axes[path[0]];
+            let b = a + axes[path[1]];
+            tets.push([UVec3::ZERO, a, b, UVec3::ONE].map(corner));
         }
     }
     let is_full: std::collections::HashSet<UVec3> = cells.iter().copied().collect();
@@ -381,6 +433,26 @@ pub fn between_body(
             }
         }
     }
+    // The body's other surface vertices, inside the region: onto the skin or the wall where
+    // either is within reach along its facing direction (the lattice's lowest layer a little in
+    // front of the wall comes down onto it).
+    let mut on_surface = vec![false; pos.len()];
+    mesh.triangles.iter().flatten().for_each(|&v| on_surface[v as usize] = true);
+    for (v, p) in pos.iter_mut().enumerate() {
+        if moved[v] || !on_surface[v] {
+            continue;
+        }
+        let q = p.as_dvec3();
+        let nearer = |a: Option<DVec3>, b: Option<DVec3>| match (a, b) {
+            (Some(a), Some(b)) => Some(if a.distance(q) <= b.distance(q) { a } else { b }),
+            (a, b) => a.or(b),
+        };
+        let to_skin = nearer(skin.along(q, 1.0, reach), skin.along(q, -1.0, reach));
+        let to_wall = nearer(wall.along(q, 1.0, reach), wall.along(q, -1.0, reach));
+        if let Some(s) = nearer(to_skin, to_wall) {
+            *p = s.as_vec3();
+        }
+    }
     pairs.sort_unstable();
     pairs.dedup();
     let springs = pairs
@@ -397,7 +469,7 @@ pub fn between_body(
         }
         let c = at(i);
         let face = c.x == 0 || c.y == 0 || c.z == 0 || c.x + 1 == n.x || c.y + 1 == n.y || c.z + 1 == n.z;
-        let mut wallward = false;
+        let mut wallward = !sides[i].1;
         for d in 0..27i32 {
             let o = glam::IVec3::new(d % 3 - 1, d / 3 % 3 - 1, d / 9 - 1);
             let q = c.as_ivec3() + o;
@@ -414,5 +486,5 @@ pub fn between_body(
         }
     }
     let body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
-    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box }))
+    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box }, tets))
 }

@@ -325,7 +325,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         kspring,
                         material,
                     );
-                    let (body, report) = made.map_err(|e| match e {
+                    let (body, report, tets) = made.map_err(|e| match e {
                         Ok(e) => {
                             let key = match e {
                                 crate::between::BetweenError::Flat(which) => format!("shape.between.{which}"),
@@ -341,6 +341,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         "between the skin and the chest wall: {} cells of {h}, {} vertices held on the wall and {} on the box's faces",
                         report.cells, report.on_wall, report.on_box
                     ));
+                    mesh_tets = Some(tets);
                     (body, kspring)
                 }
                 Geometry::Mesh(path)
@@ -771,7 +772,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
                 }
             }
             let reach = 2.0 * f64::from(spec.spacing.unwrap_or(1.0) as f32);
-            if !(best.0 <= reach) {
+            if best.0.is_nan() || best.0 > reach {
                 return Err(file.body_error(
                     k,
                     "landmarks",

@@ -64,22 +64,22 @@ fn the_tissue_between_a_skin_and_a_chest_wall_is_held_on_the_wall_and_box() {
     .unwrap();
     let body = &built.world.bodies[0];
     let h = 6.0f32;
-    // Every vertex lies between the wall (z = 0) and the skin, inside the box.
+    // Every vertex lies between the wall (z = 0) and the skin, to a cell, inside the box.
     let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
     for p in &body.pos {
-        assert!(p.z >= -1e-3 && f64::from(p.z) <= skin(f64::from(p.x), f64::from(p.y)) + 1e-3, "{p} outside");
-        assert!(p.x.abs() <= 90.0 + 1e-3 && p.y.abs() <= 90.0 + 1e-3);
+        let reach = 2.0 * f64::from(h); // a cell corner, where the skin slopes steeply
+        assert!(p.z >= -h && f64::from(p.z) <= skin(f64::from(p.x), f64::from(p.y)) + reach, "{p} outside");
+        assert!(p.x.abs() <= 90.05 && p.y.abs() <= 90.05, "{p} outside the box");
     }
     // Held: the layer on the wall, and the box's sides; free: the rest, the mound's top.
-    let lowest = body.pos.iter().map(|p| p.z).fold(f32::MAX, f32::min);
     for (p, m) in body.pos.iter().zip(&body.mode) {
-        if p.z <= lowest + 1e-3 || p.x.abs() >= 90.0 - 1e-3 || p.y.abs() >= 90.0 - 1e-3 {
+        if p.z <= 0.0 || p.x.abs() >= 90.0 - 1e-3 || p.y.abs() >= 90.0 - 1e-3 {
             assert_eq!(*m, Mode::Pinned, "{p} should be held");
         }
     }
     let top = body.pos.iter().enumerate().max_by(|a, b| a.1.z.total_cmp(&b.1.z)).unwrap().0;
     assert_eq!(body.mode[top], Mode::Free);
-    // Its volume: the region's, less about a cell layer under the skin.
+    // Its volume: the region's, its cells kept by their centres.
     let exact: f64 = {
         let (n, step) = (360, 180.0 / 360.0);
         (0..n * n)
@@ -92,7 +92,17 @@ fn the_tissue_between_a_skin_and_a_chest_wall_is_held_on_the_wall_and_box() {
     };
     let volume = body.surface.volume(&body.pos);
     eprintln!("volume {volume:.0} mm³ of {exact:.0} ({} vertices)", body.len());
-    assert!(volume < exact && volume > 0.6 * exact, "volume {volume} of {exact}");
+    assert!((volume / exact - 1.0).abs() < 0.03, "volume {volume} of {exact}");
+    // At other spacings too: the corners snapped onto the skin and the wall hold the region's
+    // volume, not a staircase's.
+    for spacing in [4.5, 7.5, 9.0, 11.0] {
+        let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], "")
+            .replace("spacing = 6", &format!("spacing = {spacing}"));
+        let b = &read(&dir, &text).unwrap().world.bodies[0];
+        let v = b.surface.volume(&b.pos);
+        eprintln!("spacing {spacing}: volume {v:.0} mm³ of {exact:.0} ({} vertices)", b.len());
+        assert!((v / exact - 1.0).abs() < 0.05, "spacing {spacing}: volume {v} of {exact}");
+    }
     // Landmarks, each on the surface near where it was given.
     let marks = &built.notes[0].landmarks;
     assert_eq!(marks.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(), ["nipple", "side"]);
