@@ -38,6 +38,8 @@ pub struct Sheet {
     cell: f64,
     dims: [usize; 2],
     bins: Vec<Vec<u32>>,
+    /// The sheet's open edges (used by one triangle).
+    boundary: Vec<[DVec3; 2]>,
 }
 
 impl Sheet {
@@ -91,7 +93,18 @@ impl Sheet {
                 }
             }
         }
-        Some(Sheet { triangles, dir, u, v, lo, cell, dims, bins })
+        let mut edges: std::collections::HashMap<(u32, u32), u32> = std::collections::HashMap::new();
+        for t in &surface.mesh.triangles {
+            for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+                *edges.entry((a.min(b), a.max(b))).or_default() += 1;
+            }
+        }
+        let boundary = edges
+            .into_iter()
+            .filter(|(_, n)| *n == 1)
+            .map(|((a, b), _)| [a, b].map(|i| surface.positions[i as usize].as_dvec3()))
+            .collect();
+        Some(Sheet { triangles, dir, u, v, lo, cell, dims, bins, boundary })
     }
 
     /// The bin `p` projects into, if the sheet reaches there.
@@ -165,18 +178,33 @@ impl Sheet {
         self.bin(p).is_some_and(|b| !b.is_empty())
     }
 
-    /// The nearest point of the sheet to `p`, and its distance.
+    /// The nearest point of the sheet to `p`, its distance, and its triangle.
     #[must_use]
-    pub fn nearest(&self, p: DVec3) -> (DVec3, f64) {
-        let mut best = (p, f64::INFINITY);
-        for t in &self.triangles {
+    pub fn nearest(&self, p: DVec3) -> (DVec3, f64, usize) {
+        let mut best = (p, f64::INFINITY, 0);
+        for (k, t) in self.triangles.iter().enumerate() {
             let q = closest_on_triangle(p, t);
             let d = q.distance(p);
             if d < best.1 {
-                best = (q, d);
+                best = (q, d, k);
             }
         }
         best
+    }
+
+    /// Whether `p`, where the sheet's rays do not reach, is in front of it all the same: its
+    /// nearest point is inside the sheet (not on its open edge) and `p` lies on the side the
+    /// sheet faces there.
+    #[must_use]
+    pub fn in_front_nearby(&self, p: DVec3) -> bool {
+        let (q, _, k) = self.nearest(p);
+        let on_edge = self.boundary.iter().any(|[a, b]| {
+            let ab = *b - *a;
+            let t = ((q - *a).dot(ab) / ab.length_squared().max(f64::MIN_POSITIVE)).clamp(0.0, 1.0);
+            (*a + t * ab).distance(q) <= 1e-9 * (1.0 + q.length())
+        });
+        let [a, b, c] = self.triangles[k];
+        !on_edge && (p - q).dot((b - a).cross(c - a)) >= 0.0
     }
 }
 
@@ -262,6 +290,8 @@ pub struct BetweenReport {
     pub on_wall: usize,
     /// Vertices held on the box's faces.
     pub on_box: usize,
+    /// Vertices left on the lattice because snapping them would have flattened a tetrahedron.
+    pub unsnapped: usize,
 }
 
 /// What [`between_body`] makes: the body, what it found, and its tetrahedra (six per cell).
@@ -331,12 +361,20 @@ pub fn between_body(
         return Err(Ok(if behind && front { BetweenError::WallInFront } else { BetweenError::Empty }));
     }
     // Where the tissue needs skin and the scan does not reach: undecided.
-    if let Some(&i) = uncovered.iter().find(|&&i| {
-        let c = at(i);
-        // Only where tissue cells are near: a box corner far from the breast does not matter.
-        cells.iter().any(|cell| (cell.as_ivec3() - c.as_ivec3()).abs().max_element() <= 1)
-    }) {
-        return Err(Ok(BetweenError::Uncovered(uncovered.len(), node(at(i)))));
+    // (Only where tissue cells are near, and where the skin's nearest point does not say the
+    // point is in front of it: a point in the air beside the torso, which the skin's tilted
+    // rays pass by, is in front of it.)
+    let undecided: Vec<usize> = uncovered
+        .par_iter()
+        .copied()
+        .filter(|&i| {
+            let c = at(i);
+            cells.iter().any(|cell| (cell.as_ivec3() - c.as_ivec3()).abs().max_element() <= 1)
+                && !skin.in_front_nearby(node(c).as_dvec3())
+        })
+        .collect();
+    if let Some(&i) = undecided.first() {
+        return Err(Ok(BetweenError::Uncovered(undecided.len(), node(at(i)))));
     }
     // The vertices of tissue cells, the springs along their edges and face diagonals, and the
     // faces not shared with another tissue cell.
@@ -344,6 +382,8 @@ pub fn between_body(
     let mut pos = Vec::new();
     let reach = SNAP * f64::from(h);
     let mut moved = Vec::new();
+    // Each vertex's lattice position, before it is snapped.
+    let mut lattice = Vec::new();
     for c in &cells {
         for k in 0..8u32 {
             let i = idx(c.x + (k & 1), c.y + (k >> 1 & 1), c.z + (k >> 2 & 1));
@@ -357,6 +397,7 @@ pub fn between_body(
                     (true, true, _) => None,
                 };
                 moved.push(snapped.is_some());
+                lattice.push(p.as_vec3());
                 pos.push(snapped.unwrap_or(p).as_vec3());
             }
         }
@@ -453,6 +494,35 @@ pub fn between_body(
             *p = s.as_vec3();
         }
     }
+    // A cell whose corners were snapped onto one flat piece of a coarse scan can fold or flatten
+    // a tetrahedron: its corners go back to the lattice until none is thinner than a twentieth
+    // of a regular one's.
+    let mut unsnapped = 0usize;
+    for _ in 0..4 {
+        let thin: Vec<[u32; 4]> = tets
+            .iter()
+            .copied()
+            .filter(|t| {
+                let det = |p: &[Vec3]| {
+                    let [a, b, c, d] = t.map(|v| p[v as usize]);
+                    (b - a).dot((c - a).cross(d - a))
+                };
+                // Half the cuts are turned the other way round: the lattice's sign says which.
+                det(&pos) * det(&lattice).signum() < 0.05 * h * h * h
+            })
+            .collect();
+        if thin.is_empty() {
+            break;
+        }
+        for t in thin {
+            for v in t {
+                if pos[v as usize] != lattice[v as usize] {
+                    pos[v as usize] = lattice[v as usize];
+                    unsnapped += 1;
+                }
+            }
+        }
+    }
     pairs.sort_unstable();
     pairs.dedup();
     let springs = pairs
@@ -486,5 +556,5 @@ pub fn between_body(
         }
     }
     let body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
-    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box }, tets))
+    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped }, tets))
 }
