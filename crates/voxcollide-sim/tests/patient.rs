@@ -1,6 +1,6 @@
 //! Anatomy nobody here made (docs/patient.md): torso regions of the MakeHuman body model (its
 //! base mesh and breast targets as MPFB 2 ships them, CC0; made by tools/makehuman_torso.py
-//! into tests/data/makehuman) at two breast sizes and two firmnesses, each a breast between its
+//! into scenes/makehuman) at two breast sizes and two firmnesses, each a breast between its
 //! skin and an estimated chest wall (docs/design.md §14), standing as scanned and turned to
 //! lie on her back: built, its volume growing with the cup and the same in either orientation,
 //! its nipple on the skin, and under its own weight the nipple comes down.
@@ -14,7 +14,7 @@ use voxcollide_sim::reference;
 use voxcollide_sim::scene_file::SceneFile;
 
 fn data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/makehuman")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/makehuman")
 }
 
 /// The box and each skin's nipple, from landmarks.txt.
