@@ -462,8 +462,11 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                 voxcollide_cli::scene_run::REST_TOLERANCE
             );
             if let Some(r) = s.residual {
+                let floor = s.residual_floor.map_or(String::new(), |f| {
+                    format!(", or as finely as single precision resolves it: {f:.1e}")
+                });
                 println!(
-                    "{:<28} implicit; residual force {r:.2e} of the largest load (at rest: {:.0e}); rest judged by {}",
+                    "{:<28} implicit; residual force {r:.2e} of the largest load (at rest: {:.0e}{floor}); rest judged by {}",
                     "integrator",
                     voxcollide_cli::scene_run::RESIDUAL_TOLERANCE,
                     s.criterion

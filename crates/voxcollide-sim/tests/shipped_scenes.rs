@@ -56,3 +56,26 @@ fn the_shipped_files_are_the_paper_scenes_to_the_bit() {
         }
     }
 }
+
+/// Every shipped scene file reads and builds (the catalogue `implants.toml` is not a scene);
+/// the patient and posture scenes recover their unloaded shapes to a hundredth of a spacing.
+#[test]
+fn every_shipped_scene_builds() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let mut built = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") || path.ends_with("implants.toml") {
+            continue;
+        }
+        let b = build_world(&SceneFile::read(&path).unwrap())
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        for note in &b.notes {
+            if let Some(r) = note.reference {
+                assert!(r.residual <= 0.01 * r.spacing + 1e-3, "{}: {r:?}", path.display());
+            }
+        }
+        built += 1;
+    }
+    assert!(built >= 8, "{built} scenes");
+}
