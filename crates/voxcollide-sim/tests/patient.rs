@@ -5,11 +5,15 @@
 //! lie on her back: built, its volume growing with the cup and the same in either orientation,
 //! its nipple on the skin, and under its own weight the nipple comes down.
 
+mod common;
+
 use std::path::{Path, PathBuf};
+
+use common::shapes::write_stl;
 
 use voxcollide::glam::{Mat3, Vec3};
 use voxcollide_sim::build::{Built, build_world};
-use voxcollide_sim::mesh_io::{Surface, read_sheet};
+use voxcollide_sim::mesh_io::read_sheet;
 use voxcollide_sim::reference;
 use voxcollide_sim::scene_file::SceneFile;
 
@@ -36,22 +40,6 @@ fn landmarks() -> ([f32; 3], [f32; 3], Vec<(String, [f32; 3])>) {
         })
         .collect();
     (min, max, skins)
-}
-
-fn write_stl(path: &Path, s: &Surface) {
-    let triangles: Vec<stl_io::Triangle> = s
-        .mesh
-        .triangles
-        .iter()
-        .map(|t| {
-            let [a, b, c] = t.map(|i| s.positions[i as usize]);
-            stl_io::Triangle {
-                normal: stl_io::Normal::new((b - a).cross(c - a).normalize_or_zero().to_array()),
-                vertices: [a, b, c].map(|p| stl_io::Vertex::new(p.to_array())),
-            }
-        })
-        .collect();
-    stl_io::write_stl(&mut std::fs::File::create(path).unwrap(), triangles.iter()).unwrap();
 }
 
 /// The breast of `skin` between it and the wall, in a folder of its own, its surfaces and box
