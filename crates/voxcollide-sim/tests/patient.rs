@@ -21,8 +21,11 @@ fn data() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/makehuman")
 }
 
+/// A box's corners, and each skin's name and nipple.
+type Landmarks = ([f32; 3], [f32; 3], Vec<(String, [f32; 3])>);
+
 /// The box and each skin's nipple, from landmarks.txt.
-fn landmarks() -> ([f32; 3], [f32; 3], Vec<(String, [f32; 3])>) {
+fn landmarks() -> Landmarks {
     let text = std::fs::read_to_string(data().join("landmarks.txt")).unwrap();
     let mut lines = text.lines();
     let head = lines.next().unwrap();
@@ -101,7 +104,7 @@ fn makehuman_breasts_are_built_between_their_skin_and_chest_wall_in_either_postu
                 on.distance(mark.given)
             );
             assert!(on.distance(mark.given) <= 8.0, "{skin} {posture}: nipple {on} far from {}", mark.given);
-            assert!(body.mode.iter().any(|m| *m == voxcollide_sim::Mode::Free));
+            assert!(body.mode.contains(&voxcollide_sim::Mode::Free));
             per_posture.push(volume);
         }
         // The same tissue whichever way it lies (the lattice is the box's, turned).
