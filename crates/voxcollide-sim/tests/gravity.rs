@@ -256,3 +256,82 @@ fn bad_gravity_and_reference_keys_are_named() {
         assert!(e.contains("bad.toml") && e.contains(key), "{key}: {e}");
     }
 }
+
+/// The parameters a user would change: the stiffness, the spacing, Poisson's ratio and the
+/// length of the hanging column, each within 3 % of ρgL²/(2E) (the top, held, keeps its
+/// lateral contraction: shorter and more nearly incompressible columns feel it most).
+#[test]
+fn the_hanging_column_holds_across_stiffness_spacing_and_poisson() {
+    for (young, spacing, poisson, length) in [
+        (30.0, 2.5, 0.3, 100.0),
+        (300.0, 2.5, 0.3, 100.0),
+        (100.0, 5.0, 0.3, 100.0),
+        (100.0, 2.0, 0.3, 80.0),
+        (100.0, 2.5, 0.45, 100.0),
+    ] {
+        let text = format!(
+            r#"
+units = "mm"
+[time]
+integrator = "implicit"
+[world]
+gravity = [0, 0, -9.81]
+[[body]]
+name = "column"
+kind = "soft"
+shape = {{ box = [10, 10, {length}] }}
+spacing = {spacing}
+material = {{ model = "neo-hookean", young_kpa = {young}, poisson = {poisson}, density = 1000, damping = 0.5 }}
+fixed = [{{ above = {{ z = {top} }} }}]
+"#,
+            top = 0.5 * length - 0.1 * spacing
+        );
+        let built = build_world(&SceneFile::parse("column.toml", &text).unwrap()).unwrap();
+        let mut body = built.world.bodies[0].clone();
+        reference::settle(&mut body, Vec3::new(0.0, 0.0, -9810.0)).unwrap();
+        let l = length * 1e-3;
+        let want = 1000.0 * 9.81 * l * l / (2.0 * young * 1e3) * 1e3;
+        let got = f64::from(sag(&body));
+        eprintln!(
+            "E {young} kPa, h {spacing}, ν {poisson}, L {length}: sag {got:.4} mm, closed form {want:.4} mm"
+        );
+        assert!((got / want - 1.0).abs() < 0.03, "E {young}, h {spacing}, ν {poisson}: {got} against {want}");
+    }
+}
+
+/// The recovery across stiffness: a stiffer mound sags less and is recovered as well; a
+/// softer one sags more (more nonlinear) and still comes back within a tenth of its spacing.
+#[test]
+fn the_unloaded_shape_is_recovered_across_stiffness() {
+    for young in [1.5, 3.0, 10.0] {
+        let text = format!(
+            r#"
+units = "mm"
+[time]
+integrator = "implicit"
+[[body]]
+name = "breast"
+kind = "soft"
+shape = {{ ellipsoid = [60, 55, 45] }}
+spacing = 9
+material = {{ model = "neo-hookean", young_kpa = {young}, poisson = 0.45, density = 1000, damping = 0.5 }}
+fixed = [{{ below = {{ z = 1 }} }}]
+"#
+        );
+        let original =
+            build_world(&SceneFile::parse("mound.toml", &text).unwrap()).unwrap().world.bodies[0].clone();
+        let g = Vec3::new(0.0, -9810.0, 0.0);
+        let mut scan = original.clone();
+        reference::settle(&mut scan, g).unwrap();
+        let moved = farthest(&scan.pos, &original.pos, &original.mode);
+        let loaded = scan.pos.clone();
+        set_rest_shape(&mut scan, &loaded).unwrap();
+        let r = reference::unload(&mut scan, g).unwrap();
+        let back = farthest(&scan.rest_pos, &original.rest_pos, &original.mode);
+        eprintln!(
+            "E {young} kPa: sags {moved:.2} mm; {} iterations, residual {:.4} mm, {back:.4} mm from the original",
+            r.iterations, r.residual
+        );
+        assert!(r.is_valid() && back <= 0.1 * 9.0, "E {young}: {r:?}, {back} mm from the original");
+    }
+}
