@@ -154,7 +154,40 @@ fn unit_material() -> Material {
 }
 
 /// Whether `fixed` holds a vertex at `p` of a body whose lateral bounds are `lo`..`hi`.
-fn held(fixed: &[Fixed], p: Vec3, lo: Vec3, hi: Vec3) -> bool {
+/// What region rules need of their body: its bounding box and, for `depth`, its outer surface
+/// at rest (its surface triangles with every corner free).
+struct Frame {
+    lo: Vec3,
+    hi: Vec3,
+    outer: Vec<[DVec3; 3]>,
+}
+
+impl Frame {
+    fn of(body: &MassSpring) -> Frame {
+        let lo = body.pos.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
+        let hi = body.pos.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+        let outer = body
+            .surface
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| body.mode[v as usize] == Mode::Free))
+            .map(|t| t.map(|v| body.rest_pos[v as usize].as_dvec3()))
+            .collect();
+        Frame { lo, hi, outer }
+    }
+
+    /// How far `p` lies from the outer surface.
+    fn depth(&self, p: Vec3) -> f64 {
+        let q = p.as_dvec3();
+        self.outer
+            .iter()
+            .map(|t| crate::between::closest_on_triangle(q, t).distance(q))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+fn held(fixed: &[Fixed], p: Vec3, frame: &Frame) -> bool {
+    let (lo, hi) = (frame.lo, frame.hi);
     fixed.iter().any(|f| match *f {
         Fixed::Below(a) => a.get().is_some_and(|(axis, v)| f64::from(p[axis]) < v),
         Fixed::Above(a) => a.get().is_some_and(|(axis, v)| f64::from(p[axis]) > v),
@@ -165,6 +198,7 @@ fn held(fixed: &[Fixed], p: Vec3, lo: Vec3, hi: Vec3) -> bool {
             let w = w as f32;
             p.x <= lo.x + w || p.x >= hi.x - w || p.y <= lo.y + w || p.y >= hi.y - w
         }
+        Fixed::Depth(d) => frame.depth(p) <= d,
     })
 }
 
@@ -494,29 +528,30 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         }
     };
     // Held vertices, and a rigid body's are all driven.
-    let lo = body.pos.iter().fold(Vec3::splat(f32::MAX), |a, p| a.min(*p));
-    let hi = body.pos.iter().fold(Vec3::splat(f32::MIN), |a, p| a.max(*p));
+    let frame = Frame::of(&body);
     // A body between two surfaces is held on its chest wall and box unless `fixed` says otherwise.
     let between = matches!(spec.geometry, Geometry::Shape(Shape::Between(_)));
     for (i, p) in body.rest_pos.iter().enumerate() {
         if between && spec.fixed.is_empty() && spec.driven.is_empty() {
             break;
         }
-        body.mode[i] = if spec.kind == BodyKind::Rigid || held(&spec.driven, *p, lo, hi) {
+        body.mode[i] = if spec.kind == BodyKind::Rigid || held(&spec.driven, *p, &frame) {
             Mode::Driven
-        } else if held(&spec.fixed, *p, lo, hi) {
+        } else if held(&spec.fixed, *p, &frame) {
             Mode::Pinned
         } else {
             Mode::Free
         };
     }
     // Layers: a spring with both ends in a layer's region takes its stiffness, in proportion
-    // to the one the body's material gave it (the elements' layers are below).
+    // to the one the body's material gave it (the elements' layers are below). A skin layer
+    // (`depth`) is measured from the outer surface where the body is not held.
+    let frame = if spec.layers.is_empty() { frame } else { Frame::of(&body) };
     let given: Vec<f32> = body.springs.iter().map(|s| s.k).collect();
     for layer in spec.layers.iter().filter(|_| !neo_hookean) {
         let ratio = (layer.young_kpa / m.young_kpa) as f32;
         let region = [layer.region];
-        let inside: Vec<bool> = body.rest_pos.iter().map(|p| held(&region, *p, lo, hi)).collect();
+        let inside: Vec<bool> = body.rest_pos.iter().map(|p| held(&region, *p, &frame)).collect();
         let mut springs = 0usize;
         for (s, k) in
             body.springs.iter_mut().zip(&given).filter(|(s, _)| inside[s.i as usize] && inside[s.j as usize])
@@ -568,7 +603,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
             let ratio = (layer.young_kpa / m.young_kpa) as f32;
             let mut count = 0usize;
             for (k, &centre) in centres.iter().enumerate() {
-                if held(&region, centre, lo, hi) {
+                if held(&region, centre, &frame) {
                     elements.modulus[k] = ratio;
                     count += 1;
                 }

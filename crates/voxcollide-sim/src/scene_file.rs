@@ -480,6 +480,10 @@ pub enum Fixed {
     },
     /// `{ rim = w }`: within `w` of the body's lateral (x, y) boundary.
     Rim(f64),
+    /// `{ depth = d }`: within `d` of the body's outer surface at rest (its faces where it is
+    /// not held: a skin, not a chest wall or a box's side), as a skin layer over fat and gland
+    /// (docs/design.md §14).
+    Depth(f64),
 }
 
 /// A region of a soft body with its own stiffness, bonded to the rest: skin over fat, a
@@ -1591,6 +1595,13 @@ fn check_fixed(f: &Fixed) -> Result<(), String> {
                 Ok(())
             } else {
                 Err(format!("rim width {w} must be finite and not negative"))
+            }
+        }
+        Fixed::Depth(d) => {
+            if d.is_finite() && *d > 0.0 {
+                Ok(())
+            } else {
+                Err(format!("depth {d} must be a positive length"))
             }
         }
     }

@@ -144,3 +144,42 @@ fn bad_between_input_is_named_and_nothing_is_built() {
     let e = error(scene(&dir, [90.0, -90.0, -10.0], [-90.0, 90.0, 70.0], ""));
     assert!(e.contains("shape.between.max"), "{e}");
 }
+
+/// A skin layer by depth (docs/design.md §14): `layers = [{ region = { depth = d } }]` takes the
+/// tetrahedra within `d` of the skin, not of the chest wall or the box's sides; a depth that
+/// is not a positive length is named.
+#[test]
+fn a_skin_layer_by_depth_stiffens_the_tissue_under_the_skin_only() {
+    let dir = folder("skin");
+    write_breast(&dir, 120.0);
+    let layer = "layers = [{ region = { depth = 4 }, young_kpa = 30 }]";
+    let built = read(&dir, &scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], layer)).unwrap();
+    let body = &built.world.bodies[0];
+    let e = body.elements.as_ref().unwrap();
+    let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
+    let (mut stiff, mut deep_stiff, mut total) = (0, 0, 0);
+    for (t, m) in e.tets.iter().zip(&e.modulus) {
+        let c = t.iter().map(|&v| body.rest_pos[v as usize]).sum::<voxcollide::glam::Vec3>() / 4.0;
+        total += 1;
+        if *m > 1.0 {
+            stiff += 1;
+            assert!((m - 10.0).abs() < 1e-4, "modulus ratio {m}");
+            // Under the skin: within the depth (and a cell's slope) of it, never at the wall.
+            let below = skin(f64::from(c.x), f64::from(c.y)) - f64::from(c.z);
+            if below > 4.0 + 6.0 {
+                deep_stiff += 1;
+            }
+        }
+    }
+    eprintln!("{stiff} of {total} tetrahedra in the skin layer, {deep_stiff} deeper than a cell under it");
+    assert!(stiff > total / 20 && stiff < total / 2, "{stiff} of {total}");
+    assert!(deep_stiff * 50 < stiff, "{deep_stiff} of {stiff} stiff tetrahedra lie deep");
+    let e = read(
+        &dir,
+        &scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], &layer.replace("depth = 4", "depth = -1")),
+    )
+    .map(|_| ())
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("depth") && e.contains("positive"), "{e}");
+}
