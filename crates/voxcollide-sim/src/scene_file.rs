@@ -387,29 +387,98 @@ pub enum Shape {
     Between(Between),
 }
 
+/// A tissue's published parameters (`material = { preset = "fat" }`, and a layer's
+/// `preset`; docs/patient.md gives the sources): its Young's modulus, and Poisson's ratio 0.49
+/// and density 1000 kg/m³ for all (nearly incompressible, as breast models take them). Keys
+/// given beside a preset override it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Breast fat: 3.25 kPa (Samani, Zubovits and Plewes 2007, 169 ex vivo samples, small
+    /// strain).
+    Fat,
+    /// Fibroglandular tissue: 3.24 kPa (Samani et al. 2007).
+    Gland,
+    /// Breast skin: 4 kPa (Mîra et al. 2018, identified in vivo from MRI in three postures).
+    Skin,
+    /// Pectoralis major: 80 kPa (its sternocostal part in Zhang et al., a breast model
+    /// validated against motion data).
+    Muscle,
+}
+
+impl Preset {
+    /// Its Young's modulus in kPa.
+    #[must_use]
+    pub fn young_kpa(self) -> f64 {
+        match self {
+            Preset::Fat => 3.25,
+            Preset::Gland => 3.24,
+            Preset::Skin => 4.0,
+            Preset::Muscle => 80.0,
+        }
+    }
+
+    /// Its Poisson's ratio.
+    #[must_use]
+    pub fn poisson(self) -> f64 {
+        0.49
+    }
+
+    /// Its density in kg/m³.
+    #[must_use]
+    pub fn density(self) -> f64 {
+        1000.0
+    }
+}
+
+/// A material as written: every key optional, a preset's values under the keys given.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    preset: Option<Preset>,
+    young_kpa: Option<f64>,
+    poisson: Option<f64>,
+    density: Option<f64>,
+    damping: Option<f64>,
+    spring_damping: Option<f64>,
+    #[serde(default)]
+    model: MaterialModel,
+}
+
+impl From<RawMaterial> for MaterialSpec {
+    fn from(r: RawMaterial) -> MaterialSpec {
+        MaterialSpec {
+            young_kpa: r.young_kpa.or(r.preset.map(Preset::young_kpa)).unwrap_or_else(default_young),
+            poisson: r.poisson.or(r.preset.map(Preset::poisson)).unwrap_or_else(default_poisson),
+            density: r.density.or(r.preset.map(Preset::density)).unwrap_or_else(default_density),
+            damping: r.damping.unwrap_or_else(default_damping),
+            spring_damping: r.spring_damping,
+            model: r.model,
+            preset: r.preset,
+        }
+    }
+}
+
 /// A body's material.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "RawMaterial")]
 pub struct MaterialSpec {
     /// Young's modulus in kPa (default 3, soft tissue).
-    #[serde(default = "default_young")]
     pub young_kpa: f64,
     /// Poisson's ratio, `0 <= ν < 0.5` (default 0.45).
-    #[serde(default = "default_poisson")]
     pub poisson: f64,
     /// Density in kg/m³ (default 1000).
-    #[serde(default = "default_density")]
     pub density: f64,
     /// Damping ratio, `>= 0` (default 0.1): of the viscous term, and of the springs' own
     /// damping unless [`spring_damping`](Self::spring_damping) is given.
-    #[serde(default = "default_damping")]
     pub damping: f64,
     /// Damping ratio of the damping along each spring (default: `damping`).
     pub spring_damping: Option<f64>,
     /// The model: `"springs"` (the default: the paper's lattice, ν = 1/4) or `"neo-hookean"`
     /// (tetrahedra that honour `poisson`: [`crate::material::neo_hookean`]).
-    #[serde(default)]
     pub model: MaterialModel,
+    /// The tissue preset its values came from, where one was named.
+    pub preset: Option<Preset>,
 }
 
 fn default_young() -> f64 {
@@ -434,6 +503,7 @@ impl Default for MaterialSpec {
             damping: default_damping(),
             spring_damping: None,
             model: MaterialModel::Springs,
+            preset: None,
         }
     }
 }
@@ -493,12 +563,31 @@ pub enum Fixed {
 /// tetrahedra whose centres are in `region` take it, at the body's Poisson ratio; a region
 /// that holds no tetrahedron's centre (thinner than a cell) is refused.
 #[derive(Clone, Copy, Debug, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(try_from = "RawLayer")]
 pub struct Layer {
-    /// Where: `below`, `above`, `inside_box` or `rim`, as for `fixed`.
+    /// Where: `below`, `above`, `inside_box`, `rim` or `depth`, as for `fixed`.
     pub region: Fixed,
-    /// Its Young's modulus in kPa.
+    /// Its Young's modulus in kPa: given, or its `preset`'s.
     pub young_kpa: f64,
+}
+
+/// A layer as written: its modulus, or a tissue preset's.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLayer {
+    region: Fixed,
+    young_kpa: Option<f64>,
+    preset: Option<Preset>,
+}
+
+impl TryFrom<RawLayer> for Layer {
+    type Error = String;
+    fn try_from(r: RawLayer) -> Result<Layer, String> {
+        let young_kpa = r.young_kpa.or(r.preset.map(Preset::young_kpa)).ok_or(
+            "a layer needs `young_kpa` or a tissue `preset` (\"fat\", \"gland\", \"skin\" or \"muscle\")",
+        )?;
+        Ok(Layer { region: r.region, young_kpa })
+    }
 }
 
 /// How a keyframe or a ramp is approached.

@@ -183,3 +183,39 @@ fn a_skin_layer_by_depth_stiffens_the_tissue_under_the_skin_only() {
     .to_string();
     assert!(e.contains("depth") && e.contains("positive"), "{e}");
 }
+
+/// Tissue presets (docs/patient.md): a body of `preset = "fat"` and a skin layer of
+/// `preset = "skin"` take their published moduli and ν = 0.49; a key beside a preset overrides
+/// it; an unknown preset and a layer with neither modulus nor preset are named.
+#[test]
+fn tissue_presets_give_published_parameters() {
+    use voxcollide_sim::scene_file::{Fixed, Preset};
+    let text = |material: &str, layers: &str| {
+        format!(
+            "[[body]]\nname = \"b\"\nkind = \"soft\"\nshape = {{ box = [20, 20, 20] }}\nspacing = 5\nmaterial = {material}\n{layers}\n"
+        )
+    };
+    let s = SceneFile::parse(
+        "p.toml",
+        &text(
+            "{ model = \"neo-hookean\", preset = \"fat\" }",
+            "layers = [{ region = { depth = 3 }, preset = \"skin\" }, { region = { below = { z = -5 } }, preset = \"muscle\" }]",
+        ),
+    )
+    .unwrap();
+    let b = &s.bodies[0];
+    assert_eq!((b.material.young_kpa, b.material.poisson, b.material.density), (3.25, 0.49, 1000.0));
+    assert_eq!(b.material.preset, Some(Preset::Fat));
+    assert_eq!(b.layers[0].young_kpa, 4.0);
+    assert_eq!(b.layers[0].region, Fixed::Depth(3.0));
+    assert_eq!(b.layers[1].young_kpa, 80.0);
+    let s = SceneFile::parse("p.toml", &text("{ preset = \"gland\", poisson = 0.45 }", "")).unwrap();
+    assert_eq!((s.bodies[0].material.young_kpa, s.bodies[0].material.poisson), (3.24, 0.45));
+    for (material, layers, key) in [
+        ("{ preset = \"bone\" }", "", "material"),
+        ("{ preset = \"fat\" }", "layers = [{ region = { depth = 3 } }]", "layers"),
+    ] {
+        let e = SceneFile::parse("p.toml", &text(material, layers)).unwrap_err().to_string();
+        assert!(e.contains("p.toml") && e.contains(key), "{key}: {e}");
+    }
+}

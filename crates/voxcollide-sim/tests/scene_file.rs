@@ -173,7 +173,8 @@ fn defaults_are_as_documented() {
             density: 1000.0,
             damping: 0.1,
             spring_damping: None,
-            model: MaterialModel::Springs
+            model: MaterialModel::Springs,
+            preset: None,
         }
     );
     assert!(s.contacts.is_empty());
