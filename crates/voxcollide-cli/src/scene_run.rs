@@ -580,6 +580,29 @@ pub fn run_scene_on(
         if last {
             summary.settled = file.time.settle && at_rest;
             checks.at_end(&mut summary, done, note);
+            // Each soft body's surface as it ends (the operated skin), for any mesh viewer, with
+            // how far each vertex moved as its `quality`.
+            if file.output.vtk {
+                let shown = shown_and_moved(world);
+                for (k, (b, spec)) in world.bodies.iter().zip(&file.bodies).enumerate() {
+                    if spec.kind != BodyKind::Soft {
+                        continue;
+                    }
+                    let name = format!("{}_end.ply", world.names[k]);
+                    let (_, mesh) = shown_surface(b);
+                    voxcollide_sim::mesh_io::write_ply(
+                        &config.out.join(&name),
+                        &shown[k].0,
+                        mesh,
+                        Some(&shown[k].1),
+                        &format!(
+                            "voxcollide: {} at the end of {scenario}, in {}; quality: how far it moved",
+                            world.names[k], summary.units
+                        ),
+                    )?;
+                    summary.files.push(name);
+                }
+            }
             let cubic_ml = file.metres().powi(3) * 1e6;
             for (k, ((b, spec), out)) in
                 world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()).enumerate()

@@ -507,6 +507,11 @@ fn a_body_scanned_standing_is_recovered_and_run_in_a_posture() {
         assert_eq!(s["settled"], true, "{s}");
     }
     assert!(said.contains("its unloaded shape, recovered"), "{said}");
+    // The body as it ends, for any mesh viewer: a closed surface, where it came to rest.
+    let (end, report) =
+        voxcollide_sim::mesh_io::read_surface(&dir.join("lying").join("breast_end.ply")).unwrap();
+    assert!(report.volume > 0.0 && !end.mesh.triangles.is_empty());
+    assert!(lying["files"].as_array().unwrap().iter().any(|f| f == "breast_end.ply"), "{lying}");
     let moved = |s: &serde_json::Value| s["bodies"][0]["max_displacement"].as_f64().unwrap();
     assert!(moved(&lying) > 2.0, "lying, it moved {} mm", moved(&lying));
     assert!(moved(&stood) < 0.05, "standing, it moved {} mm from where it was scanned", moved(&stood));

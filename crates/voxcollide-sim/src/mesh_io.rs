@@ -79,6 +79,79 @@ pub fn read_sheet(path: &Path) -> Result<Surface, Error> {
     Ok(surface)
 }
 
+/// Writes the triangles `mesh` over `positions` to `path` as a binary little-endian PLY file
+/// that any mesh viewer opens, with each vertex's `scalar` (for instance how far it moved) as a
+/// `quality` property where given, and `comment` in its header.
+///
+/// # Errors
+/// [`Error::Mesh`] naming the file where it cannot be written, or a scalar per vertex is not
+/// given.
+pub fn write_ply(
+    path: &Path,
+    positions: &[Vec3],
+    mesh: &TriangleMesh,
+    scalar: Option<&[f32]>,
+    comment: &str,
+) -> Result<(), Error> {
+    use ply_rs_bw::ply::{
+        Addable, DefaultElement, ElementDef, Encoding, Ply, Property, PropertyDef, PropertyType, ScalarType,
+    };
+    if scalar.is_some_and(|s| s.len() != positions.len()) {
+        return Err(mesh_error(path, "needs one scalar per vertex"));
+    }
+    let mut ply = Ply::<DefaultElement>::new();
+    ply.header.encoding = Encoding::BinaryLittleEndian;
+    ply.header.comments.push(comment.replace('\n', " "));
+    let mut vertex = ElementDef::new("vertex".to_string());
+    let float = || PropertyType::Scalar(ScalarType::Float);
+    for name in ["x", "y", "z"] {
+        vertex.properties.add(PropertyDef::new(name.to_string(), float()));
+    }
+    if scalar.is_some() {
+        vertex.properties.add(PropertyDef::new("quality".to_string(), float()));
+    }
+    ply.header.elements.add(vertex);
+    let mut face = ElementDef::new("face".to_string());
+    face.properties.add(PropertyDef::new(
+        "vertex_indices".to_string(),
+        PropertyType::List(ScalarType::UChar, ScalarType::Int),
+    ));
+    ply.header.elements.add(face);
+    let vertices = positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let mut v = DefaultElement::new();
+            for (name, x) in ["x", "y", "z"].into_iter().zip(p.to_array()) {
+                v.insert(name.to_string(), Property::Float(x));
+            }
+            if let Some(s) = scalar {
+                v.insert("quality".to_string(), Property::Float(s[i]));
+            }
+            v
+        })
+        .collect();
+    ply.payload.insert("vertex".to_string(), vertices);
+    let faces = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let mut f = DefaultElement::new();
+            f.insert("vertex_indices".to_string(), Property::ListInt(t.iter().map(|&i| i as i32).collect()));
+            f
+        })
+        .collect();
+    ply.payload.insert("face".to_string(), faces);
+    let file =
+        std::fs::File::create(path).map_err(|e| mesh_error(path, format!("cannot be written: {e}")))?;
+    let mut out = std::io::BufWriter::new(file);
+    ply_rs_bw::writer::Writer::new()
+        .write_ply(&mut out, &mut ply)
+        .map_err(|e| mesh_error(path, format!("cannot be written: {e}")))?;
+    std::io::Write::flush(&mut out).map_err(|e| mesh_error(path, format!("cannot be written: {e}")))?;
+    Ok(())
+}
+
 fn open(path: &Path) -> Result<std::io::BufReader<std::fs::File>, Error> {
     std::fs::File::open(path)
         .map(std::io::BufReader::new)
