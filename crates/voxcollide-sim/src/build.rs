@@ -885,6 +885,29 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         }
         fills.push(Some((start, target)));
     }
+    // A shell filled to a volume weighs its fill: the fill's mass (the body's density times the
+    // volume it is filled to) shared over the shell's vertices by the area about each, which is
+    // where a liquid's weight presses on its wall. Its wall's own weight is left out: the
+    // lattice's wall is as thick as its edge for the step's sake (a 6 mm wall would weigh as
+    // much as a 300 mL fill), an implant's shell is a millimetre of silicone. (Its inertia is
+    // the wall's: the step's bound does not change.)
+    for (k, fill) in fills.iter().enumerate() {
+        let Some((_, target)) = fill else { continue };
+        let b = &mut bodies[k];
+        let fill_mass = file.bodies[k].material.density * target * s.powi(3);
+        let mut area = vec![0.0f64; b.len()];
+        for t in &b.surface.triangles {
+            let [p, q, r] = t.map(|i| b.pos[i as usize].as_dvec3());
+            let third = (q - p).cross(r - p).length() / 6.0;
+            t.iter().for_each(|&i| area[i as usize] += third);
+        }
+        let total: f64 = area.iter().sum();
+        if total > 0.0 {
+            for (m, a) in b.mass.iter_mut().zip(&area) {
+                *m = (fill_mass * a / total) as f32;
+            }
+        }
+    }
     // Only bodies that move by their springs bound the step: a rigid body's vertices are all
     // driven, and its material is only nominal.
     let stable = bodies

@@ -335,3 +335,37 @@ fixed = [{{ below = {{ z = 1 }} }}]
         assert!(r.is_valid() && back <= 0.1 * 9.0, "E {young}: {r:?}, {back} mm from the original");
     }
 }
+
+/// A shell filled to a volume weighs its fill (a 300 mL gel implant about 300 g), shared over
+/// its vertices by area; one inflated by pressure weighs its wall, as thick as its edge.
+#[test]
+fn a_filled_implant_weighs_its_fill() {
+    let text = |inflate: &str| {
+        format!(
+            r#"
+units = "mm"
+[world]
+gravity = [0, 0, -9.81]
+[[body]]
+name = "implant"
+kind = "shell"
+shape = {{ implant = {{ volume_ml = 300, base_mm = 115, profile = "moderate" }} }}
+spacing = 6
+material = {{ young_kpa = 500, density = 1000 }}
+inflate = {inflate}
+"#
+        )
+    };
+    let filled =
+        build_world(&SceneFile::parse("i.toml", &text("{ volume_ml = 300, ramp = 0.3 }")).unwrap()).unwrap();
+    let pressed =
+        build_world(&SceneFile::parse("i.toml", &text("{ pressure_kpa = 2, ramp = 0.3 }")).unwrap()).unwrap();
+    let (wall, whole) = (pressed.world.bodies[0].total_mass(), filled.world.bodies[0].total_mass());
+    eprintln!("wall {wall:.4} kg, filled {whole:.4} kg");
+    assert!((whole / 0.3 - 1.0).abs() < 1e-4, "the filled implant weighs {whole} kg");
+    assert!(wall > 0.0);
+    // Shared by area: no vertex carries more than its share of a few triangles.
+    let b = &filled.world.bodies[0];
+    let most = b.mass.iter().copied().fold(0.0f32, f32::max);
+    assert!(f64::from(most) < 0.01 * whole, "one vertex carries {most} kg of {whole}");
+}
