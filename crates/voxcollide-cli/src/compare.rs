@@ -289,6 +289,17 @@ pub fn compare(
             "no soft body is in contact with the compared body: add a [[contact]] with the tissue",
         ));
     }
+    // A patient's tissue between her skin and chest wall: candidates are not yet placed on its
+    // curved wall (docs/design.md §15), and placed as on a flat one they would be no plan.
+    if let Some(&t) =
+        tissue.iter().find(|&&t| matches!(scene.bodies[t].geometry, Geometry::Shape(Shape::Between(_))))
+    {
+        return Err(scene.body_error(
+            t,
+            "shape.between",
+            "compare does not yet place candidates on a patient's chest wall (docs/design.md §15, `place = { under }`): run the patient's scene with `voxcollide run`, or compare on a tissue layer over a flat chest wall",
+        ));
+    }
 
     // The lowest tissue vertex at rest (the scene as given, its compared body not filled):
     // each candidate starts flat in the room between its base and that.

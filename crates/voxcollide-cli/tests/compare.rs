@@ -514,3 +514,51 @@ fn a_candidate_is_finished_only_within_two_percent_of_its_volume_and_at_rest() {
     r.failure = Some("contact implant – tissue: 3 mm deep".into());
     assert!(r.not_a_result().unwrap().starts_with("contact implant – tissue"));
 }
+
+/// A patient's tissue between her skin and chest wall (docs/design.md §14): `compare` does not
+/// yet place candidates on her curved wall (§15), and says so, naming the body, instead of
+/// placing them as on a flat one.
+#[test]
+fn compare_on_a_patient_is_refused_until_candidates_are_placed_on_her_wall() {
+    let d = dir("patient");
+    let sheet = |z: f32| {
+        let mut out = String::from("solid s\n");
+        let at = |i: i32, j: i32| [i as f32 * 20.0 - 100.0, j as f32 * 20.0 - 100.0, z];
+        for j in 0..10 {
+            for i in 0..10 {
+                for t in
+                    [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]]
+                {
+                    out += "facet normal 0 0 0\nouter loop\n";
+                    for v in t {
+                        out += &format!("vertex {} {} {}\n", v[0], v[1], v[2]);
+                    }
+                    out += "endloop\nendfacet\n";
+                }
+            }
+        }
+        out + "endsolid s\n"
+    };
+    std::fs::write(d.join("skin.stl"), sheet(30.0)).unwrap();
+    std::fs::write(d.join("wall.stl"), sheet(0.0)).unwrap();
+    let scene = r#"
+units = "mm"
+[[body]]
+name = "breast"
+kind = "soft"
+shape = { between = { outer = "skin.stl", inner = "wall.stl", min = [-60, -60, -5], max = [60, 60, 40] } }
+spacing = 8
+[[body]]
+name = "implant"
+kind = "shell"
+shape = { implant = { volume_ml = 200, base_mm = 100, projection_mm = 40 } }
+spacing = 8
+inflate = { volume_ml = 200, ramp = 0.3 }
+[[contact]]
+a = "implant"
+b = "breast"
+"#;
+    let e = run(&d, scene, CANDIDATES).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("scene.toml") && e.contains("body[0].shape.between") && e.contains("§15"), "{e}");
+    assert!(!d.join("out").exists(), "nothing is written");
+}
