@@ -1254,6 +1254,27 @@ impl SceneFile {
             if !(scale.is_finite() && scale > 0.0) {
                 return Err(err(scale_span, format!("{scale} must be positive")));
             }
+            // A body between two surfaces lies where they do, in the file's axes.
+            if matches!(geometry, Geometry::Shape(Shape::Between(_)))
+                && (b.position != [0.0; 3] || b.rotation != [0.0; 3] || scale != 1.0)
+            {
+                let moved = if b.position != [0.0; 3] {
+                    "position"
+                } else if b.rotation != [0.0; 3] {
+                    "rotation"
+                } else {
+                    "scale"
+                };
+                return Err(at(
+                    &file,
+                    text,
+                    name_span,
+                    Some(&key(moved)),
+                    format!(
+                        "body {name:?} lies between its surfaces, where they are: `{moved}` does not apply to `between` (move the surfaces and the box instead)"
+                    ),
+                ));
+            }
             if !b.position.iter().chain(&b.rotation).all(|v| v.is_finite()) {
                 return Err(at(
                     &file,

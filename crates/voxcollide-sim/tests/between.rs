@@ -143,6 +143,13 @@ fn bad_between_input_is_named_and_nothing_is_built() {
     assert!(e.contains("shape.between.inner") && e.contains("nowhere.stl"), "{e}");
     let e = error(scene(&dir, [90.0, -90.0, -10.0], [-90.0, 90.0, 70.0], ""));
     assert!(e.contains("shape.between.max"), "{e}");
+    // It lies where its surfaces are: a position, rotation or scale is refused, not ignored.
+    for (extra, key) in
+        [("position = [0, 0, 5]", "position"), ("rotation = [0, 90, 0]", "rotation"), ("scale = 2", "scale")]
+    {
+        let e = error(scene(&dir, box_.0, box_.1, extra));
+        assert!(e.contains(&format!("body[0].{key}")) && e.contains("does not apply"), "{key}: {e}");
+    }
 }
 
 /// A skin layer by depth (docs/design.md §14): `layers = [{ region = { depth = d } }]` takes the
