@@ -183,7 +183,7 @@ impl Sheet {
     pub fn nearest(&self, p: DVec3) -> (DVec3, f64, usize) {
         let mut best = (p, f64::INFINITY, 0);
         for (k, t) in self.triangles.iter().enumerate() {
-            let q = closest_on_triangle(p, t);
+            let q = crate::geometry::closest_point(p, t);
             let d = q.distance(p);
             if d < best.1 {
                 best = (q, d, k);
@@ -206,40 +206,6 @@ impl Sheet {
         let [a, b, c] = self.triangles[k];
         !on_edge && (p - q).dot((b - a).cross(c - a)) >= 0.0
     }
-}
-
-/// The closest point to `p` on the triangle `t` (Ericson, Real-Time Collision Detection 5.1.5).
-#[must_use]
-pub fn closest_on_triangle(p: DVec3, [a, b, c]: &[DVec3; 3]) -> DVec3 {
-    let (ab, ac, ap) = (*b - *a, *c - *a, p - *a);
-    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return *a;
-    }
-    let bp = p - *b;
-    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
-    if d3 >= 0.0 && d4 <= d3 {
-        return *b;
-    }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return *a + ab * (d1 / (d1 - d3));
-    }
-    let cp = p - *c;
-    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
-    if d6 >= 0.0 && d5 <= d6 {
-        return *c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return *a + ac * (d2 / (d2 - d6));
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        return *b + (*c - *b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    }
-    let denom = 1.0 / (va + vb + vc);
-    *a + ab * (vb * denom) + ac * (vc * denom)
 }
 
 /// The farthest a lattice corner is moved onto the skin or the wall, in spacings.

@@ -787,6 +787,22 @@ pub fn lattice_in_surface(
     Ok((body, report))
 }
 
+/// Each vertex's share of the mass of the tetrahedra `tets` over `rest`: a quarter of each
+/// one's volume times `density` (kg per cubic unit), so that the body weighs its density
+/// times its volume. (A body's lumped masses, and what gravity pulls: [`MassSpring::mass`].)
+#[must_use]
+pub fn tet_masses(rest: &[Vec3], tets: &[[u32; 4]], density: f64) -> Vec<f64> {
+    let mut mass = vec![0.0f64; rest.len()];
+    for t in tets {
+        let [a, b, c, d] = t.map(|i| rest[i as usize].as_dvec3());
+        let volume = ((b - a).dot((c - a).cross(d - a)) / 6.0).abs();
+        for &v in t {
+            mass[v as usize] += density * volume / 4.0;
+        }
+    }
+    mass
+}
+
 /// A soft body of a tetrahedral mesh: a spring of stiffness `k` along every edge (once, however
 /// many tetrahedra share it) and **lumped masses** — each tetrahedron's mass, `density` times
 /// its volume, split equally among its four vertices. Its surface is the mesh's boundary.
@@ -810,17 +826,12 @@ pub fn tetrahedral_body(
     }
     let p = &mesh.positions;
     let mut edges: Vec<(u32, u32)> = Vec::with_capacity(6 * mesh.tets.len());
-    let mut mass = vec![0.0f64; p.len()];
     for t in &mesh.tets {
         for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
             edges.push((t[i].min(t[j]), t[i].max(t[j])));
         }
-        let [a, b, c, d] = t.map(|i| p[i as usize].as_dvec3());
-        let volume = (b - a).dot((c - a).cross(d - a)) / 6.0;
-        for &v in t {
-            mass[v as usize] += f64::from(density) * volume / 4.0;
-        }
     }
+    let mass = tet_masses(p, &mesh.tets, f64::from(density));
     edges.sort_unstable();
     edges.dedup();
     let springs = springs_from(p, edges, k);

@@ -181,7 +181,7 @@ impl Frame {
         let q = p.as_dvec3();
         self.outer
             .iter()
-            .map(|t| crate::between::closest_on_triangle(q, t).distance(q))
+            .map(|t| crate::geometry::closest_point(q, t).distance(q))
             .fold(f64::INFINITY, f64::min)
     }
 }
@@ -574,7 +574,10 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     // What gravity pulls: each vertex a quarter of each of its tetrahedra's mass, so that the
     // body weighs its density times its volume (a shell's vertex its wall's, as it was built).
     if let Some(tets) = &tets {
-        body.mass = tet_masses(&body.rest_pos, tets, m.density * s.powi(3));
+        body.mass = crate::bodies::tet_masses(&body.rest_pos, tets, m.density * s.powi(3))
+            .into_iter()
+            .map(|m| m as f32)
+            .collect();
     }
     if neo_hookean {
         let tets = tets.unwrap_or_default();
@@ -630,20 +633,6 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         ));
     }
     Ok((body, note, kspring))
-}
-
-/// Each vertex's share of the mass of the tetrahedra `tets` over `rest`, a quarter of each
-/// one's volume times `density` (kg per cubic file unit).
-fn tet_masses(rest: &[Vec3], tets: &[[u32; 4]], density: f64) -> Vec<f32> {
-    let mut mass = vec![0.0f64; rest.len()];
-    for t in tets {
-        let [a, b, c, d] = t.map(|i| rest[i as usize].as_dvec3());
-        let volume = ((b - a).dot((c - a).cross(d - a)) / 6.0).abs();
-        for &v in t {
-            mass[v as usize] += density * volume / 4.0;
-        }
-    }
-    mass.into_iter().map(|m| m as f32).collect()
 }
 
 /// A body's schedule: keyframes (time, offset from the first, rotation in degrees, ease) about
@@ -800,7 +789,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             let mut best = (f64::INFINITY, [0u32; 3], DVec3::ZERO);
             for t in &b.surface.triangles {
                 let corners = t.map(|i| b.pos[i as usize].as_dvec3());
-                let c = crate::between::closest_on_triangle(q, &corners);
+                let c = crate::geometry::closest_point(q, &corners);
                 let d = c.distance(q);
                 if d < best.0 {
                     best = (d, *t, c);

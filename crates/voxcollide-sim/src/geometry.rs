@@ -608,6 +608,33 @@ pub(crate) fn closest_region<V: Coords>(p: V, a: V, b: V, c: V) -> Region<V::S> 
     Region::Face { vb, vc, sum: va + vb + vc }
 }
 
+/// The point of triangle `abc` nearest to `p` ([`closest_region`]); a sliver whose face
+/// weights round to nothing is measured on its edges.
+#[must_use]
+pub fn closest_point(p: DVec3, [a, b, c]: &[DVec3; 3]) -> DVec3 {
+    let on_edge = |a: DVec3, b: DVec3| {
+        let ab = b - a;
+        a + ab * ((p - a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+    };
+    let (ab, ac) = (*b - *a, *c - *a);
+    match closest_region(p, *a, *b, *c) {
+        Region::Vertex(0) => *a,
+        Region::Vertex(1) => *b,
+        Region::Vertex(_) => *c,
+        Region::Edge(0, t) => *a + ab * t,
+        Region::Edge(1, t) => *b + (*c - *b) * t,
+        Region::Edge(_, t) => *a + ac * t,
+        Region::Face { sum, .. } if sum.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) => {
+            [on_edge(*a, *b), on_edge(*b, *c), on_edge(*c, *a)]
+                .into_iter()
+                .filter(|q| q.is_finite())
+                .min_by(|q, r| q.distance_squared(p).total_cmp(&r.distance_squared(p)))
+                .unwrap_or(*a)
+        }
+        Region::Face { vb, vc, sum } => *a + ab * (vb / sum) + ac * (vc / sum),
+    }
+}
+
 /// Squared distance from `p` to the triangle, through its closest point ([`closest_region`]).
 /// Zero-area triangles, for which the face region's barycentric denominator vanishes, are
 /// measured on their three edges instead.

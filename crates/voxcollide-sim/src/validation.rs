@@ -272,13 +272,9 @@ impl SelfWeight {
             if v.x == 0 { Mode::Pinned } else { Mode::Free }
         })?;
         // What gravity pulls: a quarter of each tetrahedron at each corner (density 1).
-        let mut mass = vec![0.0f64; body.len()];
-        if let Some(e) = &body.elements {
-            for (t, v) in e.tets.iter().zip(&e.volume) {
-                t.iter().for_each(|&c| mass[c as usize] += f64::from(*v) / 4.0);
-            }
-        }
-        body.mass = mass.iter().map(|&m| m as f32).collect();
+        let tets = body.elements.as_ref().map_or(&[][..], |e| &e.tets);
+        body.mass =
+            crate::bodies::tet_masses(&body.rest_pos, tets, 1.0).into_iter().map(|m| m as f32).collect();
         let weight = body.total_mass() / f64::from(self.length * self.width * self.width);
         let omega = 3.516 * (self.width * self.width / 12.0).sqrt() / (self.length * self.length);
         let dt = 0.1 * std::f32::consts::TAU / omega;

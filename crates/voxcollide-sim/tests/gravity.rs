@@ -12,9 +12,25 @@ use voxcollide_sim::reference::{self, set_rest_shape};
 use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{CpuWorld, MassSpring, Mode, simulation};
 
-/// A 10 × 10 × `length` mm column of Neo-Hookean tissue (E = 100 kPa, ν = 0.3, 1000 kg/m³)
-/// at `spacing`, held at its top, hanging along −z under 9.81 m/s².
+/// A column's material and size: Young's modulus (kPa), lattice spacing and length (mm),
+/// Poisson's ratio.
+#[derive(Clone, Copy)]
+struct Column {
+    young: f64,
+    spacing: f64,
+    poisson: f64,
+    length: f64,
+}
+
+/// The column of E = 100 kPa, ν = 0.3, `length` long at `spacing`.
 fn column(length: f64, spacing: f64, integrator: &str) -> Built {
+    hanging(Column { young: 100.0, spacing, poisson: 0.3, length }, integrator)
+}
+
+/// A 10 × 10 × `length` mm column of Neo-Hookean tissue (1000 kg/m³) held at its top, hanging
+/// along −z under 9.81 m/s².
+fn hanging(c: Column, integrator: &str) -> Built {
+    let Column { young, spacing, poisson, length } = c;
     let text = format!(
         r#"
 units = "mm"
@@ -28,7 +44,7 @@ name = "column"
 kind = "soft"
 shape = {{ box = [10, 10, {length}] }}
 spacing = {spacing}
-material = {{ model = "neo-hookean", young_kpa = 100, poisson = 0.3, density = 1000, damping = 0.5 }}
+material = {{ model = "neo-hookean", young_kpa = {young}, poisson = {poisson}, density = 1000, damping = 0.5 }}
 fixed = [{{ above = {{ z = {top} }} }}]
 "#,
         top = 0.5 * length - 0.1 * spacing
@@ -269,24 +285,7 @@ fn the_hanging_column_holds_across_stiffness_spacing_and_poisson() {
         (100.0, 2.0, 0.3, 80.0),
         (100.0, 2.5, 0.45, 100.0),
     ] {
-        let text = format!(
-            r#"
-units = "mm"
-[time]
-integrator = "implicit"
-[world]
-gravity = [0, 0, -9.81]
-[[body]]
-name = "column"
-kind = "soft"
-shape = {{ box = [10, 10, {length}] }}
-spacing = {spacing}
-material = {{ model = "neo-hookean", young_kpa = {young}, poisson = {poisson}, density = 1000, damping = 0.5 }}
-fixed = [{{ above = {{ z = {top} }} }}]
-"#,
-            top = 0.5 * length - 0.1 * spacing
-        );
-        let built = build_world(&SceneFile::parse("column.toml", &text).unwrap()).unwrap();
+        let built = hanging(Column { young, spacing, poisson, length }, "implicit");
         let mut body = built.world.bodies[0].clone();
         reference::settle(&mut body, Vec3::new(0.0, 0.0, -9810.0)).unwrap();
         let l = length * 1e-3;
@@ -380,24 +379,7 @@ inflate = {inflate}
 fn a_soft_column_hangs_as_the_energys_uniaxial_solution_says() {
     use voxcollide_sim::validation::LargeStretch;
     let (young, nu, length) = (3.0, 0.3, 100.0);
-    let text = format!(
-        r#"
-units = "mm"
-[time]
-integrator = "implicit"
-[world]
-gravity = [0, 0, -9.81]
-[[body]]
-name = "column"
-kind = "soft"
-shape = {{ box = [10, 10, {length}] }}
-spacing = 2.5
-material = {{ model = "neo-hookean", young_kpa = {young}, poisson = {nu}, density = 1000, damping = 0.5 }}
-fixed = [{{ above = {{ z = {top} }} }}]
-"#,
-        top = 0.5 * length - 0.25
-    );
-    let built = build_world(&SceneFile::parse("column.toml", &text).unwrap()).unwrap();
+    let built = hanging(Column { young, spacing: 2.5, poisson: nu, length }, "implicit");
     let mut body = built.world.bodies[0].clone();
     reference::settle(&mut body, Vec3::new(0.0, 0.0, -9810.0)).unwrap();
     let got = f64::from(sag(&body));
