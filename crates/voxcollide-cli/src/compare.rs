@@ -116,10 +116,19 @@ pub struct CandidateResult {
     /// presses on the tissue with, averaged over its surface — unlike the penalty forces, whose
     /// one magnitude makes the peak contact pressure the same for every candidate.
     pub implant_pressure_kpa: f64,
-    /// The tissue's outer surface along the line through its apex parallel to x, at the end:
-    /// `[x, rise]` pairs in x order (scene units), x from the implant's centre, the rise above
-    /// where that point of the surface rests.
+    /// The tissue's outer surface along the line through its apex parallel to x (on a
+    /// patient: across her chest wall, and the rise along its normal), at the end: `[x, rise]`
+    /// pairs in x order (scene units), x from the implant's centre, the rise above where that
+    /// point of the surface started.
     pub profile: Vec<[f32; 2]>,
+    /// On a patient (docs/design.md §15): her landmarks where they started and where the
+    /// operated breast carried them, in scene units (`[{ body, name, start, end }]`, as in
+    /// `summary.json`).
+    pub landmarks: Vec<crate::scene_run::LandmarkSummary>,
+    /// On a patient: the volume the operation added between her skin and chest wall, in mL
+    /// (the `between` body's `volume_ml_end` minus its `volume_ml` at the start).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume_gain_ml: Option<f64>,
     /// The metrics at each frame of the run.
     pub history: Vec<Sample>,
 }
@@ -215,8 +224,14 @@ fn own_shape(scene: &SceneFile, body: usize, c: &Candidate) -> Result<(f64, f64,
     let mut s = with_candidate(scene, body, c, None, None);
     s.bodies[body].scale = 1.0;
     s.bodies[body].inflate = None;
+    // Its own shape, standing on its base: alone, not yet placed on a patient.
+    let mut alone = s.bodies[body].clone();
+    alone.place = None;
+    s.bodies = vec![alone];
+    s.contacts.clear();
+    s.world.gravity = None;
     let built = build_world(&s)?;
-    let shell = &built.world.bodies[body];
+    let shell = &built.world.bodies[0];
     let (lo, hi) =
         shell.pos.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into())));
     let volume = match c.geometry {
@@ -291,25 +306,35 @@ pub fn compare(
     }
     // A patient's tissue between her skin and chest wall: candidates are not yet placed on its
     // curved wall (docs/design.md §15), and placed as on a flat one they would be no plan.
-    if let Some(&t) =
-        tissue.iter().find(|&&t| matches!(scene.bodies[t].geometry, Geometry::Shape(Shape::Between(_))))
+    let placed = scene.bodies[body].place.is_some();
+    if !placed
+        && let Some(&t) =
+            tissue.iter().find(|&&t| matches!(scene.bodies[t].geometry, Geometry::Shape(Shape::Between(_))))
     {
         return Err(scene.body_error(
             t,
             "shape.between",
-            "compare does not yet place candidates on a patient's chest wall (docs/design.md §15, `place = { under }`): run the patient's scene with `voxcollide run`, or compare on a tissue layer over a flat chest wall",
+            format!(
+                "the compared body {:?} is not placed on this patient's chest wall: give it `place = {{ under = \"{}.<landmark>\" }}` (docs/design.md §15)",
+                config.body, scene.bodies[t].name
+            ),
         ));
     }
 
     // The lowest tissue vertex at rest (the scene as given, its compared body not filled):
-    // each candidate starts flat in the room between its base and that.
-    let mut unfilled = scene.clone();
-    unfilled.bodies[body].inflate = None;
-    let given = build_world(&unfilled)?;
-    let floor_of_tissue = tissue
-        .iter()
-        .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
-        .fold(f64::INFINITY, f64::min);
+    // each candidate starts flat in the room between its base and that. Placed on a
+    // patient's chest wall, the tissue lies on the wall: there is no room.
+    let floor_of_tissue = if placed {
+        0.0
+    } else {
+        let mut unfilled = scene.clone();
+        unfilled.bodies[body].inflate = None;
+        let given = build_world(&unfilled)?;
+        tissue
+            .iter()
+            .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
+            .fold(f64::INFINITY, f64::min)
+    };
     let tissue_spacing = tissue.iter().map(|&t| scene.bodies[t].spacing.unwrap_or(1.0)).fold(0.0, f64::max);
 
     // Every candidate is built first: a bad one is named before anything is written.
@@ -534,7 +559,7 @@ fn run_candidate(
         progress,
         &mut |_| {},
         &mut |world, reports, at| {
-            result.history.push(sample(world, reports, body, tissue, metres, at.time));
+            result.history.push(sample(world, reports, body, tissue, metres, at.time, Lift::of(world, body)));
             if at.last {
                 measure_end(world, reports, body, tissue, metres, &mut result);
                 // The pressure of the last step's inputs; internal stress units are pascals times
@@ -551,6 +576,11 @@ fn run_candidate(
         },
     )?;
     result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
+    result.landmarks.clone_from(&summary.landmarks);
+    result.volume_gain_ml = tissue
+        .iter()
+        .filter_map(|&t| Some(summary.bodies[t].volume_ml_end? - summary.bodies[t].volume_ml?))
+        .reduce(|a, b| a + b);
     result.max_tissue_displacement =
         tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);
     result.max_penetration = summary
@@ -624,9 +654,28 @@ impl CandidateResult {
 /// Frames at least, over the schedule, for the metrics over time.
 const HISTORY_FRAMES: u32 = 40;
 
-/// How far the tissue's outer surface rose at its highest point.
-fn apex_lift(world: &World, tissue: &[usize]) -> f32 {
-    let top = |p: &[Vec3]| p.iter().map(|p| p.z).fold(f32::MIN, f32::max);
+/// Which way "up" is for the measures: the way an implant lifts the tissue (+z over a flat
+/// chest wall; the wall's outward normal under a placed one), and the way across it that the
+/// profile runs along (+x; the wall's `u`).
+#[derive(Clone, Copy, Debug)]
+struct Lift {
+    dir: Vec3,
+    across: Vec3,
+}
+
+impl Lift {
+    /// The lift of the compared body `body` of `world`.
+    fn of(world: &World, body: usize) -> Lift {
+        world.bodies[body]
+            .wall
+            .as_ref()
+            .map_or(Lift { dir: Vec3::Z, across: Vec3::X }, |w| Lift { dir: w.normal, across: w.u })
+    }
+}
+
+/// How far the tissue's outer surface rose at its highest point (along `lift`).
+fn apex_lift(world: &World, tissue: &[usize], lift: Lift) -> f32 {
+    let top = |p: &[Vec3]| p.iter().map(|p| p.dot(lift.dir)).fold(f32::MIN, f32::max);
     tissue
         .iter()
         .map(|&t| {
@@ -645,6 +694,7 @@ fn sample(
     tissue: &[usize],
     metres: f64,
     time: f64,
+    lift: Lift,
 ) -> Sample {
     let moved = |t: usize| {
         let b = &world.bodies[t];
@@ -652,7 +702,7 @@ fn sample(
     };
     Sample {
         time,
-        apex_lift: apex_lift(world, tissue),
+        apex_lift: apex_lift(world, tissue, lift),
         volume_ml: world.bodies[body].enclosed_volume() * metres.powi(3) * 1e6,
         max_tissue_displacement: tissue.iter().flat_map(|&t| moved(t)).fold(0.0, f32::max),
         contacts: world
@@ -666,24 +716,26 @@ fn sample(
 }
 
 /// The tissue's outer surface ([`outer`]) along the line through its highest point parallel
-/// to x: `[x − centre.x, rise]` in x order.
-fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
+/// to `lift.across` (x over a flat wall): `[x − centre.x, rise]` in x order.
+fn profile(world: &World, tissue: &[usize], centre: Vec3, lift: Lift) -> Vec<[f32; 2]> {
+    let third = lift.dir.cross(lift.across);
     let mut points = Vec::new();
     for &t in tissue {
         let b = &world.bodies[t];
         let h = mean_spring(b);
-        let mut on_top: Vec<usize> = outer(b).iter().flatten().map(|&i| i as usize).collect();
+        let mut on_top: Vec<usize> = outer(b, lift).iter().flatten().map(|&i| i as usize).collect();
         on_top.sort_unstable();
         on_top.dedup();
-        let Some(&apex) = on_top.iter().max_by(|&&i, &&j| b.pos[i].z.total_cmp(&b.pos[j].z)) else {
+        let Some(&apex) =
+            on_top.iter().max_by(|&&i, &&j| b.pos[i].dot(lift.dir).total_cmp(&b.pos[j].dot(lift.dir)))
+        else {
             continue;
         };
-        let y = b.rest_pos[apex].y;
+        let y = b.rest_pos[apex].dot(third);
         points.extend(
-            on_top
-                .iter()
-                .filter(|&&i| (b.rest_pos[i].y - y).abs() <= 0.5 * h)
-                .map(|&i| [b.rest_pos[i].x - centre.x, b.pos[i].z - b.start()[i].z]),
+            on_top.iter().filter(|&&i| (b.rest_pos[i].dot(third) - y).abs() <= 0.5 * h).map(|&i| {
+                [(b.rest_pos[i] - centre).dot(lift.across), (b.pos[i] - b.start()[i]).dot(lift.dir)]
+            }),
         );
     }
     points.sort_by(|a, b| a[0].total_cmp(&b[0]));
@@ -691,8 +743,8 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3) -> Vec<[f32; 2]> {
 }
 
 /// A tissue body's outer surface: its surface triangles that face up at rest (their normal
-/// within 60° of +z), the skin over a chest-wall pocket whatever the tissue's shape.
-fn outer(b: &MassSpring) -> Vec<[u32; 3]> {
+/// within 60° of `lift`), the skin over a chest-wall pocket whatever the tissue's shape.
+fn outer(b: &MassSpring, lift: Lift) -> Vec<[u32; 3]> {
     b.surface
         .triangles
         .iter()
@@ -700,19 +752,19 @@ fn outer(b: &MassSpring) -> Vec<[u32; 3]> {
         .filter(|t| {
             let [p, q, r] = t.map(|i| b.rest_pos[i as usize]);
             let n = (q - p).cross(r - p);
-            n.z > 0.5 * n.length()
+            n.dot(lift.dir) > 0.5 * n.length()
         })
         .collect()
 }
 
 /// The area (at rest) of the tissue's outer surface that rose more than half of `lift`: its
 /// outer triangles whose three corners did.
-fn footprint(world: &World, tissue: &[usize], lift: f32) -> f64 {
+fn footprint(world: &World, tissue: &[usize], rise: f32, lift: Lift) -> f64 {
     let mut area = 0.0;
     for &t in tissue {
         let b = &world.bodies[t];
-        let rose = |i: u32| b.pos[i as usize].z - b.start()[i as usize].z > 0.5 * lift;
-        for tri in outer(b).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
+        let rose = |i: u32| (b.pos[i as usize] - b.start()[i as usize]).dot(lift.dir) > 0.5 * rise;
+        for tri in outer(b, lift).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
             let [p, q, r] = tri.map(|i| b.rest_pos[i as usize].as_dvec3());
             area += 0.5 * (q - p).cross(r - p).length();
         }
@@ -730,7 +782,8 @@ fn measure_end(
     metres: f64,
     out: &mut CandidateResult,
 ) {
-    out.apex_lift = apex_lift(world, tissue);
+    let lift = Lift::of(world, body);
+    out.apex_lift = apex_lift(world, tissue, lift);
     let (mut moved, mut vertices) = (0.0f64, 0usize);
     let mut strain = 0.0f32;
     for &t in tissue {
@@ -748,7 +801,7 @@ fn measure_end(
         let p = &world.bodies[body].pos;
         p.iter().copied().sum::<Vec3>() / p.len().max(1) as f32
     };
-    out.profile = profile(world, tissue, centre);
+    out.profile = profile(world, tissue, centre, lift);
     let (mut peak, mut total, mut area) = (0.0f64, 0.0f64, 0.0f64);
     out.voxel_size = world
         .contacts
@@ -776,7 +829,8 @@ fn measure_end(
     }
     out.contact_area = area;
     // The footprint; no lift, no footprint (what rose would be noise).
-    out.footprint_area = if out.apex_lift <= 0.0 { 0.0 } else { footprint(world, tissue, out.apex_lift) };
+    out.footprint_area =
+        if out.apex_lift <= 0.0 { 0.0 } else { footprint(world, tissue, out.apex_lift, lift) };
     for (pair, r) in world.contacts.iter().zip(reports) {
         // The tissue's side of a contact with the compared body.
         let (t, forces) = if pair.a == body && tissue.contains(&pair.b) {
@@ -1028,6 +1082,56 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             );
         }
     }
+    // On a patient: what the operation added between her skin and chest wall, and where it
+    // carried her landmarks (docs/design.md §15).
+    let mut patient = String::new();
+    if comparison.candidates.iter().any(|c| c.volume_gain_ml.is_some() || !c.landmarks.is_empty()) {
+        let marks: Vec<(String, String)> = comparison
+            .candidates
+            .iter()
+            .flat_map(|c| c.landmarks.iter().map(|l| (l.body.clone(), l.name.clone())))
+            .fold(Vec::new(), |mut v, m| {
+                if !v.contains(&m) {
+                    v.push(m);
+                }
+                v
+            });
+        patient += "<h2>On the patient</h2>\n<table id=\"patient\">\n<thead><tr><th>candidate</th><th>volume added (mL)</th><th>added / implant</th>";
+        for (body, name) in &marks {
+            patient += &format!(
+                "<th>{}.{} moved ({u})</th><th>{}.{} at the end ({u})</th>",
+                escape(body),
+                escape(name),
+                escape(body),
+                escape(name)
+            );
+        }
+        patient += "</tr></thead>\n<tbody>\n";
+        for c in &comparison.candidates {
+            let valid = if c.is_result() { "" } else { " class=\"unfinished\"" };
+            patient += &format!("<tr{valid}><th scope=\"row\">{}</th>", escape(&c.name));
+            match c.volume_gain_ml {
+                Some(g) if c.target_volume_ml > 0.0 => {
+                    patient += &format!("<td>{g:.1}</td><td>{:.1} %</td>", 100.0 * g / c.target_volume_ml);
+                }
+                _ => patient += "<td>–</td><td>–</td>",
+            }
+            for (body, name) in &marks {
+                match c.landmarks.iter().find(|l| &l.body == body && &l.name == name) {
+                    Some(l) => {
+                        let moved = Vec3::from_array(l.end).distance(Vec3::from_array(l.start));
+                        patient += &format!(
+                            "<td>{moved:.1}</td><td>{:.1}, {:.1}, {:.1}</td>",
+                            l.end[0], l.end[1], l.end[2]
+                        );
+                    }
+                    None => patient += "<td>–</td><td>–</td>",
+                }
+            }
+            patient += "</tr>\n";
+        }
+        patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.</p>\n";
+    }
     let mut figures = String::new();
     for c in &comparison.candidates {
         figures += &format!("<section><h3>{}</h3>\n", escape(&c.name));
@@ -1072,7 +1176,7 @@ th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; 
 <thead><tr><th>candidate</th><th>volume (mL)</th><th>apex lift ({u})</th><th>max tissue displacement ({u})</th><th>mean tissue displacement ({u})</th><th>max tissue strain</th><th>implant pressure (kPa)</th><th>peak contact pressure (kPa)</th><th>mean contact pressure (kPa)</th><th>contact area ({u}²)</th><th>max penetration ({u})</th><th>footprint ({u}²)</th><th>settled</th><th>held</th></tr></thead>
 <tbody>
 {rows}</tbody></table>
-<h2>Plots</h2>
+{patient}<h2>Plots</h2>
 {plots}
 <h2>Resting shapes</h2>
 <p>Cut open through the implant's centre; the tissue coloured by how far it moved, on one scale for every candidate.</p>

@@ -16,9 +16,10 @@ use crate::output::{BodyFrame, PvdSeries};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
 use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
+use voxcollide_sim::between::volume_between;
 use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
-use voxcollide_sim::scene_file::{Axis, BodyKind, Geometry, SceneFile, Shape};
+use voxcollide_sim::scene_file::{Axis, BodyKind, SceneFile};
 use voxcollide_sim::{Integrator, MassSpring, Simulation, World, simulation};
 
 /// A body in `summary.json`.
@@ -378,9 +379,6 @@ pub fn run_scene_on(
     };
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let world = &built.world;
-    // Each body's enclosed volume at the start (cubic file units), for a body between a skin
-    // and a chest wall.
-    let starting_volumes: Vec<f64> = world.bodies.iter().map(|b| b.surface.volume(b.start())).collect();
     let mut series: Vec<PvdSeries> = if file.output.vtk {
         world.names.iter().map(|n| PvdSeries::new(config.out.join(format!("{n}.pvd")))).collect()
     } else {
@@ -607,9 +605,9 @@ pub fn run_scene_on(
             for (k, ((b, spec), out)) in
                 world.bodies.iter().zip(&file.bodies).zip(summary.bodies.iter_mut()).enumerate()
             {
-                if matches!(spec.geometry, Geometry::Shape(Shape::Between(_))) {
-                    out.volume_ml = Some(starting_volumes[k] * cubic_ml);
-                    out.volume_ml_end = Some(b.surface.volume(&b.pos) * cubic_ml);
+                if let Some(faces) = &built.notes[k].wall_faces {
+                    out.volume_ml = Some(volume_between(b, faces, b.start(), b.start()) * cubic_ml);
+                    out.volume_ml_end = Some(volume_between(b, faces, b.start(), &b.pos) * cubic_ml);
                 }
                 for l in &built.notes[k].landmarks {
                     summary.landmarks.push(LandmarkSummary {

@@ -248,7 +248,7 @@ impl std::fmt::Display for BetweenError {
 }
 
 /// What [`between_body`] made.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct BetweenReport {
     /// Tissue cells.
     pub cells: usize,
@@ -258,6 +258,32 @@ pub struct BetweenReport {
     pub on_box: usize,
     /// Vertices left on the lattice because snapping them would have flattened a tetrahedron.
     pub unsnapped: usize,
+    /// The body's surface triangles on the chest wall (all three corners held there), as
+    /// indices into its surface: the side [`volume_between`] keeps where it started.
+    pub wall_faces: Vec<u32>,
+}
+
+/// The volume between the body's outer surface at `pos` and the chest wall, inside its box
+/// (cubic file units; docs/design.md §14): its surface's enclosed volume with the triangles of
+/// `wall_faces` ([`BetweenReport::wall_faces`]) where they started (`start`). Where the tissue
+/// stays on the wall it is the tissue's own volume; where a pocket lifts it off, it counts the
+/// space between it and the wall (the implant's) too.
+#[must_use]
+pub fn volume_between(body: &MassSpring, wall_faces: &[u32], start: &[Vec3], pos: &[Vec3]) -> f64 {
+    let mut on_wall = vec![false; body.surface.triangles.len()];
+    for &f in wall_faces {
+        on_wall[f as usize] = true;
+    }
+    body.surface
+        .triangles
+        .iter()
+        .zip(&on_wall)
+        .map(|(t, &wall)| {
+            let at = if wall { start } else { pos };
+            let [a, b, c] = t.map(|i| at[i as usize].as_dvec3());
+            a.dot(b.cross(c)) / 6.0
+        })
+        .sum()
 }
 
 /// What [`between_body`] makes: the body, what it found, and its tetrahedra (six per cell).
@@ -498,6 +524,7 @@ pub fn between_body(
     // Held: on the chest wall (a lattice neighbour behind it) and on the box's faces.
     let (mut on_wall, mut on_box) = (0, 0);
     let mut modes = vec![Mode::Free; pos.len()];
+    let mut wall = vec![false; pos.len()];
     for i in 0..count {
         let v = vertex[i];
         if v == u32::MAX {
@@ -515,12 +542,16 @@ pub fn between_body(
         }
         if wallward {
             on_wall += 1;
+            wall[v as usize] = true;
             modes[v as usize] = Mode::Pinned;
         } else if face {
             on_box += 1;
             modes[v as usize] = Mode::Pinned;
         }
     }
+    let wall_faces = (0..mesh.triangles.len() as u32)
+        .filter(|&f| mesh.triangles[f as usize].iter().all(|&i| wall[i as usize]))
+        .collect();
     let body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
-    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped }, tets))
+    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped, wall_faces }, tets))
 }

@@ -112,6 +112,10 @@ pub struct MassSpring {
     /// under gravity starts loaded, at the shape given (docs/design.md §13). `None`: it started
     /// at rest. What moved is measured from here ([`start`](Self::start)).
     pub started: Option<Vec<Vec3>>,
+    /// A curved chest wall as its floor (docs/design.md §15): its free vertices are kept in
+    /// front of it, raised by [`StepInputs::floor`] along its normal. `None`: the floor is the
+    /// plane `z = floor`.
+    pub wall: Option<std::sync::Arc<crate::wall::Wall>>,
 }
 
 /// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
@@ -346,6 +350,7 @@ impl MassSpring {
             elements: None,
             held_pressure: 0.0,
             started: None,
+            wall: None,
         })
     }
 
@@ -503,6 +508,21 @@ impl MassSpring {
         self.mass[i] * inputs.gravity
     }
 
+    /// Its floor's outward normal: its [`wall`](Self::wall)'s, or +z.
+    #[must_use]
+    pub fn floor_normal(&self) -> Vec3 {
+        self.wall.as_ref().map_or(Vec3::Z, |w| w.normal)
+    }
+
+    /// Whether `p` is on or behind the body's floor raised to `floor` ([`StepInputs::floor`]).
+    #[must_use]
+    pub fn on_floor(&self, p: Vec3, floor: f32) -> bool {
+        match &self.wall {
+            Some(w) => w.holds(p, floor),
+            None => p.z <= floor,
+        }
+    }
+
     /// The body's mass in kilograms: the sum of its vertices' shares ([`mass`](Self::mass)).
     #[must_use]
     pub fn total_mass(&self) -> f64 {
@@ -514,12 +534,13 @@ impl MassSpring {
     pub fn integrate(&mut self, inputs: &StepInputs, f: &[Vec3]) {
         use rayon::prelude::*;
         let (mode, rest_pos, inv_mass) = (&self.mode, &self.rest_pos, &self.inv_mass);
+        let wall = self.wall.as_deref();
         self.pos.par_iter_mut().zip(self.vel.par_iter_mut()).enumerate().with_min_len(PAR_CHUNK).for_each(
             |(i, (pos, vel))| match mode[i] {
                 Mode::Free => {
                     *vel += inputs.dt * (f[i] * inv_mass[i]);
                     *pos += inputs.dt * *vel;
-                    onto_floor(pos, vel, inputs.floor);
+                    onto_floor(pos, vel, inputs.floor, wall);
                 }
                 held => move_held(held, inputs, rest_pos[i], pos, vel, inputs.dt),
             },

@@ -67,6 +67,9 @@ pub struct BodyNote {
     pub reference: Option<crate::reference::Recovered>,
     /// Its landmarks (docs/design.md §14), each on its outer surface.
     pub landmarks: Vec<Landmark>,
+    /// For a body between a skin and a chest wall: its surface triangles on the wall
+    /// ([`crate::between::volume_between`]).
+    pub wall_faces: Option<Vec<u32>>,
 }
 
 /// A named point on a body's outer surface, carried by it (docs/design.md §14).
@@ -88,6 +91,97 @@ impl Landmark {
     pub fn at(&self, pos: &[Vec3]) -> Vec3 {
         self.triangle.iter().zip(&self.weights).map(|(&v, &w)| w * pos[v as usize]).sum()
     }
+}
+
+/// Places shell `k` on the chest wall of the `between` body `place.body`, under its landmark
+/// (docs/design.md §15), and dissects its pocket. The shell as built stands on its lowest point
+/// (less its `sink`), centred across: each of its points `(x, y, z)` goes to the wall's frame
+/// at `(x, y)` across, `z` in front of the wall there ([`Wall`](crate::wall::Wall)), so its base
+/// lies on the curved wall. Both it and the tissue rest on the wall (their free vertices are
+/// kept in front of it). The tissue's vertices held on the wall within the base's radius and
+/// `place.margin` are let go: the pocket. Returns how many.
+fn place_on_wall(
+    file: &SceneFile,
+    k: usize,
+    place: &crate::scene_file::Placement,
+    bodies: &mut [MassSpring],
+    notes: &[BodyNote],
+) -> Result<usize, Error> {
+    let t = place.body;
+    let Geometry::Shape(Shape::Between(between)) = &file.bodies[t].geometry else {
+        return Err(file.body_error(k, "place.under", "the body it names has no chest wall"));
+    };
+    let key_error = |m: String| file.body_error(k, "place.under", m);
+    let mark = notes[t]
+        .landmarks
+        .iter()
+        .find(|l| l.name == place.landmark)
+        .map(|l| l.at(&bodies[t].pos))
+        .ok_or_else(|| key_error(format!("no landmark {:?}", place.landmark)))?;
+    let inner = read_sheet(&between.inner)?;
+    let triangles: Vec<[Vec3; 3]> =
+        inner.mesh.triangles.iter().map(|tri| tri.map(|i| inner.positions[i as usize])).collect();
+    let shell = &bodies[k];
+    let (lo, hi) = shell
+        .pos
+        .iter()
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), p| (l.min(*p), h.max(*p)));
+    let centre = 0.5 * (lo + hi);
+    let radius = shell.pos.iter().map(|p| (p.truncate() - centre.truncate()).length()).fold(0.0f32, f32::max);
+    let sink = file.bodies[k].sink as f32;
+    let h = file.bodies[t].spacing.unwrap_or(1.0) as f32;
+    let margin = place.margin as f32;
+    let mut up = Vec3::ZERO;
+    up[file.world.up.index()] = 1.0;
+    let cell = (0.5 * h).min(radius / 8.0).max(f32::MIN_POSITIVE);
+    let wall = crate::wall::Wall::sample(&triangles, mark, radius, radius + margin + h, cell, up)
+        .map_err(|e| key_error(format!("the implant does not fit on the chest wall: {e}")))?;
+    // The base must stand inside the tissue's box.
+    let (bmin, bmax) =
+        (Vec3::from_array(between.min.map(|v| v as f32)), Vec3::from_array(between.max.map(|v| v as f32)));
+    for a in 0..64 {
+        let turn = std::f32::consts::TAU * a as f32 / 64.0;
+        let (x, y) = (radius * turn.cos(), radius * turn.sin());
+        let rim = wall.point(Vec3::new(x, y, wall.height(x, y).unwrap_or(0.0)));
+        if rim.cmplt(bmin - 1e-3 * h).any() || rim.cmpgt(bmax + 1e-3 * h).any() {
+            return Err(key_error(format!(
+                "the implant does not fit on the chest wall inside the box: its base (radius {radius:.1}) reaches {rim:?}, outside shape.between's min {bmin:?} .. max {bmax:?}"
+            )));
+        }
+    }
+    let drape = |p: Vec3| {
+        let (x, y) = (p.x - centre.x, p.y - centre.y);
+        wall.point(Vec3::new(x, y, p.z - lo.z - sink + wall.height(x, y).unwrap_or(0.0)))
+    };
+    let shell = &mut bodies[k];
+    for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
+        *p = drape(*p);
+    }
+    // The pocket: the tissue held on the wall over the base and its margin is let go (a vertex
+    // held on the wall lies within a cell's diagonal of it); the box's faces stay held.
+    let tissue = &mut bodies[t];
+    let n = ((bmax - bmin) / h).floor();
+    let on_face = |p: Vec3| {
+        let c = (p - bmin) / h;
+        c.cmple(Vec3::splat(1e-4)).any() || (c - n).cmpge(Vec3::splat(-1e-4)).any()
+    };
+    let mut released = 0;
+    for i in 0..tissue.len() {
+        let p = tissue.rest_pos[i];
+        let l = wall.local(p);
+        if tissue.mode[i] == Mode::Pinned
+            && l.truncate().length() <= radius + margin
+            && wall.height(l.x, l.y).is_some_and(|w| l.z - w <= 1.8 * h)
+            && !on_face(p)
+        {
+            tissue.mode[i] = Mode::Free;
+            released += 1;
+        }
+    }
+    let wall = std::sync::Arc::new(wall);
+    bodies[k].wall = Some(wall.clone());
+    bodies[t].wall = Some(wall);
+    Ok(released)
 }
 
 /// A world built from a scene file, with its run length.
@@ -219,6 +313,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
         full_shape: None,
         reference: None,
         landmarks: Vec::new(),
+        wall_faces: None,
     };
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
@@ -376,6 +471,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                         report.cells, report.on_wall, report.on_box
                     ));
                     mesh_tets = Some(tets);
+                    note.wall_faces = Some(report.wall_faces);
                     (body, kspring)
                 }
                 Geometry::Mesh(path)
@@ -825,6 +921,19 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             });
         }
     }
+    // Shells placed on a patient's chest wall under a landmark (docs/design.md §15).
+    for k in 0..file.bodies.len() {
+        if let Some(place) = &file.bodies[k].place {
+            let released = place_on_wall(file, k, place, &mut bodies, &notes)?;
+            let tissue = &file.bodies[place.body].name;
+            notes[k].remarks.push(format!(
+                "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {}",
+                place.landmark,
+                place.margin,
+                file.units.symbol()
+            ));
+        }
+    }
     // Per shell filled to a volume: the volume it encloses at first and its target, in cubic
     // file units (the voxel model's margin and the schedule both follow from them).
     let mut fills: Vec<Option<(f64, f64)>> = Vec::with_capacity(file.bodies.len());
@@ -1134,7 +1243,11 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             steps,
             ramp,
             ease,
-            floor: b.floor.map_or(f32::MIN, |f| f as f32),
+            // On a curved wall the floor is the wall itself, raised by `floor` along its normal.
+            floor: match (bodies[k].wall.is_some(), b.floor) {
+                (true, f) => f.unwrap_or(0.0) as f32,
+                (false, f) => f.map_or(f32::MIN, |f| f as f32),
+            },
             sink: b.sink as f32,
             hold: if fill.is_some() && !implicit { hold } else { 0.0 },
             gravity: if b.kind == BodyKind::Rigid { Vec3::ZERO } else { gravity(file) },

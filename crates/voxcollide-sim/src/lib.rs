@@ -23,6 +23,7 @@ pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
 pub mod scene_file; // scene files (docs/design.md §8): TOML read and checked, errors with file, line, key
 pub mod simulation; // `Simulation`: one seam over the CPU and the GPU world
 pub mod validation; // the elements against closed forms: a cantilever, a large stretch
+pub mod wall; //     a curved chest wall as a floor: heights over its tangent plane, under a placed implant
 pub mod world; //    `World`: any number of bodies and contacts, each pair its own voxel model
 
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};

@@ -685,7 +685,36 @@ struct RawBody {
     reference: Option<Spanned<Reference>>,
     #[serde(default)]
     landmarks: Option<Spanned<std::collections::BTreeMap<String, [f64; 3]>>>,
+    place: Option<Spanned<RawPlace>>,
 }
+
+/// `place = { under = "body.landmark", margin }`, as written.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlace {
+    under: String,
+    margin: Option<f64>,
+}
+
+/// Where a shell is placed on a patient (`place = { under = "breast.nipple" }`,
+/// docs/design.md §15): its base on the chest wall of a `between` body, under one of its
+/// landmarks, its apex along the wall's outward normal.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Placement {
+    /// The `between` body whose chest wall it stands on (an index into [`SceneFile::bodies`]).
+    pub body: usize,
+    /// The landmark of that body it stands under.
+    pub landmark: String,
+    /// How far past the base's rim the pocket is dissected (file units; `margin`, default
+    /// [`POCKET_MARGIN_MM`]): the tissue's vertices held on the wall within the base's radius
+    /// and this margin are let go.
+    pub margin: f64,
+}
+
+/// The pocket's margin past an implant's base when a placement gives none, in millimetres: a
+/// pocket dissected a centimetre wider than the implant, as surgeons describe it (enough for
+/// the implant to sit flat, not so much that it turns).
+pub const POCKET_MARGIN_MM: f64 = 10.0;
 
 /// A default value, at no place in the file (defaults are valid, so no error points there).
 fn unspanned<T: Default>() -> Spanned<T> {
@@ -862,6 +891,9 @@ pub struct BodySpec {
     /// flattened shell starts under it and lifts it as it fills (set by `voxcollide compare`;
     /// not a file key).
     pub sink: f64,
+    /// A shell placed on a patient's chest wall under a landmark (`place`, docs/design.md
+    /// §15); `None`: where `position` puts it.
+    pub place: Option<Placement>,
 }
 
 /// One `[[contact]]`, checked: `a` and `b` are indices into [`SceneFile::bodies`].
@@ -1171,6 +1203,7 @@ impl SceneFile {
         }
 
         let mut bodies: Vec<BodySpec> = Vec::with_capacity(raw.body.len());
+        let mut places = Vec::with_capacity(bodies.capacity());
         for (k, b) in raw.body.into_iter().enumerate() {
             let key = |what: &str| format!("body[{k}].{what}");
             let name_span = b.name.span();
@@ -1416,6 +1449,36 @@ impl SceneFile {
                     Some(g)
                 }
             };
+            let place = match b.place {
+                None => None,
+                Some(p) => {
+                    let span = p.span();
+                    let p = p.into_inner();
+                    if b.kind != BodyKind::Shell {
+                        return Err(err(
+                            span,
+                            format!(
+                                "only a shell (an implant) is placed on a chest wall; {name:?} is {:?}",
+                                b.kind
+                            ),
+                        ));
+                    }
+                    if b.position != [0.0; 3] || b.rotation != [0.0; 3] {
+                        return Err(err(
+                            span,
+                            format!(
+                                "body {name:?} is placed under a landmark: its `position` and `rotation` follow from the chest wall, give neither"
+                            ),
+                        ));
+                    }
+                    if let Some(m) = p.margin
+                        && !(m.is_finite() && m >= 0.0)
+                    {
+                        return Err(err(span, format!("place.margin = {m} must be 0 or more (file units)")));
+                    }
+                    Some((span, p))
+                }
+            };
             let landmarks = match b.landmarks {
                 None => Vec::new(),
                 Some(l) => {
@@ -1433,7 +1496,9 @@ impl SceneFile {
                     l.into_iter().collect()
                 }
             };
+            places.push(place);
             bodies.push(BodySpec {
+                place: None,
                 reference,
                 landmarks,
                 name,
@@ -1453,6 +1518,46 @@ impl SceneFile {
                 flatten: None,
                 sink: 0.0,
             });
+        }
+
+        // Placements name a body and its landmark: resolved once every body is read.
+        for (k, place) in places.into_iter().enumerate() {
+            let Some((span, p)) = place else { continue };
+            let Some((body, landmark)) = p.under.split_once('.') else {
+                return Err(err(
+                    span,
+                    format!(
+                        "place.under = {:?} must name a body and its landmark: \"breast.nipple\"",
+                        p.under
+                    ),
+                ));
+            };
+            let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+            let Some(t) = bodies.iter().position(|b| b.name == body) else {
+                return Err(err(
+                    span,
+                    format!("place.under: no body is named {body:?} (the bodies: {names:?})"),
+                ));
+            };
+            if !matches!(bodies[t].geometry, Geometry::Shape(Shape::Between(_))) {
+                return Err(err(
+                    span,
+                    format!(
+                        "place.under: body {body:?} has no chest wall: an implant is placed on a body with shape = {{ between = {{ outer, inner, min, max }} }}"
+                    ),
+                ));
+            }
+            if !bodies[t].landmarks.iter().any(|(n, _)| n == landmark) {
+                let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
+                return Err(err(
+                    span,
+                    format!(
+                        "place.under: body {body:?} has no landmark {landmark:?} (its landmarks: {marks:?})"
+                    ),
+                ));
+            }
+            let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / raw.units.metres());
+            bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin });
         }
 
         let mut contacts = Vec::with_capacity(raw.contact.len());

@@ -306,10 +306,20 @@ impl GpuWorld {
     ///
     /// # Errors
     /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`](voxcollide::GpuCollision::new) and [`SurfaceContact::new`](crate::contact::SurfaceContact::new). Both integrators step here (the
+    /// [`GpuCollision::new`](voxcollide::GpuCollision::new) and [`SurfaceContact::new`](crate::contact::SurfaceContact::new); [`Error::Invalid`] for a body
+    /// resting on a curved wall ([`MassSpring::wall`](crate::MassSpring)), held on the CPU only. Both integrators step here (the
     /// implicit one in [`crate::gpu::implicit`]'s passes), with every contact response.
     pub fn new(ctx: &GpuContext, world: World) -> Result<GpuWorld, Error> {
         use wgpu::util::DeviceExt as _;
+        // A curved chest wall as a floor (an implant placed on a patient) is held on the CPU
+        // only, so far: refused here rather than stepped through the wall.
+        if let Some(k) = world.bodies.iter().position(|b| b.wall.is_some()) {
+            return Err(Error::Invalid {
+                what: "body",
+                value: k.to_string(),
+                rule: "rests on a curved chest wall (an implant placed on a patient, docs/design.md §15), which only the CPU backend holds so far: run it with --backend cpu".into(),
+            });
+        }
         let device = ctx.device();
         let collisions = world
             .contacts

@@ -527,8 +527,9 @@ impl MassSpring {
             external += w.length();
         }
         // A vertex held up by the floor is at rest whatever pushes it down.
-        if self.pos[i].z <= inputs.floor && f.z < 0.0 {
-            f.z = 0.0;
+        let n = self.floor_normal();
+        if f.dot(n) < 0.0 && self.on_floor(self.pos[i], inputs.floor) {
+            f -= f.dot(n) * n;
         }
         (f, g, external)
     }
@@ -627,15 +628,18 @@ struct Joint<'a> {
     /// velocity is held at 0 within the solve (the solve's `Δv` is filtered, Baraff and Witkin
     /// 1998), not only projected after it.
     on_floor: Vec<Vec<u32>>,
+    /// Per body: its floor's normal ([`MassSpring::floor_normal`]).
+    normals: Vec<Vec3>,
     h: f32,
 }
 
 impl Joint<'_> {
-    /// Zeroes the vertical rows of the vertices resting on the floor.
+    /// Zeroes the rows along the floor's normal of the vertices resting on the floor.
     fn filter(&self, u: &mut [Vec<Vec3>]) {
-        for (u, held) in u.iter_mut().zip(&self.on_floor) {
+        for ((u, held), n) in u.iter_mut().zip(&self.on_floor).zip(&self.normals) {
             for &i in held {
-                u[i as usize].z = 0.0;
+                let u = &mut u[i as usize];
+                *u -= u.dot(*n) * *n;
             }
         }
     }
@@ -692,13 +696,19 @@ pub fn integrate_implicit_together(
     let extra = coupling_blocks(bodies, couplings, &damping, h);
     // The vertices resting on their floor and pushed into it: still vertically, in the solve.
     let mut on_floor: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
-    for (body, s) in bodies.iter_mut().zip(steps) {
+    let normals: Vec<Vec3> = bodies.iter().map(MassSpring::floor_normal).collect();
+    for ((body, s), n) in bodies.iter_mut().zip(steps).zip(&normals) {
         let held: Vec<u32> = (0..body.len())
-            .filter(|&i| body.mode[i] == Mode::Free && body.pos[i].z <= s.inputs.floor && s.forces[i].z < 0.0)
+            .filter(|&i| {
+                body.mode[i] == Mode::Free
+                    && s.forces[i].dot(*n) < 0.0
+                    && body.on_floor(body.pos[i], s.inputs.floor)
+            })
             .map(|i| i as u32)
             .collect();
         for &i in &held {
-            body.vel[i as usize].z = 0.0;
+            let v = &mut body.vel[i as usize];
+            *v -= v.dot(*n) * *n;
         }
         on_floor.push(held);
     }
@@ -725,7 +735,8 @@ pub fn integrate_implicit_together(
         .collect();
     let vel: Vec<Vec<Vec3>> = bodies.iter().map(|b| b.vel.clone()).collect();
     let active = couplings.iter().map(Coupling::touching).collect();
-    let mut joint = Joint { bodies: &*bodies, systems, couplings, active, damping, free, on_floor, h };
+    let mut joint =
+        Joint { bodies: &*bodies, systems, couplings, active, damping, free, on_floor, normals, h };
     let zeros = || -> Vec<Vec<Vec3>> { bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect() };
     let any_held = prescribed.iter().flatten().any(|p| *p != Vec3::ZERO);
     // b = h·(f − C_c·v_rel + h·K·v) − A·Δv_prescribed, on the free vertices, over the couplings
@@ -851,7 +862,8 @@ pub fn integrate_implicit_together(
     let active = joint.active;
     for (k, body) in bodies.iter_mut().enumerate() {
         let (inputs, step, new_vel) = (steps[k].inputs, &steps[k], &new_vel[k]);
-        let MassSpring { mode, rest_pos, pos, vel, .. } = body;
+        let MassSpring { mode, rest_pos, pos, vel, wall, .. } = body;
+        let wall = wall.as_deref();
         // Each vertex on its own, on every core.
         (pos.par_iter_mut(), vel.par_iter_mut(), mode.par_iter(), rest_pos.par_iter())
             .into_par_iter()
@@ -872,7 +884,7 @@ pub fn integrate_implicit_together(
                             *vel -= away * n;
                         }
                     }
-                    onto_floor(pos, vel, inputs.floor);
+                    onto_floor(pos, vel, inputs.floor, wall);
                 }
                 held => move_held(*held, inputs, *rest, pos, vel, h),
             });

@@ -92,9 +92,12 @@ pub(crate) fn move_held(
 }
 
 /// A free vertex that ended its step below its floor (the chest wall) is put on it, moving up
-/// at most, under either integrator.
-pub(crate) fn onto_floor(pos: &mut Vec3, vel: &mut Vec3, floor: f32) {
-    if pos.z < floor {
+/// at most, under either integrator: the plane `z = floor`, or `wall` raised by `floor` along
+/// its normal ([`MassSpring::wall`](crate::MassSpring)).
+pub(crate) fn onto_floor(pos: &mut Vec3, vel: &mut Vec3, floor: f32, wall: Option<&crate::wall::Wall>) {
+    if let Some(w) = wall {
+        w.push_out(pos, vel, floor);
+    } else if pos.z < floor {
         pos.z = floor;
         vel.z = vel.z.max(0.0);
     }
