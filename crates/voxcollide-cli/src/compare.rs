@@ -605,8 +605,13 @@ fn run_candidate(
 /// How far from its own volume a candidate's shell may end, relative, and still be finished.
 pub const VOLUME_TOLERANCE: f64 = 0.02;
 
+/// On a patient, how far the volume added between her skin and chest wall may be from the
+/// implant's, relative, for the operated shape to be an answer.
+pub const GAIN_TOLERANCE: f64 = 0.05;
+
 /// Why a candidate's run is not finished, if it is not: its shell short of (or past) its own
-/// volume by more than [`VOLUME_TOLERANCE`], or the scene not at rest when `max_steps` ran out.
+/// volume by more than [`VOLUME_TOLERANCE`], the scene not at rest when `max_steps` ran out, or
+/// on a patient the volume added not the implant's within [`GAIN_TOLERANCE`].
 #[must_use]
 pub fn unfinished(r: &CandidateResult) -> Option<String> {
     let mut why = Vec::new();
@@ -622,6 +627,17 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
     }
     if !r.settled {
         why.push(format!("the scene had not come to rest after {} steps ([time] max_steps)", r.steps));
+    }
+    // On a patient: what the operation added between her skin and chest wall is the implant,
+    // or the breast did not follow it (a space left open, or tissue stretched or squeezed).
+    if let Some(gain) = r.volume_gain_ml
+        && !((gain - r.volume_ml).abs() <= GAIN_TOLERANCE * r.volume_ml)
+    {
+        why.push(format!(
+            "the volume added between her skin and chest wall, {gain:.1} mL, is not the implant's {:.1} mL to {:.0} % (docs/patient.md, \"Planning\")",
+            r.volume_ml,
+            100.0 * GAIN_TOLERANCE
+        ));
     }
     (!why.is_empty()).then(|| why.join("; "))
 }

@@ -515,11 +515,11 @@ fn a_candidate_is_finished_only_within_two_percent_of_its_volume_and_at_rest() {
     assert!(r.not_a_result().unwrap().starts_with("contact implant – tissue"));
 }
 
-/// A patient's tissue between her skin and chest wall (docs/design.md §14): `compare` does not
-/// yet place candidates on her curved wall (§15), and says so, naming the body, instead of
-/// placing them as on a flat one.
+/// A patient's tissue between her skin and chest wall (docs/design.md §14): a candidate not
+/// placed on her wall is refused, naming the body and the key that places it; placed under her
+/// landmark (§15), each candidate's `landmarks` and `volume_gain_ml` are in compare.json.
 #[test]
-fn compare_on_a_patient_is_refused_until_candidates_are_placed_on_her_wall() {
+fn compare_on_a_patient_places_candidates_on_her_wall_and_reports_landmarks_and_volume_gain() {
     let d = dir("patient");
     let sheet = |z: f32| {
         let mut out = String::from("solid s\n");
@@ -559,6 +559,43 @@ a = "implant"
 b = "breast"
 "#;
     let e = run(&d, scene, CANDIDATES).map(|_| ()).unwrap_err().to_string();
-    assert!(e.contains("scene.toml") && e.contains("body[0].shape.between") && e.contains("§15"), "{e}");
+    assert!(
+        e.contains("scene.toml") && e.contains("body[0].shape.between") && e.contains("place = { under"),
+        "{e}"
+    );
     assert!(!d.join("out").exists(), "nothing is written");
+    // Placed under her nipple: run, measured on her.
+    let placed = scene
+        .replace(
+            "spacing = 8
+[[body]]",
+            "spacing = 8
+landmarks = { nipple = [0, 0, 30] }
+[[body]]",
+        )
+        .replace("inflate =", "place = { under = \"breast.nipple\" }\ninflate =")
+        .replace(
+            "units = \"mm\"",
+            "units = \"mm\"\n[time]\nintegrator = \"implicit\"\nsettle = true\nmax_steps = 300",
+        );
+    let small = "[[candidate]]\nname = \"small\"\nshape = { implant = { volume_ml = 40, base_mm = 60, profile = \"moderate\" } }\n";
+    let c = run(&d, &placed, small).unwrap();
+    let r = &c.candidates[0];
+    eprintln!(
+        "{} mL added, landmarks {:?}, {:?}",
+        r.volume_gain_ml.unwrap_or(f64::NAN),
+        r.landmarks,
+        r.not_a_result()
+    );
+    assert!(r.held, "{:?}", r.failure);
+    assert_eq!(r.landmarks.len(), 1);
+    let nipple = &r.landmarks[0];
+    assert_eq!((nipple.body.as_str(), nipple.name.as_str()), ("breast", "nipple"));
+    assert!(nipple.end[2] > nipple.start[2] + 1.0, "the nipple comes forward: {nipple:?}");
+    let gain = r.volume_gain_ml.expect("a patient's volume gain");
+    assert!(gain > 10.0, "{gain} mL added");
+    let json = std::fs::read_to_string(d.join("out/compare.json")).unwrap();
+    assert!(json.contains("\"volume_gain_ml\"") && json.contains("\"landmarks\""), "{json}");
+    let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
+    assert!(html.contains("On the patient") && html.contains("breast.nipple"), "report");
 }

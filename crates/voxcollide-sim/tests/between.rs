@@ -226,3 +226,84 @@ fn tissue_presets_give_published_parameters() {
         assert!(e.contains("p.toml") && e.contains(key), "{key}: {e}");
     }
 }
+
+/// An implant `extra`-placed on the parametric breast's chest wall (docs/design.md §15).
+fn placed(dir: &std::path::Path, place: &str, extra: &str) -> String {
+    let box_ = ([-90.0, -90.0, -10.0], [90.0, 90.0, 70.0]);
+    scene(dir, box_.0, box_.1, "landmarks = { nipple = [0, 0, 55] }")
+        + &format!(
+            r#"
+[[body]]
+name = "implant"
+kind = "shell"
+shape = {{ implant = {{ volume_ml = 200, base_mm = 100, profile = "moderate" }} }}
+spacing = 6
+{place}
+{extra}
+"#
+        )
+}
+
+#[test]
+fn an_implant_is_placed_flat_on_a_flat_wall_and_its_pocket_let_go() {
+    let dir = folder("placed");
+    write_breast(&dir, 120.0);
+    let built = read(&dir, &placed(&dir, "place = { under = \"breast.nipple\", margin = 5 }", "")).unwrap();
+    let (tissue, shell) = (&built.world.bodies[0], &built.world.bodies[1]);
+    let wall = shell.wall.as_ref().unwrap();
+    assert!(wall.normal.distance(voxcollide::glam::Vec3::Z) < 1e-4, "{:?}", wall.normal);
+    assert!(wall.origin.length() < 1e-3, "{:?}", wall.origin);
+    let lowest = shell.pos.iter().map(|p| p.z).fold(f32::MAX, f32::min);
+    assert!(lowest.abs() < 1e-4, "the base on the wall: {lowest}");
+    // The pocket: held wall vertices within 50 + 5 mm of the axis let go; the rest held.
+    for (p, m) in tissue.rest_pos.iter().zip(&tissue.mode) {
+        let r = p.truncate().length();
+        if p.z < 1.0 && r < 50.0 && p.x.abs() < 89.0 && p.y.abs() < 89.0 {
+            assert_eq!(*m, Mode::Free, "{p} under the base is held");
+        }
+        if p.z < 1.0 && r > 55.0 + 1e-3 {
+            assert_eq!(*m, Mode::Pinned, "{p} outside the pocket was let go");
+        }
+    }
+}
+
+#[test]
+fn a_bad_placement_is_named_by_key() {
+    let dir = folder("bad-place");
+    write_breast(&dir, 120.0);
+    let error = |text: String| match read(&dir, &text) {
+        Ok(_) => panic!("built:\n{text}"),
+        Err(e) => e.to_string(),
+    };
+    for (place, extra, says) in [
+        ("place = { under = \"nipple\" }", "", "must name a body and its landmark"),
+        ("place = { under = \"chest.nipple\" }", "", "no body is named \"chest\""),
+        ("place = { under = \"breast.navel\" }", "", "no landmark \"navel\""),
+        ("place = { under = \"breast.nipple\", margin = -1 }", "", "0 or more"),
+        ("place = { under = \"breast.nipple\", side = 1 }", "", "unknown field"),
+        ("place = { under = \"breast.nipple\" }", "position = [0, 0, 5]", "give neither"),
+    ] {
+        let e = error(placed(&dir, place, extra));
+        assert!(
+            e.contains("breast.toml") && e.contains("body[1].place") && e.contains(says),
+            "{place} {extra}: {e}"
+        );
+    }
+    // Wider than the box: it does not fit on the wall inside it.
+    let wide =
+        placed(&dir, "place = { under = \"breast.nipple\" }", "").replace("base_mm = 100", "base_mm = 190");
+    let e = error(wide);
+    assert!(e.contains("body[1].place.under") && e.contains("does not fit"), "{e}");
+    // Only a shell is placed, and only on a body between a skin and a chest wall.
+    let e = error(scene(
+        &dir,
+        [-90.0, -90.0, -10.0],
+        [90.0, 90.0, 70.0],
+        "place = { under = \"breast.nipple\" }",
+    ));
+    assert!(e.contains("body[0].place") && e.contains("only a shell"), "{e}");
+    let flat = placed(&dir, "place = { under = \"slab.top\" }", "")
+        + "[[body]]\nname = \"slab\"\nkind = \"soft\"\nshape = { box = [10, 10, 10] }\nspacing = 5\nlandmarks = { top = [0, 0, 5] }\n";
+    let e = error(flat);
+    assert!(e.contains("body[1].place") && e.contains("no chest wall"), "{e}");
+}

@@ -48,9 +48,24 @@ fn landmarks() -> Landmarks {
 /// The breast of `skin` between it and the wall, in a folder of its own, its surfaces and box
 /// turned by `turn` (the identity: standing as scanned, y up).
 fn breast(skin: &str, nipple: [f32; 3], min: [f32; 3], max: [f32; 3], turn: Mat3, spacing: f32) -> Built {
+    build_world(&SceneFile::read(&breast_file(skin, nipple, min, max, turn, spacing, "")).unwrap())
+        .unwrap_or_else(|e| panic!("{skin}: {e}"))
+}
+
+/// The scene file of [`breast`], with `more` after its body, and its path.
+fn breast_file(
+    skin: &str,
+    nipple: [f32; 3],
+    min: [f32; 3],
+    max: [f32; 3],
+    turn: Mat3,
+    spacing: f32,
+    more: &str,
+) -> PathBuf {
     let dir = std::env::temp_dir().join(format!(
-        "voxcollide-patient-{skin}-{}-{}",
+        "voxcollide-patient-{skin}-{}-{}-{}",
         turn.z_axis.y,
+        more.len(),
         std::process::id()
     ));
     std::fs::create_dir_all(&dir).unwrap();
@@ -74,6 +89,7 @@ shape = {{ between = {{ outer = "skin.stl", inner = "wall.stl", min = {:?}, max 
 spacing = {spacing}
 material = {{ model = "neo-hookean", young_kpa = 3, poisson = 0.45, density = 1000, damping = 0.5 }}
 landmarks = {{ nipple = {:?} }}
+{more}
 "#,
         lo.to_array(),
         hi.to_array(),
@@ -81,7 +97,94 @@ landmarks = {{ nipple = {:?} }}
     );
     let path = dir.join("breast.toml");
     std::fs::write(&path, text).unwrap();
-    build_world(&SceneFile::read(&path).unwrap()).unwrap_or_else(|e| panic!("{skin}: {e}"))
+    path
+}
+
+/// An implant placed under the nipple (docs/design.md §15), `base` mm wide.
+fn implant(base: u32) -> String {
+    format!(
+        r#"
+[[body]]
+name = "implant"
+kind = "shell"
+shape = {{ implant = {{ volume_ml = 250, base_mm = {base}, profile = "moderate" }} }}
+spacing = 6
+place = {{ under = "breast.nipple" }}
+[[contact]]
+a = "implant"
+b = "breast"
+"#
+    )
+}
+
+#[test]
+fn an_implant_placed_under_the_nipple_stands_on_the_curved_chest_wall_in_either_posture() {
+    let (min, max, skins) = landmarks();
+    let lying = Mat3::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    for (skin, nipple) in skins.iter().filter(|(s, _)| s.starts_with("maxcup")) {
+        let mut normals = Vec::new();
+        for (posture, turn) in [("standing", Mat3::IDENTITY), ("lying", lying)] {
+            let plain = breast(skin, *nipple, min, max, turn, 8.0);
+            let path = breast_file(skin, *nipple, min, max, turn, 8.0, &implant(110));
+            let built =
+                build_world(&SceneFile::read(&path).unwrap()).unwrap_or_else(|e| panic!("{skin}: {e}"));
+            let (tissue, shell) = (&built.world.bodies[0], &built.world.bodies[1]);
+            let wall = shell.wall.as_ref().expect("a placed implant rests on the wall");
+            assert!(
+                tissue.wall.as_ref().is_some_and(|w| std::sync::Arc::ptr_eq(w, wall)),
+                "the pocket rests on the same wall"
+            );
+            // Its base on the wall, nowhere behind it, and the wall's normal toward the nipple.
+            let above: Vec<f32> = shell.pos.iter().map(|p| wall.above(*p, 0.0).unwrap()).collect();
+            let lowest = above.iter().copied().fold(f32::MAX, f32::min);
+            let highest = above.iter().copied().fold(f32::MIN, f32::max);
+            let mark = built.notes[0].landmarks[0].at(&tissue.pos);
+            assert!(lowest.abs() < 0.05, "{skin} {posture}: base {lowest} from the wall");
+            assert!(
+                (highest - 33.0).abs() < 1.0,
+                "{skin} {posture}: apex {highest} in front (110 mm × 0.30)"
+            );
+            assert!(wall.normal.dot((mark - wall.origin).normalize()) > 0.8, "{skin} {posture}: {wall:?}");
+            // The base lies across the wall, centred under the nipple's foot.
+            let centre = shell.pos.iter().copied().sum::<Vec3>() / shell.len() as f32;
+            let across = wall.local(centre).truncate().length();
+            assert!(across < 2.0, "{skin} {posture}: the implant's centre is {across} mm off its foot");
+            // The pocket: vertices held on the wall under the base are let go, the rest stay.
+            let held = |b: &voxcollide_sim::MassSpring| {
+                b.mode.iter().filter(|m| **m == voxcollide_sim::Mode::Pinned).count()
+            };
+            let released = held(&plain.world.bodies[0]) - held(tissue);
+            eprintln!(
+                "{skin} {posture}: normal {:?}, {released} let go of {} held, base {lowest:.3} apex {highest:.2} mm",
+                wall.normal,
+                held(&plain.world.bodies[0])
+            );
+            assert!(released > 60 && held(tissue) > released, "{skin} {posture}: {released} let go");
+            for (i, p) in tissue.rest_pos.iter().enumerate() {
+                if tissue.mode[i] == voxcollide_sim::Mode::Free
+                    && plain.world.bodies[0].mode[i] != voxcollide_sim::Mode::Free
+                {
+                    assert!(
+                        wall.local(*p).truncate().length() <= 55.0 + 10.0 + 1e-3,
+                        "{p} let go outside the pocket"
+                    );
+                }
+            }
+            normals.push(turn.transpose() * wall.normal);
+        }
+        // The same place on her whichever way she lies (to a degree: the nipple is moved onto
+        // each posture's lattice).
+        assert!(normals[0].distance(normals[1]) < 0.02, "{skin}: {normals:?}");
+    }
+}
+
+#[test]
+fn an_implant_that_does_not_fit_on_the_wall_inside_the_box_is_refused_by_key() {
+    let (min, max, skins) = landmarks();
+    let (skin, nipple) = skins.iter().find(|(s, _)| s == "maxcup-averagefirmness").unwrap();
+    let path = breast_file(skin, *nipple, min, max, Mat3::IDENTITY, 10.0, &implant(190));
+    let e = build_world(&SceneFile::read(&path).unwrap()).unwrap_err().to_string();
+    assert!(e.contains("body[1].place.under") && e.contains("does not fit"), "{e}");
 }
 
 #[test]
