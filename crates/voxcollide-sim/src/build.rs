@@ -1258,7 +1258,35 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
         schedule_specs.iter().map(|b| b.inputs(t, dt)).collect()
     });
     // A vertex that moves a tenth of the scene in one step has blown up.
+    // Each placed implant's pocket, closed around it (crate::pocket), where it touches its
+    // tissue; its suction adds up at the pace a fill's does.
+    let pocket_hold = hold;
+    let mut pockets = Vec::new();
+    for (k, spec) in file.bodies.iter().enumerate() {
+        let Some(place) = &spec.place else { continue };
+        let t = place.body;
+        let touching = file.contacts.iter().any(|c| (c.a, c.b) == (k, t) || (c.a, c.b) == (t, k));
+        if let (true, Some(wall_faces)) = (touching, &notes[t].wall_faces) {
+            let tissue = &bodies[t];
+            let faces = wall_faces
+                .iter()
+                .map(|&f| tissue.surface.triangles[f as usize])
+                .filter(|f| f.iter().any(|&i| tissue.mode[i as usize] == Mode::Free))
+                .collect();
+            let young = file.bodies[t].material.young_kpa * 1e3;
+            let stiffness = (crate::pocket::SUCTION * young * s) as f32;
+            pockets.push(crate::pocket::Pocket {
+                tissue: t,
+                implant: k,
+                faces,
+                stiffness,
+                hold: pocket_hold,
+                held: 0.0,
+            });
+        }
+    }
     let mut world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
+    world.pockets = pockets;
     if implicit {
         // No vertex moves more than a quarter of the finest contact's reach in a step, so that
         // every contact sees it arrive; a step that would move one farther is taken as shorter

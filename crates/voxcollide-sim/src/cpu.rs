@@ -185,11 +185,16 @@ impl CpuWorld {
         )?;
         let w = &mut self.world;
         self.forces.resize_with(w.bodies.len(), Vec::new);
+        for k in 0..w.bodies.len() {
+            self.contacts.forces_on(k, &self.reports, &mut self.contact_force[k]);
+        }
+        // A pocket's suction is a load beside the contacts' (crate::pocket).
+        for pocket in &mut w.pockets {
+            pocket.add_forces(&w.bodies, &mut self.contact_force);
+        }
         for (k, body) in w.bodies.iter_mut().enumerate() {
-            let sum = &mut self.contact_force[k];
-            self.contacts.forces_on(k, &self.reports, sum);
             body.hold_fill(&inputs[k]);
-            body.forces(&inputs[k], sum, &mut self.forces[k]);
+            body.forces(&inputs[k], &self.contact_force[k], &mut self.forces[k]);
         }
         let loads = Loads {
             inputs,
@@ -223,11 +228,16 @@ impl Stepper for CpuWorld {
 
     fn keep(&mut self) {
         self.kept = self.world.bodies.iter().map(|b| b.held_pressure).collect();
+        self.kept.extend(self.world.pockets.iter().map(|p| p.held));
     }
 
     fn put_back(&mut self) {
         for (body, held) in self.world.bodies.iter_mut().zip(&self.kept) {
             body.held_pressure = *held;
+        }
+        let n = self.world.bodies.len();
+        for (pocket, held) in self.world.pockets.iter_mut().zip(self.kept.iter().skip(n)) {
+            pocket.held = *held;
         }
     }
 

@@ -18,6 +18,7 @@ pub mod integrator; // how bodies move: explicit, implicit (backward Euler), sub
 pub mod material; // materials as energies: springs, Neo-Hookean tetrahedra
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
 pub mod mesh_io; //  closed surfaces from STL, OBJ and PLY files, checked
+pub mod pocket; //   a dissected pocket: the space by the implant drawn shut, as a sealed pocket is
 pub mod reference; // the shape as scanned: the unloaded shape a loaded one comes from
 pub mod scene; //    `Scene`: the paper's two scenarios, built and scheduled
 pub mod scene_file; // scene files (docs/design.md §8): TOML read and checked, errors with file, line, key

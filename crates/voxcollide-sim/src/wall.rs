@@ -208,10 +208,12 @@ impl Wall {
         self.height(l.x, l.y).map(|h| l.z - h - offset)
     }
 
-    /// Whether `p` is on or behind the wall raised by `offset`.
+    /// Whether `p` is on or behind the wall raised by `offset`: within a thousandth of the
+    /// grid's cell of it (a point [`push_out`](Self::push_out) put on the wall is there to a
+    /// rounding of its coordinates, either side).
     #[must_use]
     pub fn holds(&self, p: Vec3, offset: f32) -> bool {
-        self.above(p, offset).is_some_and(|a| a <= 0.0)
+        self.above(p, offset).is_some_and(|a| a <= 1e-3 * self.cell)
     }
 
     /// Puts a point behind the wall raised by `offset` onto it, along the normal, and takes

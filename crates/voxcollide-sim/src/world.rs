@@ -35,6 +35,9 @@ pub struct World {
     pub likely_cause: String,
     /// How the bodies move from step to step.
     pub integrator: Integrator,
+    /// Pockets dissected for implants placed on a patient (docs/design.md §15): their suction
+    /// is a load on the CPU backend.
+    pub pockets: Vec<crate::pocket::Pocket>,
 }
 
 impl std::fmt::Debug for World {
@@ -100,6 +103,7 @@ impl World {
                            too large for the bodies' stiffness, or a degenerate body"
                 .into(),
             integrator: Integrator::Explicit,
+            pockets: Vec::new(),
         })
     }
 
