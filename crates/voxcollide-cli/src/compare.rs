@@ -875,6 +875,11 @@ fn measure_end(
 /// (along +x), `up` drawn upward ([`axes`]), cut open through the compared body's centre, the
 /// tissue coloured by displacement on one scale for every candidate (a tenth of the tissue's
 /// extent); returns the files written.
+///
+/// On a patient (an implant placed on her chest wall, docs/design.md §15) the front shows her
+/// skin whole, as she would be seen, and the side is cut through the implant (her profile);
+/// each beside the same view of her unoperated, as scanned (`before-front.png`,
+/// `before-side.png`), on one scale.
 #[allow(clippy::too_many_arguments)]
 fn pictures(
     renderer: &mut Renderer,
@@ -897,19 +902,47 @@ fn pictures(
         let p = &world.bodies[body].pos;
         p.iter().copied().sum::<Vec3>() / p.len().max(1) as f32
     };
+    let patient = world.bodies[body].wall.is_some();
+    // Her unoperated shape: the tissue where it started, nothing moved, no implant.
+    let before: Vec<(Vec<Vec3>, Vec<f32>)> = world
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(k, b)| {
+            let start = b.shown_start().into_owned();
+            let n = if k == body { 0 } else { start.len() };
+            (start, vec![0.0; n])
+        })
+        .collect();
+    // (name, looking along, cut open, unoperated)
+    let views: Vec<(&str, Vec3, bool, bool)> = if patient {
+        vec![
+            ("front", forward, false, false),
+            ("before-front", forward, false, true),
+            ("side", side, true, false),
+            ("before-side", side, true, true),
+        ]
+    } else {
+        vec![("front", forward, true, false), ("side", side, true, false)]
+    };
     let mut files = Vec::new();
     // From a little above, so the tissue's surface shows its colours beside the cut.
-    for (view, across) in [("front", forward), ("side", side)] {
+    for (view, across, cut, unoperated) in views {
         let dir = across - 0.35 * up;
+        let positions = if unoperated { &before } else { &shown };
+        let mut meshes = meshes(
+            world,
+            positions,
+            |k| tissue.contains(&k),
+            |k| if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
+        );
+        if unoperated {
+            meshes.remove(body);
+        }
         let scene = RenderScene {
-            meshes: meshes(
-                world,
-                &shown,
-                |k| tissue.contains(&k),
-                |k| if k == body { [0.95, 0.6, 0.25] } else { [0.6, 0.6, 0.65] },
-            ),
+            meshes,
             scalar_range: range,
-            clip: Some((centre, across)),
+            clip: cut.then_some((centre, across)),
             view_dir: dir,
             up,
         };
@@ -1168,7 +1201,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
         for p in &c.pictures {
             let bytes = std::fs::read(out.join(p)).map_err(|e| io(&out.join(p), e))?;
             let data = base64::engine::general_purpose::STANDARD.encode(bytes);
-            let view = if p.ends_with("front.png") { "front" } else { "side" };
+            let view = match p.rsplit('/').next() {
+                Some("before-front.png") => "front, unoperated",
+                Some("before-side.png") => "side, unoperated",
+                Some("front.png") => "front",
+                _ => "side",
+            };
             figures += &format!(
                 "<figure><img alt=\"{} from the {view}\" src=\"data:image/png;base64,{data}\"><figcaption>{view}</figcaption></figure>\n",
                 escape(&c.name)

@@ -183,7 +183,9 @@ pub struct FileSummary {
     /// integrator ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling
     /// window) or `"residual"` under the implicit one (the net force at rest within
     /// [`RESIDUAL_TOLERANCE`] of the gross force, [`residual`](Self::residual)); said whether or
-    /// not it was met.
+    /// not it was met. `"stalled residual, rest_motion"`: the implicit one's residual stopped
+    /// falling above that (contacts chattering at rest), and the shape was judged by motion
+    /// from then on.
     pub criterion: String,
     /// The implicit integrator's residual at the end: the net force on the free vertices over
     /// the largest gross force of the run (`√Σ|f|² / max √Σ(Σ|f_term|)²`); absent under the
@@ -460,6 +462,8 @@ pub fn run_scene_on(
     let check_every = (planned / 64).min(window / 4).clamp(1, chunk);
     let mut checks = ContactChecks::new(world.contacts.len());
     let mut stall = Stall::default();
+    // The step since which the implicit integrator's residual has stalled, once it has.
+    let mut stalled_since: Option<u64> = None;
     if file.time.settle && planned > file.time.max_steps {
         // The explicit step is bound by stability (a stiff or nearly incompressible body's is
         // small): the implicit integrator's is not.
@@ -494,17 +498,32 @@ pub fn run_scene_on(
         let balanced = done >= planned
             && done > 0
             && residual.is_some_and(|r| r <= RESIDUAL_TOLERANCE || floor.is_some_and(|f| r <= f));
-        let at_rest = still || balanced;
+        // Stalled and still: the residual has stopped falling (its chatter is contacts' at
+        // rest: on a patient, the pocket's, a vertex of the tissue flipping about a vertex of
+        // the implant it rests on, hundreds of times its share of the loads) and no vertex has
+        // moved a twentieth of its spacing over a settling window since, but a hundredth of
+        // them (the chattering ones, by up to a tenth of a spacing). More steps would not change
+        // the shape. Unlike a fill judged still by motion alone, its residual is no longer
+        // falling.
+        let stalled_still = done >= planned
+            && residual.is_some()
+            && stalled_since.is_some()
+            && long_enough
+            && before
+                .as_ref()
+                .is_some_and(|(_, was)| most_motion(world, was, &spacings, &soft) <= REST_TOLERANCE);
+        let at_rest = still || balanced || stalled_still;
         // Settling whose residual has stopped falling is said as soon as it is seen, not only
         // after max_steps.
         if let Some(r) = residual.filter(|_| file.time.settle && done >= planned && !at_rest)
             && let Some(since) = stall.stalled(done, r)
         {
+            stalled_since = Some(since);
             let floor = floor.map_or(String::new(), |f| {
                 format!(" (single-precision positions resolve it to about {f:.1e})")
             });
             note(&format!(
-                "warning: settling has stalled: the residual force has stayed near {r:.2e} of the largest load (at rest: {RESIDUAL_TOLERANCE:.0e}){floor} since step {since}, {} steps; the run goes on to max_steps = {} and will likely end not at rest",
+                "warning: settling has stalled: the residual force has stayed near {r:.2e} of the largest load (at rest: {RESIDUAL_TOLERANCE:.0e}){floor} since step {since}, {} steps; the run goes on until the shape is still (no vertex moving a twentieth of its spacing over a settling window), or to max_steps = {}",
                 done - since,
                 file.time.max_steps
             ));
@@ -630,7 +649,14 @@ pub fn run_scene_on(
             (summary.split_steps, summary.most_parts) =
                 run.parts().map(|p| (p.split_steps, p.most_parts)).unzip();
             // Each integrator's own test, met or not (the implicit one never judges by motion).
-            summary.criterion = if residual.is_some() { "residual" } else { "rest_motion" }.into();
+            summary.criterion = match (residual, stalled_since) {
+                (Some(r), Some(_)) if r > RESIDUAL_TOLERANCE && !floor.is_some_and(|f| r <= f) => {
+                    "stalled residual, rest_motion"
+                }
+                (Some(_), _) => "residual",
+                (None, _) => "rest_motion",
+            }
+            .into();
             for (c, r) in reports.iter().enumerate() {
                 summary.contacts[c].contacts_at_end = r.colliding_b.len();
             }
@@ -971,20 +997,42 @@ pub(crate) fn mean_spring(b: &MassSpring) -> f32 {
 /// The farthest any vertex that is not pinned is from where it was at the last frame, in
 /// spacings of its body.
 fn frame_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32]) -> f32 {
-    world
-        .bodies
-        .iter()
-        .zip(before)
-        .zip(spacings)
-        .flat_map(|((b, was), h)| {
-            b.pos
-                .iter()
-                .zip(was)
-                .zip(&b.mode)
-                .filter(|(_, m)| **m != voxcollide_sim::Mode::Pinned)
-                .map(move |((p, q), _)| p.distance(*q) / h)
-        })
-        .fold(0.0, f32::max)
+    motions(world, before, spacings).fold(0.0, f32::max)
+}
+
+/// The motion that all but a hundredth of the soft bodies' vertices not held stay within (of
+/// [`frame_motion`]'s): the tissue's shape, still but for its few chattering contact
+/// vertices. (A shell's are left out: an implant's rim squeezed between the tissue and the
+/// chest wall chatters by a twentieth of a spacing from step to step on the patient at rest;
+/// its volume is judged on its own.)
+fn most_motion(world: &World, before: &[Vec<Vec3>], spacings: &[f32], soft: &[bool]) -> f32 {
+    let mut all: Vec<f32> = motions(world, before, spacings)
+        .zip(world.bodies.iter().enumerate().flat_map(|(k, b)| {
+            b.mode.iter().filter(|m| **m != voxcollide_sim::Mode::Pinned).map(move |_| soft[k])
+        }))
+        .filter_map(|(m, soft)| soft.then_some(m))
+        .collect();
+    if all.is_empty() {
+        return 0.0;
+    }
+    let k = ((all.len() as f64 * 0.99).floor() as usize).min(all.len() - 1);
+    *all.select_nth_unstable_by(k, f32::total_cmp).1
+}
+
+/// Each vertex not held: how far it moved since `before`, in its body's spacings.
+fn motions<'a>(
+    world: &'a World,
+    before: &'a [Vec<Vec3>],
+    spacings: &'a [f32],
+) -> impl Iterator<Item = f32> + 'a {
+    world.bodies.iter().zip(before).zip(spacings).flat_map(|((b, was), h)| {
+        b.pos
+            .iter()
+            .zip(was)
+            .zip(&b.mode)
+            .filter(|(_, m)| **m != voxcollide_sim::Mode::Pinned)
+            .map(move |((p, q), _)| p.distance(*q) / h)
+    })
 }
 
 /// Updates the summary's displacement maxima with this frame (the contacts' penetration is

@@ -1275,11 +1275,13 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
                 .collect();
             let young = file.bodies[t].material.young_kpa * 1e3;
             let stiffness = (crate::pocket::SUCTION * young * s) as f32;
+            let volume = fills[k].map_or_else(|| bodies[k].enclosed_volume(), |(_, target)| target);
             pockets.push(crate::pocket::Pocket {
                 tissue: t,
                 implant: k,
                 faces,
                 stiffness,
+                volume,
                 hold: pocket_hold,
                 held: 0.0,
             });

@@ -38,6 +38,10 @@ pub struct Pocket {
     /// `K` of `p = K · void / V`, in the world's pressure units (pascals times metres per
     /// file unit).
     pub stiffness: f32,
+    /// `V`: the implant's full volume (cubic file units), not what it holds as it fills
+    /// (a tenth of it at first, which made the suction ten times as stiff and blew a patient
+    /// up at a 10 mm spacing).
+    pub volume: f64,
     /// The share of `K · void / V` added to the suction each step.
     pub hold: f32,
     /// The suction added up over the steps (pressure units).
@@ -61,8 +65,11 @@ impl Pocket {
 
     /// `K · void / V` now (pressure units).
     fn drawn(&self, bodies: &[MassSpring]) -> f32 {
-        let volume = bodies[self.implant].enclosed_volume();
-        if volume > 0.0 { (f64::from(self.stiffness) * self.void(bodies) / volume) as f32 } else { 0.0 }
+        if self.volume > 0.0 {
+            (f64::from(self.stiffness) * self.void(bodies) / self.volume) as f32
+        } else {
+            0.0
+        }
     }
 
     /// The suction drawing the pocket shut (pressure units; never below 0).
