@@ -17,7 +17,7 @@ use voxcollide::{ContactReport, Error};
 use voxcollide_sim::build::build_world;
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
-use voxcollide_sim::scene_file::{Axis, BodyKind, Ease, Geometry, Inflate, SceneFile, Shape};
+use voxcollide_sim::scene_file::{Axis, BodyKind, BodySpec, Ease, Geometry, Inflate, SceneFile, Shape};
 use voxcollide_sim::{MassSpring, World};
 
 use crate::backend::Backend;
@@ -191,17 +191,7 @@ fn with_candidate(
     let b = &mut s.bodies[body];
     b.geometry = c.geometry.clone();
     if let Some((height, room, spacing)) = fit {
-        // Its top starts a tenth of the room (at least a twentieth of the tissue's spacing)
-        // under the tissue, but it is never flatter than its own edge (or FLATTEST): thinner,
-        // the three nearest of its vertices to a tissue vertex mix its top and its base, and
-        // their plane stands on edge. Where that start stands higher than the room, it
-        // starts that much lower, on a floor as much lower, both rising back as it fills.
-        let top = room - (0.1 * room).max(0.05 * spacing);
-        let edge = b.spacing.unwrap_or(0.0);
-        let f = (top / height).max(FLATTEST).max(edge / height).min(0.5);
-        b.scale = 1.0;
-        b.flatten = Some(f);
-        b.sink = (f * height - top).max(0.0);
+        deflate(b, height, room, spacing);
     }
     if let Some(volume_ml) = volume_ml {
         let ramp = b.inflate.as_ref().map_or(0.75 * scene.time.duration.unwrap_or(1.0), |i| i.ramp);
@@ -218,6 +208,66 @@ fn with_candidate(
     s
 }
 
+/// Starts shell `b` (its shape `height` high) deflated flat on its base, under tissue `room`
+/// above that base whose spacing is `spacing` (scene units). Its top starts a tenth of the
+/// room (at least a twentieth of the tissue's spacing) under the tissue, but it is never
+/// flatter than its own edge (or [`FLATTEST`]): thinner, the three nearest of its vertices to
+/// a tissue vertex mix its top and its base, and their plane stands on edge. Where that start
+/// stands higher than the room, it starts that much lower, on a floor as much lower, both
+/// rising back as it fills.
+fn deflate(b: &mut BodySpec, height: f64, room: f64, spacing: f64) {
+    let top = room - (0.1 * room).max(0.05 * spacing);
+    let edge = b.spacing.unwrap_or(0.0);
+    let f = (top / height).max(FLATTEST).max(edge / height).min(0.5);
+    b.scale = 1.0;
+    b.flatten = Some(f);
+    b.sink = (f * height - top).max(0.0);
+}
+
+/// A scene's shells placed on a patient's chest wall and filled (`place` and `inflate`,
+/// docs/design.md §15), started as `compare` starts a candidate: deflated flat on the wall,
+/// sunk behind it as far as they stand, rising as they fill. Full-sized, they would start
+/// inside her tissue. (`voxcollide run` starts a scene so.)
+///
+/// # Errors
+/// A shell that cannot be built alone.
+pub fn start_placed_deflated(scene: &mut SceneFile) -> Result<(), Error> {
+    for k in 0..scene.bodies.len() {
+        let b = &scene.bodies[k];
+        let Some(place) = &b.place else { continue };
+        if b.inflate.is_none() || b.flatten.is_some() {
+            continue;
+        }
+        let spacing = scene.bodies[place.body].spacing.unwrap_or(1.0);
+        let (lo, hi) = alone_extent(scene, k)?;
+        if hi > lo {
+            deflate(&mut scene.bodies[k], hi - lo, 0.0, spacing);
+        }
+    }
+    Ok(())
+}
+
+/// Body `k` of `scene` built alone, standing on its base as its shape gives it (not placed,
+/// no gravity): its lowest and highest z (scene units), and the world it is in.
+fn alone(scene: &SceneFile, k: usize) -> Result<voxcollide_sim::build::Built, Error> {
+    let mut s = scene.clone();
+    let mut body = s.bodies[k].clone();
+    body.place = None;
+    s.bodies = vec![body];
+    s.contacts.clear();
+    s.world.gravity = None;
+    build_world(&s)
+}
+
+/// See [`alone`].
+fn alone_extent(scene: &SceneFile, k: usize) -> Result<(f64, f64), Error> {
+    let built = alone(scene, k)?;
+    Ok(built.world.bodies[0]
+        .pos
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into()))))
+}
+
 /// The candidate's own volume in mL (an implant's as given; any other shape's or mesh's as its
 /// shell encloses it at scale 1), and its lowest and highest z at scale 1 (scene units).
 fn own_shape(scene: &SceneFile, body: usize, c: &Candidate) -> Result<(f64, f64, f64), Error> {
@@ -225,12 +275,7 @@ fn own_shape(scene: &SceneFile, body: usize, c: &Candidate) -> Result<(f64, f64,
     s.bodies[body].scale = 1.0;
     s.bodies[body].inflate = None;
     // Its own shape, standing on its base: alone, not yet placed on a patient.
-    let mut alone = s.bodies[body].clone();
-    alone.place = None;
-    s.bodies = vec![alone];
-    s.contacts.clear();
-    s.world.gravity = None;
-    let built = build_world(&s)?;
+    let built = alone(&s, body)?;
     let shell = &built.world.bodies[0];
     let (lo, hi) =
         shell.pos.iter().fold((f64::MAX, f64::MIN), |(l, h), p| (l.min(p.z.into()), h.max(p.z.into())));
@@ -983,6 +1028,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
         "failure".into(),
         "finished".into(),
         "unfinished".into(),
+        "volume_gain_ml".into(),
     ])
     .map_err(|e| io(&path, e))?;
     for c in &comparison.candidates {
@@ -1005,6 +1051,7 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
             c.failure.clone().unwrap_or_default(),
             c.finished.to_string(),
             c.unfinished.clone().unwrap_or_default(),
+            c.volume_gain_ml.map_or_else(String::new, |g| format!("{g:.1}")),
         ])
         .map_err(|e| io(&path, e))?;
     }

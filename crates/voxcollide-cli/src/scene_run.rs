@@ -273,7 +273,8 @@ pub fn run_file(
     progress: &mut dyn FnMut(u64, u64),
     note: &mut dyn FnMut(&str),
 ) -> Result<FileSummary, Error> {
-    let file = SceneFile::read(&config.path)?;
+    let mut file = SceneFile::read(&config.path)?;
+    crate::compare::start_placed_deflated(&mut file)?;
     let built = build_world(&file)?;
     run_scene(&file, built, config, progress, note, &mut |_, _, _| Ok(()))
 }

@@ -307,3 +307,53 @@ fn a_bad_placement_is_named_by_key() {
     let e = error(flat);
     assert!(e.contains("body[1].place") && e.contains("no chest wall"), "{e}");
 }
+
+#[test]
+fn a_filled_implant_on_the_wall_adds_its_own_volume_and_never_goes_behind_the_wall() {
+    use voxcollide::glam::Vec3;
+    // As `voxcollide compare` starts it: deflated to a fifth of its height, sunk behind the
+    // wall by as much, rising as it fills (docs/design.md §15).
+    let dir = folder("filled");
+    write_breast(&dir, 120.0);
+    let text =
+        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
+            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let text = text.replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true");
+    let path = dir.join("breast.toml");
+    std::fs::write(&path, &text).unwrap();
+    let mut file = SceneFile::read(&path).unwrap();
+    let height = 30.0; // 100 mm × 0.30 (moderate)
+    file.bodies[1].flatten = Some(0.2);
+    file.bodies[1].sink = 0.2 * height + 0.3;
+    let built = build_world(&file).unwrap();
+    let faces = built.notes[0].wall_faces.clone().unwrap();
+    assert_eq!(built.world.pockets.len(), 1, "the pocket is sealed");
+    let mut world = voxcollide_sim::CpuWorld::new(built.world).unwrap();
+    for step in 0..300 {
+        world.step().unwrap();
+        if step % 20 != 19 {
+            continue;
+        }
+        let (tissue, implant) = (&world.world.bodies[0], &world.world.bodies[1]);
+        let wall = implant.wall.as_ref().unwrap();
+        // Past the fill's ramp the wall holds both (before it, the implant rises to it).
+        if step > 100 {
+            for (b, name) in [(implant, "implant"), (tissue, "tissue")] {
+                for (p, m) in b.pos.iter().zip(&b.mode) {
+                    if *m == Mode::Free
+                        && let Some(a) = wall.above(*p, 0.0)
+                    {
+                        assert!(a > -1e-3, "step {step}: the {name}'s {p} is {a} behind the wall");
+                    }
+                }
+            }
+        }
+    }
+    let (tissue, implant) = (&world.world.bodies[0], &world.world.bodies[1]);
+    let between = |at: &[Vec3]| voxcollide_sim::between::volume_between(tissue, &faces, tissue.start(), at);
+    let gain = (between(&tissue.pos) - between(tissue.start())) / 1e3;
+    let filled = implant.enclosed_volume() / 1e3;
+    eprintln!("{gain:.1} mL added by an implant holding {filled:.1} mL");
+    assert!((filled / 200.0 - 1.0).abs() < 0.02, "filled to {filled} mL");
+    assert!((gain / filled - 1.0).abs() < 0.05, "{gain} mL added by {filled} mL");
+}

@@ -113,14 +113,17 @@ pub struct ViewReport {
     pub camera: [f32; 3],
 }
 
-/// The scene `name` names: a file if one is there, else a shipped scene.
+/// The scene `name` names: a file if one is there, else a shipped scene; its implants placed
+/// on a patient start deflated, as `run` starts them ([`crate::compare::start_placed_deflated`]).
 ///
 /// # Errors
 /// The file's errors; [`Error::Invalid`] naming the shipped scenes when it is neither.
 pub fn scene_named(name: &str) -> Result<SceneFile, Error> {
     let path = Path::new(name);
     if path.is_file() {
-        return SceneFile::read(path);
+        let mut scene = SceneFile::read(path)?;
+        crate::compare::start_placed_deflated(&mut scene)?;
+        return Ok(scene);
     }
     match SHIPPED.iter().find(|(n, _)| *n == name) {
         Some((n, text)) => SceneFile::parse(format!("scenes/{n}.toml"), text),
