@@ -604,4 +604,21 @@ landmarks = { nipple = [0, 0, 30] }
     assert!(json.contains("\"volume_gain_ml\"") && json.contains("\"landmarks\""), "{json}");
     let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
     assert!(html.contains("On the patient") && html.contains("breast.nipple"), "report");
+    // `voxcollide run` starts the placed implant deflated too, and fills it under her tissue.
+    let own = placed
+        .replace("volume_ml = 200, base_mm = 100, projection_mm = 40", "volume_ml = 40, base_mm = 60, projection_mm = 18")
+        .replace("inflate = { volume_ml = 200", "inflate = { volume_ml = 40");
+    std::fs::write(d.join("own.toml"), own).unwrap();
+    let config = voxcollide_cli::scene_run::FileRunConfig {
+        path: d.join("own.toml"),
+        backend: Backend::Cpu,
+        out: d.join("run"),
+        image: (160, 120),
+    };
+    let summary = voxcollide_cli::scene_run::run_file(&config, &mut |_, _| {}, &mut |_| {}).unwrap();
+    assert!(summary.held && summary.settled, "{:?}", summary.not_a_result);
+    let breast = &summary.bodies[0];
+    let implant = summary.bodies[1].volume_ml.unwrap();
+    let gain = breast.volume_ml_end.unwrap() - breast.volume_ml.unwrap();
+    assert!((implant / 40.0 - 1.0).abs() < 0.02 && (gain / implant - 1.0).abs() < 0.05, "{gain} mL by {implant}");
 }
