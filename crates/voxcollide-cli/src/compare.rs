@@ -398,6 +398,11 @@ pub fn compare(
         runs.push((c, volume, s, built));
     }
 
+    // Her unoperated shape in the posture asked for, where the scan was taken in another:
+    // each tissue body given as measured under another gravity, settled under the scene's
+    // (docs/design.md §15: the operated shape beside the unoperated one, in that posture).
+    let unoperated = unoperated_in_posture(&scene, body, &tissue, note)?;
+
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let (ctx, _) = crate::backend::context(config.backend, true, note)?;
     let units = scene.units.symbol().to_string();
@@ -433,6 +438,7 @@ pub fn compare(
         units: &units,
         ctx: ctx.as_ref(),
         count,
+        unoperated: &unoperated,
     };
     let mut results: Vec<Option<Result<CandidateResult, Error>>> = (0..count).map(|_| None).collect();
     if jobs <= 1 {
@@ -495,6 +501,9 @@ struct Shared<'a> {
     units: &'a str,
     ctx: Option<&'a voxcollide::GpuContext>,
     count: usize,
+    /// Per body: her unoperated shape in the scene's posture, where that is not her scan's
+    /// ([`unoperated_in_posture`]).
+    unoperated: &'a [Option<Vec<Vec3>>],
 }
 
 /// What a worker of [`run_concurrently`] tells the thread that called `compare`.
@@ -564,7 +573,7 @@ fn run_candidate(
     progress: &mut dyn FnMut(u64, u64),
     note: &mut dyn FnMut(&str),
 ) -> Result<CandidateResult, Error> {
-    let Shared { config, backend, body, tissue, metres, units, ctx, count } = *shared;
+    let Shared { config, backend, body, tissue, metres, units, ctx, count, unoperated } = *shared;
     // Frames for the metrics over time; compare draws its own pictures, and writes no
     // ParaView frames (as many as the history's).
     s.output.frames = s.output.frames.max(HISTORY_FRAMES);
@@ -613,8 +622,8 @@ fn run_candidate(
                 result.implant_pressure_kpa =
                     f64::from(world.bodies[body].pressure(&inputs[body])) / (1e3 * metres);
                 if let Some(r) = renderer.as_mut() {
-                    result.pictures =
-                        pictures(r, world, body, tissue, &config.out, &folder, units, s.world.up)?;
+                    let at = Shown { out: &config.out, folder: &folder, units, up: s.world.up, unoperated };
+                    result.pictures = pictures(r, world, body, tissue, &at)?;
                 }
             }
             Ok(())
@@ -925,17 +934,14 @@ fn measure_end(
 /// skin whole, as she would be seen, and the side is cut through the implant (her profile);
 /// each beside the same view of her unoperated, as scanned (`before-front.png`,
 /// `before-side.png`), on one scale.
-#[allow(clippy::too_many_arguments)]
 fn pictures(
     renderer: &mut Renderer,
     world: &World,
     body: usize,
     tissue: &[usize],
-    out: &Path,
-    folder: &str,
-    units: &str,
-    up: Axis,
+    at: &Shown<'_>,
 ) -> Result<Vec<String>, Error> {
+    let Shown { out, folder, units, up, unoperated } = *at;
     let [side, forward, up] = axes(up);
     let shown = shown_and_moved(world);
     let extent = tissue
@@ -948,13 +954,21 @@ fn pictures(
         p.iter().copied().sum::<Vec3>() / p.len().max(1) as f32
     };
     let patient = world.bodies[body].wall.is_some();
-    // Her unoperated shape: the tissue where it started, nothing moved, no implant.
+    // Her unoperated shape: the tissue as scanned, or settled in the posture asked for where
+    // the scan was taken in another; no implant.
     let before: Vec<(Vec<Vec3>, Vec<f32>)> = world
         .bodies
         .iter()
         .enumerate()
         .map(|(k, b)| {
-            let start = b.shown_start().into_owned();
+            let start = match unoperated.get(k).and_then(Option::as_ref) {
+                Some(settled) => {
+                    let mut posed = b.clone();
+                    posed.pos.clone_from(settled);
+                    shown_surface(&posed).0.into_owned()
+                }
+                None => b.shown_start().into_owned(),
+            };
             let n = if k == body { 0 } else { start.len() };
             (start, vec![0.0; n])
         })
@@ -998,6 +1012,54 @@ fn pictures(
         files.push(name);
     }
     Ok(files)
+}
+
+/// Where a candidate's pictures go and how they are drawn.
+#[derive(Clone, Copy)]
+struct Shown<'a> {
+    out: &'a Path,
+    folder: &'a str,
+    units: &'a str,
+    up: Axis,
+    /// Per body: her unoperated shape in the posture, where it is not her scan.
+    unoperated: &'a [Option<Vec<Vec3>>],
+}
+
+/// Per body of `scene`: for a tissue body given as measured under another gravity than the
+/// scene's (`reference = { gravity }` not `[world] gravity`), its unoperated shape in the
+/// scene's posture: the body as built without the compared one, settled under the scene's
+/// gravity ([`voxcollide_sim::reference::settle`]). `None` elsewhere: there her scan is her
+/// unoperated shape.
+fn unoperated_in_posture(
+    scene: &SceneFile,
+    body: usize,
+    tissue: &[usize],
+    note: &mut dyn FnMut(&str),
+) -> Result<Vec<Option<Vec<Vec3>>>, Error> {
+    let mut out = vec![None; scene.bodies.len()];
+    let gravity = scene.world.gravity.unwrap_or([0.0; 3]);
+    let posed: Vec<usize> =
+        tissue.iter().copied().filter(|&t| scene.bodies[t].reference.is_some_and(|g| g != gravity)).collect();
+    if posed.is_empty() {
+        return Ok(out);
+    }
+    // Without the implant: not placed, so no pocket is let go.
+    let mut s = scene.clone();
+    s.bodies[body].place = None;
+    s.bodies[body].inflate = None;
+    s.contacts.retain(|c| c.a != body && c.b != body);
+    let built = build_world(&s)?;
+    let g = voxcollide_sim::build::gravity(&s);
+    for t in posed {
+        let mut b = built.world.bodies[t].clone();
+        let steps = voxcollide_sim::reference::settle(&mut b, g)?;
+        note(&format!(
+            "{}: her unoperated shape in this posture, settled from her scan in {steps} steps (the pictures' \"unoperated\")",
+            scene.bodies[t].name
+        ));
+        out[t] = Some(b.pos);
+    }
+    Ok(out)
 }
 
 /// `compare.json`, `compare.csv` and `report.html` in `out`.

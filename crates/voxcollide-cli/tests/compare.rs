@@ -606,7 +606,10 @@ landmarks = { nipple = [0, 0, 30] }
     assert!(html.contains("On the patient") && html.contains("breast.nipple"), "report");
     // `voxcollide run` starts the placed implant deflated too, and fills it under her tissue.
     let own = placed
-        .replace("volume_ml = 200, base_mm = 100, projection_mm = 40", "volume_ml = 40, base_mm = 60, projection_mm = 18")
+        .replace(
+            "volume_ml = 200, base_mm = 100, projection_mm = 40",
+            "volume_ml = 40, base_mm = 60, projection_mm = 18",
+        )
         .replace("inflate = { volume_ml = 200", "inflate = { volume_ml = 40");
     std::fs::write(d.join("own.toml"), own).unwrap();
     let config = voxcollide_cli::scene_run::FileRunConfig {
@@ -620,5 +623,31 @@ landmarks = { nipple = [0, 0, 30] }
     let breast = &summary.bodies[0];
     let implant = summary.bodies[1].volume_ml.unwrap();
     let gain = breast.volume_ml_end.unwrap() - breast.volume_ml.unwrap();
-    assert!((implant / 40.0 - 1.0).abs() < 0.02 && (gain / implant - 1.0).abs() < 0.05, "{gain} mL by {implant}");
+    assert!(
+        (implant / 40.0 - 1.0).abs() < 0.02 && (gain / implant - 1.0).abs() < 0.05,
+        "{gain} mL by {implant}"
+    );
+    // Scanned standing, planned lying: her unoperated shape beside the plan is settled lying.
+    let lying = placed
+        .replace("[time]", "[world]\ngravity = [0, 0, -9.81]\n[time]")
+        .replace("landmarks = {", "reference = { gravity = [0, -9.81, 0] }\nlandmarks = {");
+    std::fs::write(d.join("scene.toml"), &lying).unwrap();
+    std::fs::write(d.join("candidates.toml"), small).unwrap();
+    let mut notes = Vec::new();
+    let c = compare(
+        &CompareConfig {
+            scene: d.join("scene.toml"),
+            body: "implant".into(),
+            candidates: d.join("candidates.toml"),
+            out: d.join("out-lying"),
+            backend: Backend::Auto,
+            image: (320, 220),
+            jobs: 1,
+        },
+        &mut |_| {},
+        &mut |n| notes.push(n.to_string()),
+    )
+    .unwrap();
+    assert!(notes.iter().any(|n| n.contains("unoperated shape in this posture")), "{notes:?}");
+    assert!(c.candidates[0].held, "{:?}", c.candidates[0].failure);
 }
