@@ -125,12 +125,47 @@ pub struct CandidateResult {
     /// operated breast carried them, in scene units (`[{ body, name, start, end }]`, as in
     /// `summary.json`).
     pub landmarks: Vec<crate::scene_run::LandmarkSummary>,
+    /// On a patient: the distance between each two of her landmarks at the start and at the
+    /// end, in scene units (a surgeon's sternal notch to nipple, nipple to fold, where the
+    /// scene names them).
+    pub landmark_distances: Vec<LandmarkDistance>,
     /// On a patient: the volume the operation added between her skin and chest wall, in mL
     /// (the `between` body's `volume_ml_end` minus its `volume_ml` at the start).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_gain_ml: Option<f64>,
     /// The metrics at each frame of the run.
     pub history: Vec<Sample>,
+}
+
+/// The distance between two landmarks, as in `compare.json`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct LandmarkDistance {
+    /// One landmark, `body.name`.
+    pub a: String,
+    /// The other.
+    pub b: String,
+    /// Their distance at the start and at the end (scene units).
+    pub start: f32,
+    /// See `start`.
+    pub end: f32,
+}
+
+/// Each two of `marks`' distance at the start and the end, in their order.
+fn distances(marks: &[crate::scene_run::LandmarkSummary]) -> Vec<LandmarkDistance> {
+    let at = |p: [f32; 3]| Vec3::from_array(p);
+    let mut out = Vec::new();
+    for (i, a) in marks.iter().enumerate() {
+        for b in &marks[i + 1..] {
+            out.push(LandmarkDistance {
+                a: format!("{}.{}", a.body, a.name),
+                b: format!("{}.{}", b.body, b.name),
+                start: at(a.start).distance(at(b.start)),
+                end: at(a.end).distance(at(b.end)),
+            });
+        }
+    }
+    out
 }
 
 /// A candidate's metrics at one frame of its run.
@@ -631,6 +666,7 @@ fn run_candidate(
     )?;
     result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
     result.landmarks.clone_from(&summary.landmarks);
+    result.landmark_distances = distances(&result.landmarks);
     result.volume_gain_ml = tissue
         .iter()
         .filter_map(|&t| Some(summary.bodies[t].volume_ml_end? - summary.bodies[t].volume_ml?))
@@ -1289,6 +1325,34 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             patient += "</tr>\n";
         }
         patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.</p>\n";
+        let pairs: Vec<(String, String)> = comparison
+            .candidates
+            .iter()
+            .flat_map(|c| c.landmark_distances.iter().map(|d| (d.a.clone(), d.b.clone())))
+            .fold(Vec::new(), |mut v, m| {
+                if !v.contains(&m) {
+                    v.push(m);
+                }
+                v
+            });
+        if !pairs.is_empty() {
+            patient += "<table id=\"distances\">\n<thead><tr><th>candidate</th>";
+            for (a, b) in &pairs {
+                patient += &format!("<th>{} – {} ({u}): before → after</th>", escape(a), escape(b));
+            }
+            patient += "</tr></thead>\n<tbody>\n";
+            for c in &comparison.candidates {
+                patient += &format!("<tr><th scope=\"row\">{}</th>", escape(&c.name));
+                for (a, b) in &pairs {
+                    match c.landmark_distances.iter().find(|d| &d.a == a && &d.b == b) {
+                        Some(d) => patient += &format!("<td>{:.1} → {:.1}</td>", d.start, d.end),
+                        None => patient += "<td>–</td>",
+                    }
+                }
+                patient += "</tr>\n";
+            }
+            patient += "</tbody></table>\n";
+        }
     }
     let mut figures = String::new();
     for c in &comparison.candidates {

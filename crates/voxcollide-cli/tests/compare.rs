@@ -570,7 +570,7 @@ b = "breast"
             "spacing = 8
 [[body]]",
             "spacing = 8
-landmarks = { nipple = [0, 0, 30] }
+landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
 [[body]]",
         )
         .replace("inflate =", "place = { under = \"breast.nipple\" }\ninflate =")
@@ -588,8 +588,16 @@ landmarks = { nipple = [0, 0, 30] }
         r.not_a_result()
     );
     assert!(r.held, "{:?}", r.failure);
-    assert_eq!(r.landmarks.len(), 1);
-    let nipple = &r.landmarks[0];
+    assert_eq!(r.landmarks.len(), 2);
+    let nipple = r.landmarks.iter().find(|l| l.name == "nipple").unwrap();
+    // The surgeon's distances: nipple to fold, before and after.
+    let apart = &r.landmark_distances;
+    assert_eq!(
+        (apart.len(), apart[0].a.as_str(), apart[0].b.as_str()),
+        (1, "breast.fold", "breast.nipple"),
+        "{apart:?}"
+    );
+    assert!((apart[0].start - 45.0).abs() < 0.5 && apart[0].end > apart[0].start, "{apart:?}");
     assert_eq!((nipple.body.as_str(), nipple.name.as_str()), ("breast", "nipple"));
     assert!(nipple.end[2] > nipple.start[2] + 1.0, "the nipple comes forward: {nipple:?}");
     // The pocket holds nothing but the implant: the volume added is the implant's.
@@ -603,7 +611,7 @@ landmarks = { nipple = [0, 0, 30] }
     let json = std::fs::read_to_string(d.join("out/compare.json")).unwrap();
     assert!(json.contains("\"volume_gain_ml\"") && json.contains("\"landmarks\""), "{json}");
     let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
-    assert!(html.contains("On the patient") && html.contains("breast.nipple"), "report");
+    assert!(html.contains("On the patient") && html.contains("breast.fold – breast.nipple"), "report");
     // `voxcollide run` starts the placed implant deflated too, and fills it under her tissue.
     let own = placed
         .replace(
