@@ -721,7 +721,7 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
     // On a patient: what the operation added between her skin and chest wall is the implant,
     // or the breast did not follow it (a space left open, or tissue stretched or squeezed).
     if let Some(gain) = r.volume_gain_ml
-        && !((gain - r.volume_ml).abs() <= GAIN_TOLERANCE * r.volume_ml)
+        && ((gain - r.volume_ml).abs() > GAIN_TOLERANCE * r.volume_ml || gain.is_nan())
     {
         why.push(format!(
             "the volume added between her skin and chest wall, {gain:.1} mL, is not the implant's {:.1} mL to {:.0} % (docs/patient.md, \"Planning\")",
@@ -1232,6 +1232,17 @@ fn plots(comparison: &Comparison) -> Result<String, Error> {
     Ok(html)
 }
 
+/// `items` without repeats, in the order first seen.
+fn first_seen<T: PartialEq>(items: impl Iterator<Item = T>) -> Vec<T> {
+    let mut out = Vec::new();
+    for m in items {
+        if !out.contains(&m) {
+            out.push(m);
+        }
+    }
+    out
+}
+
 /// `s` with `&`, `<`, `>` and `"` escaped for HTML.
 fn escape(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
@@ -1280,16 +1291,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     // carried her landmarks (docs/design.md §15).
     let mut patient = String::new();
     if comparison.candidates.iter().any(|c| c.volume_gain_ml.is_some() || !c.landmarks.is_empty()) {
-        let marks: Vec<(String, String)> = comparison
-            .candidates
-            .iter()
-            .flat_map(|c| c.landmarks.iter().map(|l| (l.body.clone(), l.name.clone())))
-            .fold(Vec::new(), |mut v, m| {
-                if !v.contains(&m) {
-                    v.push(m);
-                }
-                v
-            });
+        let marks = first_seen(
+            comparison
+                .candidates
+                .iter()
+                .flat_map(|c| c.landmarks.iter().map(|l| (l.body.clone(), l.name.clone()))),
+        );
         patient += "<h2>On the patient</h2>\n<table id=\"patient\">\n<thead><tr><th>candidate</th><th>volume added (mL)</th><th>added / implant</th>";
         for (body, name) in &marks {
             patient += &format!(
@@ -1325,16 +1332,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             patient += "</tr>\n";
         }
         patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.</p>\n";
-        let pairs: Vec<(String, String)> = comparison
-            .candidates
-            .iter()
-            .flat_map(|c| c.landmark_distances.iter().map(|d| (d.a.clone(), d.b.clone())))
-            .fold(Vec::new(), |mut v, m| {
-                if !v.contains(&m) {
-                    v.push(m);
-                }
-                v
-            });
+        let pairs = first_seen(
+            comparison
+                .candidates
+                .iter()
+                .flat_map(|c| c.landmark_distances.iter().map(|d| (d.a.clone(), d.b.clone()))),
+        );
         if !pairs.is_empty() {
             patient += "<table id=\"distances\">\n<thead><tr><th>candidate</th>";
             for (a, b) in &pairs {

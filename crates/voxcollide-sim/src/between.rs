@@ -23,6 +23,7 @@
 use glam::{DVec3, UVec3, Vec3};
 
 use crate::body::{MassSpring, Material, Mode, Spring};
+use crate::geometry::line_crossing;
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::Surface;
 
@@ -121,21 +122,9 @@ impl Sheet {
     pub fn crossings(&self, p: DVec3) -> usize {
         let Some(bin) = self.bin(p) else { return 0 };
         bin.iter()
+            // t > 0; the tilted direction keeps rays off edges.
             .filter(|&&k| {
-                let [a, b, c] = self.triangles[k as usize];
-                // Möller–Trumbore, t > 0; the tilted direction keeps rays off edges.
-                let (e1, e2) = (b - a, c - a);
-                let h = self.dir.cross(e2);
-                let det = e1.dot(h);
-                if det.abs() < 1e-300 {
-                    return false;
-                }
-                let s = p - a;
-                let w1 = s.dot(h) / det;
-                let q = s.cross(e1);
-                let w2 = self.dir.dot(q) / det;
-                let t = e2.dot(q) / det;
-                w1 >= 0.0 && w2 >= 0.0 && w1 + w2 <= 1.0 && t > 0.0
+                line_crossing(p, self.dir, self.triangles[k as usize], 0.0).is_some_and(|t| t > 0.0)
             })
             .count()
     }
@@ -148,17 +137,10 @@ impl Sheet {
         let bin = self.bin(p)?;
         let mut best: Option<f64> = None;
         for &k in bin {
-            let [a, b, c] = self.triangles[k as usize];
-            let (e1, e2) = (b - a, c - a);
-            let h = self.dir.cross(e2);
-            let det = e1.dot(h);
-            if det.abs() < 1e-300 {
-                continue;
-            }
-            let s = p - a;
-            let (w1, q) = (s.dot(h) / det, s.cross(e1));
-            let (w2, t) = (self.dir.dot(q) / det, e2.dot(q) / det);
-            if w1 >= 0.0 && w2 >= 0.0 && w1 + w2 <= 1.0 && t * sign >= 0.0 && t.abs() <= reach {
+            if let Some(t) = line_crossing(p, self.dir, self.triangles[k as usize], 0.0)
+                && t * sign >= 0.0
+                && t.abs() <= reach
+            {
                 best = Some(best.map_or(t, |b: f64| if t.abs() < b.abs() { t } else { b }));
             }
         }

@@ -608,6 +608,24 @@ pub(crate) fn closest_region<V: Coords>(p: V, a: V, b: V, c: V) -> Region<V::S> 
     Region::Face { vb, vc, sum: va + vb + vc }
 }
 
+/// Where the line `p + t·d` meets triangle `[a, b, c]` (Möller and Trumbore 1997): `t`,
+/// where the meeting point's barycentric weights are each at least `-eps`; `None` elsewhere,
+/// or for a line along the triangle's plane.
+#[must_use]
+pub fn line_crossing(p: DVec3, d: DVec3, [a, b, c]: [DVec3; 3], eps: f64) -> Option<f64> {
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let s = p - a;
+    let w1 = s.dot(h) / det;
+    let q = s.cross(e1);
+    let w2 = d.dot(q) / det;
+    (w1 >= -eps && w2 >= -eps && w1 + w2 <= 1.0 + eps).then(|| e2.dot(q) / det)
+}
+
 /// The point of triangle `abc` nearest to `p` ([`closest_region`]); a sliver whose face
 /// weights round to nothing is measured on its edges.
 #[must_use]

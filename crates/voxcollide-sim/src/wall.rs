@@ -58,23 +58,6 @@ impl std::fmt::Display for WallError {
 
 impl std::error::Error for WallError {}
 
-/// Where the line `p + t·d` meets triangle `[a, b, c]`: `t`, or `None` (Möller and Trumbore).
-fn crossing(p: DVec3, d: DVec3, [a, b, c]: [DVec3; 3]) -> Option<f64> {
-    let (e1, e2) = (b - a, c - a);
-    let q = d.cross(e2);
-    let det = e1.dot(q);
-    if det.abs() < 1e-300 {
-        return None;
-    }
-    let s = p - a;
-    let w1 = s.dot(q) / det;
-    let r = s.cross(e1);
-    let w2 = d.dot(r) / det;
-    // A hair's tolerance: a node over an edge between two triangles meets one of them.
-    let eps = 1e-9;
-    (w1 >= -eps && w2 >= -eps && w1 + w2 <= 1.0 + eps).then(|| e2.dot(r) / det)
-}
-
 impl Wall {
     /// The wall of `triangles` (corners, facing outward) under `near`: its frame at the closest
     /// point to `near`, its normal averaged over `radius` about it, and heights on a grid of
@@ -144,7 +127,7 @@ impl Wall {
                 let p = origin + f64::from(cell) * (f64::from(i) * u + f64::from(j) * v);
                 near_tris
                     .iter()
-                    .filter_map(|t| crossing(p, normal, *t))
+                    .filter_map(|t| crate::geometry::line_crossing(p, normal, *t, 1e-9))
                     .min_by(|a, b| a.abs().total_cmp(&b.abs()))
                     .map_or(f32::NAN, |t| t as f32)
             })

@@ -48,7 +48,7 @@ fn landmarks() -> Landmarks {
 /// The breast of `skin` between it and the wall, in a folder of its own, its surfaces and box
 /// turned by `turn` (the identity: standing as scanned, y up).
 fn breast(skin: &str, nipple: [f32; 3], min: [f32; 3], max: [f32; 3], turn: Mat3, spacing: f32) -> Built {
-    build_world(&SceneFile::read(&breast_file(skin, nipple, min, max, turn, spacing, "")).unwrap())
+    build_world(&SceneFile::read(breast_file(skin, nipple, min, max, turn, spacing, "")).unwrap())
         .unwrap_or_else(|e| panic!("{skin}: {e}"))
 }
 
