@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 
 use base64::Engine;
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use voxcollide::{ContactReport, Error};
 use voxcollide_sim::build::build_world;
@@ -47,6 +47,10 @@ pub struct CompareConfig {
     /// Candidates run at a time; 0 picks: on the CPU backend one per core (each stepping on
     /// one thread), else one (candidates share the adapter).
     pub jobs: usize,
+    /// Choose from the catalogue by her breast's base width (`--fit-base`): only implants
+    /// whose base is no wider than it, and at most this many millimetres narrower
+    /// ([`fitting`]). `None`: every candidate.
+    pub fit_base: Option<f64>,
 }
 
 /// One candidate's result, as in `compare.json` (docs/design.md §9's keys first).
@@ -243,6 +247,43 @@ fn with_candidate(
     s
 }
 
+/// Her breast's base width in millimetres, between the landmarks `medial` and `lateral` of a
+/// tissue body (where a surgeon measures it, at the breast's inner and outer borders), and
+/// which landmarks those were.
+///
+/// # Errors
+/// [`Error::Invalid`] when no tissue body has both landmarks.
+pub fn base_width(scene: &SceneFile, tissue: &[usize]) -> Result<(f64, String), Error> {
+    for &t in tissue {
+        let b = &scene.bodies[t];
+        let at = |name: &str| b.landmarks.iter().find(|(n, _)| n == name).map(|(_, p)| DVec3::from_array(*p));
+        if let (Some(m), Some(l)) = (at("medial"), at("lateral")) {
+            let mm = m.distance(l) * scene.metres() * 1e3;
+            return Ok((mm, format!("{0}.medial – {0}.lateral", b.name)));
+        }
+    }
+    Err(Error::Invalid {
+        what: "--fit-base",
+        value: scene.path.display().to_string(),
+        rule: "needs her breast's borders: give the tissue `landmarks` named `medial` and `lateral` (its inner and outer edges on the skin)".into(),
+    })
+}
+
+/// The candidates whose implant base is no wider than `width` and at most `margin`
+/// millimetres narrower, in their order. A candidate that is not an `implant` shape (a mesh)
+/// has no base width to judge, and is kept.
+#[must_use]
+pub fn fitting(candidates: &[Candidate], width: f64, margin: f64) -> Vec<Candidate> {
+    candidates
+        .iter()
+        .filter(|c| match c.geometry {
+            Geometry::Shape(Shape::Implant { base_mm, .. }) => base_mm <= width && base_mm >= width - margin,
+            _ => true,
+        })
+        .cloned()
+        .collect()
+}
+
 /// Starts shell `b` (its shape `height` high) deflated flat on its base, under tissue `room`
 /// above that base whose spacing is `spacing` (scene units). Its top starts a tenth of the
 /// room (at least a twentieth of the tissue's spacing) under the tissue, but it is never
@@ -352,7 +393,7 @@ pub fn compare(
     note: &mut dyn FnMut(&str),
 ) -> Result<Comparison, Error> {
     let scene = SceneFile::read(&config.scene)?;
-    let catalogue = Catalogue::read(&config.candidates)?;
+    let mut catalogue = Catalogue::read(&config.candidates)?;
     let names: Vec<&str> = scene.bodies.iter().map(|b| b.name.as_str()).collect();
     let body = names.iter().position(|n| *n == config.body).ok_or_else(|| Error::Invalid {
         what: "--body",
@@ -398,6 +439,31 @@ pub fn compare(
                 "the compared body {:?} is not placed on this patient's chest wall: give it `place = {{ under = \"{}.<landmark>\" }}` (docs/design.md §15)",
                 config.body, scene.bodies[t].name
             ),
+        ));
+    }
+
+    // Chosen by her breast's base width: the candidates that fit it.
+    if let Some(margin) = config.fit_base {
+        let (width, between) = base_width(&scene, &tissue)?;
+        let all = catalogue.candidates.len();
+        catalogue.candidates = fitting(&catalogue.candidates, width, margin);
+        let names: Vec<&str> = catalogue.candidates.iter().map(|c| c.name.as_str()).collect();
+        if names.is_empty() {
+            return Err(Error::Invalid {
+                what: "--fit-base",
+                value: format!("{margin} mm"),
+                rule: format!(
+                    "no candidate of {} has a base from {:.0} to {width:.0} mm wide, to fit her breast's base of {width:.0} mm ({between})",
+                    config.candidates.display(),
+                    width - margin
+                ),
+            });
+        }
+        note(&format!(
+            "her breast's base is {width:.0} mm wide ({between}): {} of {all} candidates have a base from {:.0} to {width:.0} mm: {}",
+            names.len(),
+            width - margin,
+            names.join(", ")
         ));
     }
 

@@ -96,6 +96,10 @@ struct CompareArgs {
     /// one.
     #[arg(long, default_value_t = 0)]
     jobs: usize,
+    /// Choose from the catalogue by her breast's base width (between the tissue's landmarks
+    /// `medial` and `lateral`): only implants no wider than it and at most MM narrower.
+    #[arg(long, value_name = "MM", num_args = 0..=1, default_missing_value = "20")]
+    fit_base: Option<f64>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -688,6 +692,7 @@ fn compare(args: &CompareArgs) -> ExitCode {
         backend: backend_of(args.backend),
         image: args.image,
         jobs: args.jobs,
+        fit_base: args.fit_base,
     };
     let bars = CandidateBars::new();
     let mut running = std::collections::HashMap::new();

@@ -179,6 +179,7 @@ pub fn run_group(
         backend,
         image: (320, 200),
         jobs: 0,
+        fit_base: None,
     };
     let cells = match compare(&config, progress, note) {
         Err(e) => volumes

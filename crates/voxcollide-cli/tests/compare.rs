@@ -110,6 +110,7 @@ fn run_on(
             backend,
             image: (320, 220),
             jobs,
+            fit_base: None,
         },
         &mut |_| {},
         &mut |_| {},
@@ -390,6 +391,7 @@ fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
         backend: Backend::Cpu,
         image: (320, 220),
         jobs: 0,
+        fit_base: None,
     };
     let e = compare(&config, &mut |_| {}, &mut |_| {}).unwrap_err();
     assert!(matches!(&e, Error::Invalid { rule, .. } if rule.contains("tissue, implant")), "{e}");
@@ -651,6 +653,7 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
             backend: Backend::Auto,
             image: (320, 220),
             jobs: 1,
+            fit_base: None,
         },
         &mut |_| {},
         &mut |n| notes.push(n.to_string()),
@@ -658,4 +661,40 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
     .unwrap();
     assert!(notes.iter().any(|n| n.contains("unoperated shape in this posture")), "{notes:?}");
     assert!(c.candidates[0].held, "{:?}", c.candidates[0].failure);
+
+    // Chosen by her breast's base width, between her `medial` and `lateral` landmarks.
+    let bordered = placed.replace(
+        "fold = [0, -45, 30] }",
+        "fold = [0, -45, 30], medial = [-45, 0, 30], lateral = [45, 0, 30] }",
+    );
+    std::fs::write(d.join("scene.toml"), &bordered).unwrap();
+    let scene = voxcollide_sim::scene_file::SceneFile::read(d.join("scene.toml")).unwrap();
+    let (width, between) = voxcollide_cli::compare::base_width(&scene, &[0]).unwrap();
+    assert!((width - 90.0).abs() < 1e-9 && between == "breast.medial – breast.lateral", "{width} {between}");
+    let catalogue = "[[candidate]]\nname = \"narrow\"\nshape = { implant = { volume_ml = 40, base_mm = 60, profile = \"moderate\" } }\n\
+                     [[candidate]]\nname = \"fits\"\nshape = { implant = { volume_ml = 100, base_mm = 85, profile = \"moderate\" } }\n\
+                     [[candidate]]\nname = \"wide\"\nshape = { implant = { volume_ml = 300, base_mm = 115, profile = \"moderate\" } }\n";
+    std::fs::write(d.join("candidates.toml"), catalogue).unwrap();
+    let all = voxcollide_sim::catalogue::Catalogue::read(d.join("candidates.toml")).unwrap();
+    let chosen: Vec<String> =
+        voxcollide_cli::compare::fitting(&all.candidates, width, 20.0).into_iter().map(|c| c.name).collect();
+    assert_eq!(chosen, ["fits"]);
+    let config = |fit_base| CompareConfig {
+        scene: d.join("scene.toml"),
+        body: "implant".into(),
+        candidates: d.join("candidates.toml"),
+        out: d.join("out-fit"),
+        backend: Backend::Cpu,
+        image: (320, 220),
+        jobs: 1,
+        fit_base,
+    };
+    // None fits within 2 mm: said, naming the widths, before anything is written.
+    let e = compare(&config(Some(2.0)), &mut |_| {}, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("--fit-base") && e.contains("90 mm"), "{e}");
+    assert!(!d.join("out-fit").exists());
+    // Without her borders, it says which landmarks it needs.
+    std::fs::write(d.join("scene.toml"), &placed).unwrap();
+    let e = compare(&config(Some(20.0)), &mut |_| {}, &mut |_| {}).unwrap_err().to_string();
+    assert!(e.contains("medial") && e.contains("lateral"), "{e}");
 }
