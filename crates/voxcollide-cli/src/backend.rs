@@ -46,11 +46,16 @@ pub fn context(
 /// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
 /// does: the implicit integrator, whose solve waits on the device every few iterations (on
 /// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
-/// contact, whose search runs on the host and makes each GPU step wait for the positions.
+/// contact, whose search runs on the host and makes each GPU step wait for the positions; and
+/// always for a curved chest wall (an implant placed on a patient), which only the CPU holds.
 /// `--backend gpu` steps every world on the device: both integrators, springs or
 /// `"neo-hookean"` tetrahedra, and every contact response.
 pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
-    if world.integrator != Integrator::Explicit {
+    if world.bodies.iter().any(|b| b.wall.is_some()) {
+        Some(
+            "an implant placed on a patient's chest wall (only the CPU backend holds a curved wall and seals the pocket)",
+        )
+    } else if world.integrator != Integrator::Explicit {
         Some(
             "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
         )
