@@ -2,6 +2,8 @@
 //! inside a box, from generated parametric breasts; its held vertices, its landmarks and its
 //! volume; and each bad input named.
 
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod adapter;
 mod common;
 
 use common::shapes::{breast_skin, height_sheet, write_stl};
@@ -356,4 +358,14 @@ fn a_filled_implant_on_the_wall_adds_its_own_volume_and_never_goes_behind_the_wa
     eprintln!("{gain:.1} mL added by an implant holding {filled:.1} mL");
     assert!((filled / 200.0 - 1.0).abs() < 0.02, "filled to {filled} mL");
     assert!((gain / filled - 1.0).abs() < 0.05, "{gain} mL added by {filled} mL");
+}
+
+#[test]
+fn the_gpu_world_refuses_a_curved_wall_by_name() {
+    let Some(ctx) = adapter::gpu() else { return };
+    let dir = folder("gpu-wall");
+    write_breast(&dir, 120.0);
+    let built = read(&dir, &placed(&dir, "place = { under = \"breast.nipple\" }", "")).unwrap();
+    let e = voxcollide_sim::GpuWorld::new(&ctx, built.world).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("curved chest wall") && e.contains("--backend cpu"), "{e}");
 }
