@@ -457,13 +457,19 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     println!("{:<28} {f}: these numbers are not a result", "warning:");
                 }
             }
+            let stalled = s.criterion.starts_with("stalled");
             println!(
-                "{:<28} {} (over the last {:.3} s a vertex moved at most {:.3} of its spacing; at rest: {})",
+                "{:<28} {} (over the last {:.3} s a vertex moved at most {:.3} of its spacing; at rest: {}{})",
                 "settled",
                 s.settled,
                 s.rest_window,
                 s.rest_motion,
-                voxcollide_cli::scene_run::REST_TOLERANCE
+                voxcollide_cli::scene_run::REST_TOLERANCE,
+                if stalled {
+                    " for all but a hundredth of the soft bodies' vertices, the residual having stalled"
+                } else {
+                    ""
+                }
             );
             if let Some(r) = s.residual {
                 let floor = s.residual_floor.map_or(String::new(), |f| {
