@@ -62,12 +62,11 @@ fn breast_file(
     spacing: f32,
     more: &str,
 ) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!(
-        "voxcollide-patient-{skin}-{}-{}-{}",
-        turn.z_axis.y,
-        more.len(),
-        std::process::id()
-    ));
+    // A folder of its own per call: the tests run at once, and two writing one skin file
+    // while a third reads it built a body of nothing.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let dir = std::env::temp_dir().join(format!("voxcollide-patient-{skin}-{call}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     for (from, to) in [(format!("skin-{skin}.stl"), "skin.stl"), ("wall.stl".into(), "wall.stl")] {
         let mut s = read_sheet(&data().join(from)).unwrap();
