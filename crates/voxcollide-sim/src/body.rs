@@ -514,11 +514,13 @@ impl MassSpring {
         self.wall.as_ref().map_or(Vec3::Z, |w| w.normal)
     }
 
-    /// Whether `p` is on or behind the body's floor raised to `floor` ([`StepInputs::floor`]).
+    /// Whether a vertex at `p` rests on the body's floor raised to `floor`
+    /// ([`StepInputs::floor`]): on or behind it, or, on a curved wall, a rounding in front of it
+    /// ([`Wall::rests`](crate::wall::Wall::rests)).
     #[must_use]
     pub fn on_floor(&self, p: Vec3, floor: f32) -> bool {
         match &self.wall {
-            Some(w) => w.holds(p, floor),
+            Some(w) => w.rests(p, floor),
             None => p.z <= floor,
         }
     }

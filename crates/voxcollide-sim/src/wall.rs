@@ -18,6 +18,9 @@
 
 use glam::{DVec3, Vec3};
 
+/// How far in front of the wall, in its grid's cells, a vertex still [rests](Wall::rests) on it.
+pub const RESTING: f32 = 0.05;
+
 /// The wall under a placed implant: its heights over the plane tangent to it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wall {
@@ -191,6 +194,16 @@ impl Wall {
         self.height(l.x, l.y).map(|h| l.z - h - offset)
     }
 
+    /// Whether a vertex at `p` rests on the wall raised by `offset`, for a step's solve and its
+    /// residual: on it, behind it, or within [`RESTING`] of its cell in front of it. A vertex
+    /// that slid a rounding off the wall is still on it (taken as in flight, the solve pulled
+    /// it back at the speed its load gives in one step, and the whole step was cut short to
+    /// keep that motion within what a contact sees arrive).
+    #[must_use]
+    pub fn rests(&self, p: Vec3, offset: f32) -> bool {
+        self.above(p, offset).is_some_and(|a| a <= RESTING * self.cell)
+    }
+
     /// Whether `p` is on or behind the wall raised by `offset`: within a thousandth of the
     /// grid's cell of it (a point [`push_out`](Self::push_out) put on the wall is there to a
     /// rounding of its coordinates, either side).
@@ -261,6 +274,10 @@ mod tests {
         // Raised by an offset, it holds that far in front.
         assert!(wall.holds(wall.point(Vec3::new(0.0, 0.0, 1.0)), 2.0));
         assert!(!wall.holds(wall.point(Vec3::new(0.0, 0.0, 1.0)), 0.0));
+        // A vertex a rounding in front of it rests on it; one a fraction of a cell off does not.
+        let on = |x: f32, gap: f32| wall.point(Vec3::new(x, 0.0, wall.height(x, 0.0).unwrap() + gap));
+        assert!(wall.rests(on(40.0, 0.5 * RESTING * 2.5), 0.0));
+        assert!(!wall.rests(on(40.0, 2.0 * RESTING * 2.5), 0.0));
         // Off the grid it holds nothing.
         assert_eq!(wall.height(500.0, 0.0), None);
     }

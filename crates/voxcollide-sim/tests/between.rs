@@ -369,3 +369,60 @@ fn the_gpu_world_refuses_a_curved_wall_by_name() {
     let e = voxcollide_sim::GpuWorld::new(&ctx, built.world).map(|_| ()).unwrap_err().to_string();
     assert!(e.contains("curved chest wall") && e.contains("--backend cpu"), "{e}");
 }
+
+#[test]
+fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
+    use voxcollide::glam::Vec3;
+    // A chest curved like a barrel across her (radius 150 mm), standing: her weight draws the
+    // tissue and the implant down and around the curve, sliding on the wall. A vertex that
+    // slid a rounding off a curved wall was once taken as in flight, pulled back by its load at
+    // full speed, and the whole step split into parts to keep that motion within what a contact
+    // sees arrive: five or six parts a step here. Resting on the wall within a twentieth of
+    // its grid's cell (`Wall::rests`; docs/patient.md, "Planning on a patient"), it slides on,
+    // and a step takes about two.
+    let dir = folder("curved");
+    let chest = |y: f64| 150.0 - (150.0f64 * 150.0 - y * y).sqrt();
+    let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
+    write_stl(&dir.join("skin.stl"), &height_sheet(120.0, 48, |x, y| skin(x, y) - chest(y)));
+    write_stl(&dir.join("wall.stl"), &height_sheet(120.0, 48, |_, y| -chest(y)));
+    let text =
+        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
+            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let text = text
+        .replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true")
+        .replace("units = \"mm\"", "units = \"mm\"\n[world]\ngravity = [0, -9.81, 0]\nup = \"y\"")
+        .replace("min = [-90.0, -90.0, -10.0]", "min = [-90.0, -90.0, -40.0]");
+    let path = dir.join("breast.toml");
+    std::fs::write(&path, &text).unwrap();
+    let mut file = SceneFile::read(&path).unwrap();
+    let height = 30.0; // 100 mm × 0.30 (moderate)
+    file.bodies[1].flatten = Some(0.2);
+    file.bodies[1].sink = 0.2 * height + 0.3;
+    let built = build_world(&file).unwrap();
+    let centre = |b: &voxcollide_sim::MassSpring| b.pos.iter().copied().sum::<Vec3>() / b.len() as f32;
+    let start = centre(&built.world.bodies[1]);
+    let mut world = voxcollide_sim::CpuWorld::new(built.world).unwrap();
+    let mut parts = Vec::new();
+    for _ in 0..200 {
+        world.step().unwrap();
+        parts.push(voxcollide_sim::Simulation::parts(&world).map_or(1, |p| p.substeps));
+    }
+    let (tissue, implant) = (&world.world.bodies[0], &world.world.bodies[1]);
+    let wall = implant.wall.as_ref().unwrap();
+    for (b, name) in [(implant, "implant"), (tissue, "tissue")] {
+        for (p, m) in b.pos.iter().zip(&b.mode) {
+            if *m == Mode::Free
+                && let Some(a) = wall.above(*p, 0.0)
+            {
+                assert!(a > -1e-3, "the {name}'s {p} is {a} behind the wall");
+            }
+        }
+    }
+    let most = parts[100..].iter().copied().max().unwrap_or(1);
+    eprintln!(
+        "the implant's centre moved {:?}; parts a step over the last 100: at most {most}",
+        centre(implant) - start
+    );
+    let mean = parts[100..].iter().sum::<u32>() as f32 / 100.0;
+    assert!(mean <= 3.0, "a step took {mean} parts: {:?}", &parts[100..]);
+}

@@ -624,8 +624,8 @@ struct Joint<'a> {
     /// triangle's point).
     damping: Vec<f32>,
     free: Vec<Vec<bool>>,
-    /// Per body: the vertices resting on its floor, pushed into it: their vertical
-    /// velocity is held at 0 within the solve (the solve's `Δv` is filtered, Baraff and Witkin
+    /// Per body: the vertices resting on its floor, pushed into it: their velocity along its
+    /// normal is held at 0 within the solve (the solve's `Δv` is filtered, Baraff and Witkin
     /// 1998), not only projected after it.
     on_floor: Vec<Vec<u32>>,
     /// Per body: its floor's normal ([`MassSpring::floor_normal`]).
@@ -843,12 +843,26 @@ pub fn integrate_implicit_together(
     let farthest = new_vel
         .iter()
         .zip(&joint.free)
-        .map(|(v, free)| {
+        .zip(joint.bodies.iter().zip(steps))
+        .map(|((v, free), (body, step))| {
+            let wall = body.wall.as_deref();
             v.par_iter()
                 .zip(free)
+                .enumerate()
                 .with_min_len(CHUNK)
-                .filter(|(_, f)| **f)
-                .map(|(v, _)| h * v.length())
+                .filter(|(_, (_, f))| **f)
+                .map(|(i, (v, _))| {
+                    // A curved wall stops what would carry a vertex into it: the vertex moves
+                    // only as far as the wall lets it, and keeps the speed the wall leaves it,
+                    // which carries it on in the next step. (A flat floor's vertices are held
+                    // in the solve exactly, and the GPU's twin measures the solved motion.)
+                    if wall.is_none() {
+                        return h * v.length();
+                    }
+                    let (mut p, mut w) = (body.pos[i] + h * *v, *v);
+                    onto_floor(&mut p, &mut w, step.inputs.floor, wall);
+                    p.distance(body.pos[i]).max(h * w.length())
+                })
                 .reduce(|| 0.0f32, f32::max)
         })
         .fold(0.0f32, f32::max);
