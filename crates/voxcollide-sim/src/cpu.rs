@@ -188,10 +188,16 @@ impl CpuWorld {
         for k in 0..w.bodies.len() {
             self.contacts.forces_on(k, &self.reports, &mut self.contact_force[k]);
         }
-        // A pocket's suction is a load beside the contacts' (crate::pocket).
+        // A pocket's suction is a load beside the contacts' (crate::pocket), and the implicit
+        // solve takes its stiffness.
         for pocket in &mut w.pockets {
             pocket.add_forces(&w.bodies, &mut self.contact_force);
         }
+        let rank_one: Vec<_> = if implicit.is_some() {
+            w.pockets.iter().map(|p| p.linearised(&w.bodies)).collect()
+        } else {
+            Vec::new()
+        };
         for (k, body) in w.bodies.iter_mut().enumerate() {
             body.hold_fill(&inputs[k]);
             body.forces(&inputs[k], &self.contact_force[k], &mut self.forces[k]);
@@ -203,6 +209,7 @@ impl CpuWorld {
             contacts: &self.contacts,
             reports: &self.reports,
             pairs: &w.contacts,
+            rank_one: &rank_one,
         };
         let residual = match implicit {
             None => Explicit.integrate(&mut w.bodies, &loads),

@@ -426,3 +426,57 @@ fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
     let mean = parts[100..].iter().sum::<u32>() as f32 / 100.0;
     assert!(mean <= 3.0, "a step took {mean} parts: {:?}", &parts[100..]);
 }
+
+#[test]
+fn the_pockets_suction_falls_as_it_draws_and_the_solve_takes_its_stiffness() {
+    use voxcollide::glam::Vec3;
+    // The implicit solve takes a sealed pocket's suction as `−K_s = (K/V)·w·wᵀ`, `w` the force
+    // per unit suction on each vertex. That holds if moving the vertices along `w` shuts the
+    // pocket's space by `Σ|w|²` per unit: checked here on a filled implant's pocket, its
+    // tissue drawn off the implant so that the suction draws.
+    let dir = folder("suction");
+    write_breast(&dir, 120.0);
+    let text =
+        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
+            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let built = read(&dir, &text).unwrap();
+    let mut bodies = built.world.bodies.clone();
+    let pocket = built.world.pockets[0].clone();
+    // Shrink the implant to an eighth of its volume, and lift the pocket's tissue 5 mm off
+    // the wall: a space opens beside it, and the suction draws.
+    let c = bodies[1].pos.iter().copied().sum::<Vec3>() / bodies[1].len() as f32;
+    for p in &mut bodies[1].pos {
+        *p = c + 0.5 * (*p - c);
+    }
+    for &i in pocket.faces.iter().flatten() {
+        bodies[0].pos[i as usize].z += 5.0;
+    }
+    assert!(pocket.void(&bodies) > 0.0 && pocket.suction(&bodies) > 0.0);
+    let r = pocket.linearised(&bodies);
+    assert!(r.stiffness > 0.0);
+    assert!((r.stiffness - pocket.stiffness / pocket.volume as f32).abs() <= 1e-6 * r.stiffness);
+    // Its force is the suction times `w`, on both bodies.
+    let mut forces: Vec<Vec<Vec3>> = bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect();
+    let mut drawing = pocket.clone();
+    drawing.hold = 0.0;
+    drawing.add_forces(&bodies, &mut forces);
+    let p = drawing.suction(&bodies);
+    for (k, f) in forces.iter().enumerate() {
+        for (i, f) in f.iter().enumerate() {
+            assert!(f.distance(p * r.direction[k][i]) <= 1e-4 * (1.0 + f.length()), "body {k} vertex {i}");
+        }
+    }
+    // Along `w` the space shuts by Σ|w|² per unit.
+    let norm2: f64 = r.direction.iter().flatten().map(|w| f64::from(w.length_squared())).sum();
+    let step = 1e-3 / norm2.sqrt() as f32; // a thousandth of a millimetre, over all vertices
+    let before = pocket.void(&bodies);
+    for (b, w) in bodies.iter_mut().zip(&r.direction) {
+        for (p, w) in b.pos.iter_mut().zip(w) {
+            *p += step * *w;
+        }
+    }
+    let shut = before - pocket.void(&bodies);
+    let want = f64::from(step) * norm2;
+    eprintln!("shut {shut:.4} mm³ along w, against Σ|w|²·ε = {want:.4}");
+    assert!((shut / want - 1.0).abs() < 0.05, "shut {shut} against {want}");
+}

@@ -322,8 +322,14 @@ impl MassSpring {
         settings: &ImplicitSettings,
     ) -> StepStats {
         let step = BodyStep { inputs, forces: f, contact, contact_k, contact_vel };
-        integrate_implicit_together(std::slice::from_mut(self), &[step], &[], settings, &mut Guess::default())
-            [0]
+        integrate_implicit_together(
+            std::slice::from_mut(self),
+            &[step],
+            &[],
+            &[],
+            settings,
+            &mut Guess::default(),
+        )[0]
     }
 
     /// The symmetric blocks of this body's share of one step's system; `extra` adds to the
@@ -535,6 +541,24 @@ impl MassSpring {
     }
 }
 
+/// A load whose stiffness joins many vertices of several bodies in one rank: `−K = k·wwᵀ`
+/// over every body's vertices (a sealed pocket's suction, [`crate::pocket::Pocket::linearised`]).
+/// Its force is among the bodies' forces already; this is what the solve takes of it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RankOne {
+    /// `k` (force per unit length per unit of `w` squared); 0: none.
+    pub stiffness: f32,
+    /// `w`, per body and vertex; a body it does not touch has none (an empty list).
+    pub direction: Vec<Vec<Vec3>>,
+}
+
+impl RankOne {
+    /// `w·u` over every body it touches, in body order, each body's sum in fixed chunks.
+    fn along(&self, u: &[Vec<Vec3>]) -> f64 {
+        self.direction.iter().zip(u).filter(|(w, _)| !w.is_empty()).map(|(w, u)| dot(w, u)).sum()
+    }
+}
+
 /// One body's part in [`integrate_implicit_together`].
 #[derive(Clone, Copy, Debug)]
 pub struct BodyStep<'a> {
@@ -630,6 +654,8 @@ struct Joint<'a> {
     on_floor: Vec<Vec<u32>>,
     /// Per body: its floor's normal ([`MassSpring::floor_normal`]).
     normals: Vec<Vec3>,
+    /// The loads of rank one across bodies.
+    rank_one: &'a [RankOne],
     h: f32,
 }
 
@@ -654,6 +680,16 @@ impl Joint<'_> {
         for ((c, d), _) in self.couplings.iter().zip(&self.damping).zip(&self.active).filter(|(_, a)| **a) {
             let s = if stiff_only { c.stiffness } else { h * h * c.stiffness + h * d };
             c.add(s, u, out, &self.free, stiff_only);
+        }
+        for r in self.rank_one.iter().filter(|r| r.stiffness > 0.0) {
+            let s = (if stiff_only { 1.0 } else { h * h }) * r.stiffness * r.along(u) as f32;
+            for ((w, out), free) in r.direction.iter().zip(out.iter_mut()).zip(&self.free) {
+                out.par_iter_mut().zip(w).zip(free).with_min_len(CHUNK).for_each(|((o, w), f)| {
+                    if stiff_only || *f {
+                        *o += s * *w;
+                    }
+                });
+            }
         }
     }
 
@@ -686,14 +722,25 @@ pub fn integrate_implicit_together(
     bodies: &mut [MassSpring],
     steps: &[BodyStep],
     couplings: &[Coupling],
+    rank_one: &[RankOne],
     settings: &ImplicitSettings,
     guess: &mut Guess,
 ) -> Vec<StepStats> {
     assert_eq!(bodies.len(), steps.len(), "one step per body");
     let Some(h) = steps.first().map(|s| s.inputs.dt) else { return Vec::new() };
-    // The couplings' damping and their diagonal blocks (for the preconditioner).
+    // The couplings' damping and their diagonal blocks (for the preconditioner), and the
+    // loads of rank one's.
     let damping = coupling_damping(bodies, couplings);
-    let extra = coupling_blocks(bodies, couplings, &damping, h);
+    let mut extra = coupling_blocks(bodies, couplings, &damping, h);
+    for r in rank_one.iter().filter(|r| r.stiffness > 0.0) {
+        for (k, w) in r.direction.iter().enumerate().filter(|(_, w)| !w.is_empty()) {
+            let blocks = &mut extra[k];
+            blocks.resize(w.len(), Mat3::ZERO);
+            for (b, w) in blocks.iter_mut().zip(w) {
+                *b += (h * h * r.stiffness) * outer(*w);
+            }
+        }
+    }
     // The vertices resting on their floor and pushed into it: still vertically, in the solve.
     let mut on_floor: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
     let normals: Vec<Vec3> = bodies.iter().map(MassSpring::floor_normal).collect();
@@ -736,7 +783,7 @@ pub fn integrate_implicit_together(
     let vel: Vec<Vec<Vec3>> = bodies.iter().map(|b| b.vel.clone()).collect();
     let active = couplings.iter().map(Coupling::touching).collect();
     let mut joint =
-        Joint { bodies: &*bodies, systems, couplings, active, damping, free, on_floor, normals, h };
+        Joint { bodies: &*bodies, systems, couplings, active, damping, free, on_floor, normals, rank_one, h };
     let zeros = || -> Vec<Vec<Vec3>> { bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect() };
     let any_held = prescribed.iter().flatten().any(|p| *p != Vec3::ZERO);
     // b = h·(f − C_c·v_rel + h·K·v) − A·Δv_prescribed, on the free vertices, over the couplings
@@ -1114,7 +1161,14 @@ impl CpuIntegrator for Implicit<'_> {
                 contact_vel: &contact_vel[k],
             })
             .collect();
-        *self.stats = integrate_implicit_together(bodies, &steps, &couplings, &self.settings, self.guess);
+        *self.stats = integrate_implicit_together(
+            bodies,
+            &steps,
+            &couplings,
+            loads.rank_one,
+            &self.settings,
+            self.guess,
+        );
         residual
     }
 }

@@ -57,6 +57,9 @@ pub struct Loads<'a> {
     pub reports: &'a [ContactReport],
     /// The world's pairs in contact, in contact order.
     pub pairs: &'a [ContactPair],
+    /// What an implicit solve takes of the loads whose stiffness joins many vertices (a sealed
+    /// pocket's suction); their forces are in `forces`.
+    pub rank_one: &'a [implicit::RankOne],
 }
 
 /// An integrator on the CPU: moves every body of a world by one step (or part of one).
