@@ -246,6 +246,25 @@ spacing = 6
         )
 }
 
+/// A 200 mL implant placed under the nipple, filling, in contact with the breast.
+fn filling(dir: &std::path::Path) -> String {
+    placed(dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
+        + "[[contact]]\na = \"implant\"\nb = \"breast\"\n"
+}
+
+/// The world of `text`, its implant started as `voxcollide compare` starts it: deflated to a
+/// fifth of its height (30 mm: 100 mm × 0.30, moderate), sunk behind the wall by as much,
+/// rising as it fills (docs/design.md §15).
+fn deflated(dir: &std::path::Path, text: &str) -> voxcollide_sim::build::Built {
+    let path = dir.join("breast.toml");
+    std::fs::write(&path, text).unwrap();
+    let mut file = SceneFile::read(&path).unwrap();
+    let height = 30.0;
+    file.bodies[1].flatten = Some(0.2);
+    file.bodies[1].sink = 0.2 * height + 0.3;
+    build_world(&file).unwrap()
+}
+
 #[test]
 fn an_implant_is_placed_flat_on_a_flat_wall_and_its_pocket_let_go() {
     let dir = folder("placed");
@@ -317,17 +336,9 @@ fn a_filled_implant_on_the_wall_adds_its_own_volume_and_never_goes_behind_the_wa
     // wall by as much, rising as it fills (docs/design.md §15).
     let dir = folder("filled");
     write_breast(&dir, 120.0);
-    let text =
-        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
-            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let text = filling(&dir);
     let text = text.replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true");
-    let path = dir.join("breast.toml");
-    std::fs::write(&path, &text).unwrap();
-    let mut file = SceneFile::read(&path).unwrap();
-    let height = 30.0; // 100 mm × 0.30 (moderate)
-    file.bodies[1].flatten = Some(0.2);
-    file.bodies[1].sink = 0.2 * height + 0.3;
-    let built = build_world(&file).unwrap();
+    let built = deflated(&dir, &text);
     let faces = built.notes[0].wall_faces.clone().unwrap();
     assert_eq!(built.world.pockets.len(), 1, "the pocket is sealed");
     let mut world = voxcollide_sim::CpuWorld::new(built.world).unwrap();
@@ -385,20 +396,12 @@ fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
     let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
     write_stl(&dir.join("skin.stl"), &height_sheet(120.0, 48, |x, y| skin(x, y) - chest(y)));
     write_stl(&dir.join("wall.stl"), &height_sheet(120.0, 48, |_, y| -chest(y)));
-    let text =
-        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
-            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let text = filling(&dir);
     let text = text
         .replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true")
         .replace("units = \"mm\"", "units = \"mm\"\n[world]\ngravity = [0, -9.81, 0]\nup = \"y\"")
         .replace("min = [-90.0, -90.0, -10.0]", "min = [-90.0, -90.0, -40.0]");
-    let path = dir.join("breast.toml");
-    std::fs::write(&path, &text).unwrap();
-    let mut file = SceneFile::read(&path).unwrap();
-    let height = 30.0; // 100 mm × 0.30 (moderate)
-    file.bodies[1].flatten = Some(0.2);
-    file.bodies[1].sink = 0.2 * height + 0.3;
-    let built = build_world(&file).unwrap();
+    let built = deflated(&dir, &text);
     let centre = |b: &voxcollide_sim::MassSpring| b.pos.iter().copied().sum::<Vec3>() / b.len() as f32;
     let start = centre(&built.world.bodies[1]);
     let mut world = voxcollide_sim::CpuWorld::new(built.world).unwrap();
@@ -436,9 +439,7 @@ fn the_pockets_suction_falls_as_it_draws_and_the_solve_takes_its_stiffness() {
     // tissue drawn off the implant so that the suction draws.
     let dir = folder("suction");
     write_breast(&dir, 120.0);
-    let text =
-        placed(&dir, "place = { under = \"breast.nipple\" }", "inflate = { volume_ml = 200, ramp = 0.3 }")
-            + "[[contact]]\na = \"implant\"\nb = \"breast\"\n";
+    let text = filling(&dir);
     let built = read(&dir, &text).unwrap();
     let mut bodies = built.world.bodies.clone();
     let pocket = built.world.pockets[0].clone();
