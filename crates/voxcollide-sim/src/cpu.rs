@@ -190,14 +190,13 @@ impl CpuWorld {
         }
         // A pocket's suction is a load beside the contacts' (crate::pocket), and the implicit
         // solve takes its stiffness.
+        let mut rank_one = Vec::new();
         for pocket in &mut w.pockets {
-            pocket.add_forces(&w.bodies, &mut self.contact_force);
+            let suction = pocket.add_forces(&w.bodies, &mut self.contact_force);
+            if implicit.is_some() {
+                rank_one.push(pocket.linearised(&w.bodies, suction));
+            }
         }
-        let rank_one: Vec<_> = if implicit.is_some() {
-            w.pockets.iter().map(|p| p.linearised(&w.bodies)).collect()
-        } else {
-            Vec::new()
-        };
         for (k, body) in w.bodies.iter_mut().enumerate() {
             body.hold_fill(&inputs[k]);
             body.forces(&inputs[k], &self.contact_force[k], &mut self.forces[k]);

@@ -90,54 +90,49 @@ impl Pocket {
     /// The suction's stiffness as the implicit solve takes it: `−K_s = (K/V)·w·wᵀ` over both
     /// bodies' vertices, `w` the force per unit suction on each vertex (the tissue's let-go
     /// faces, toward the wall, and the implant's surface, outward), where the suction draws
-    /// (none where it is 0). Moving a vertex along its force shuts the space by as much, so
-    /// the suction falls as it draws: an explicit load, it overshot and blew a patient up
-    /// where the wall let her tissue slide.
+    /// (`suction`, as [`add_forces`](Self::add_forces) returned it; none where it is 0). Moving
+    /// a vertex along its force shuts the space by as much, so the suction falls as it draws:
+    /// an explicit load, it overshot and blew a patient up where the wall let her tissue slide.
     #[must_use]
-    pub fn linearised(&self, bodies: &[MassSpring]) -> RankOne {
+    pub fn linearised(&self, bodies: &[MassSpring], suction: f32) -> RankOne {
         let mut direction: Vec<Vec<Vec3>> = bodies.iter().map(|_| Vec::new()).collect();
-        if self.volume <= 0.0 || self.suction(bodies) <= 0.0 {
+        if self.volume <= 0.0 || suction <= 0.0 {
             return RankOne { stiffness: 0.0, direction };
         }
-        let mut gather = |k: usize, triangles: &mut dyn Iterator<Item = [u32; 3]>| {
-            let pos = &bodies[k].pos;
-            let w = &mut direction[k];
-            w.resize(pos.len(), Vec3::ZERO);
-            for t in triangles {
-                let [a, b, c] = t.map(|i| pos[i as usize]);
-                let share = (1.0 / 6.0) * (b - a).cross(c - a);
-                for i in t {
-                    w[i as usize] += share;
-                }
-            }
-        };
-        gather(self.tissue, &mut self.faces.iter().copied());
-        gather(self.implant, &mut bodies[self.implant].surface.triangles.iter().copied());
+        for k in [self.tissue, self.implant] {
+            direction[k].resize(bodies[k].len(), Vec3::ZERO);
+        }
+        self.each_share(bodies, 1.0, &mut |k, i, share| direction[k][i] += share);
         RankOne { stiffness: (f64::from(self.stiffness) / self.volume) as f32, direction }
     }
 
     /// Adds this step's share to what the suction holds, and its forces to `forces` (per body,
     /// per vertex): on the tissue's let-go faces toward the wall, and on the implant's surface
-    /// outward.
-    pub fn add_forces(&mut self, bodies: &[MassSpring], forces: &mut [Vec<Vec3>]) {
+    /// outward. Returns the suction it applied.
+    pub fn add_forces(&mut self, bodies: &[MassSpring], forces: &mut [Vec<Vec3>]) -> f32 {
         let drawn = self.drawn(bodies);
         self.held = (self.held + self.hold * drawn).max(0.0);
         let p = (drawn + self.held).max(0.0);
-        if p == 0.0 {
-            return;
+        if p > 0.0 {
+            self.each_share(bodies, p, &mut |k, i, share| forces[k][i] += share);
         }
-        let mut push = |k: usize, triangles: &mut dyn Iterator<Item = [u32; 3]>| {
+        p
+    }
+
+    /// Calls `add(body, vertex, share)` with each corner's share of a suction `p` on its
+    /// triangle, `(p/6)·(b − a)×(c − a)`: the tissue's let-go faces, then the implant's surface.
+    fn each_share(&self, bodies: &[MassSpring], p: f32, add: &mut dyn FnMut(usize, usize, Vec3)) {
+        let mut on = |k: usize, triangles: &mut dyn Iterator<Item = [u32; 3]>| {
             let pos = &bodies[k].pos;
-            let f = &mut forces[k];
             for t in triangles {
                 let [a, b, c] = t.map(|i| pos[i as usize]);
                 let share = (p / 6.0) * (b - a).cross(c - a);
                 for i in t {
-                    f[i as usize] += share;
+                    add(k, i as usize, share);
                 }
             }
         };
-        push(self.tissue, &mut self.faces.iter().copied());
-        push(self.implant, &mut bodies[self.implant].surface.triangles.iter().copied());
+        on(self.tissue, &mut self.faces.iter().copied());
+        on(self.implant, &mut bodies[self.implant].surface.triangles.iter().copied());
     }
 }

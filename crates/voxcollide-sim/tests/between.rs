@@ -453,7 +453,7 @@ fn the_pockets_suction_falls_as_it_draws_and_the_solve_takes_its_stiffness() {
         bodies[0].pos[i as usize].z += 5.0;
     }
     assert!(pocket.void(&bodies) > 0.0 && pocket.suction(&bodies) > 0.0);
-    let r = pocket.linearised(&bodies);
+    let r = pocket.linearised(&bodies, pocket.suction(&bodies));
     assert!(r.stiffness > 0.0);
     assert!((r.stiffness - pocket.stiffness / pocket.volume as f32).abs() <= 1e-6 * r.stiffness);
     // Its force is the suction times `w`, on both bodies.
