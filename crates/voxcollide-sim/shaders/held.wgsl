@@ -1,5 +1,5 @@
 // The end of a step for a vertex that is not free, and the floor under a free one, as both
-// integrators do them (integrate.wgsl, implicit.wgsl). CPU twin: src/integrator/mod.rs
+// integrators do them (integrate.wgsl, implicit_move.wgsl). CPU twin: src/integrator/mod.rs
 // (move_held, onto_floor) and body::driven_target. Reads the pass's `sim` (SimParams).
 
 // Where a driven vertex resting at `rest` is put: (turn ·) rest + drive, column by column.

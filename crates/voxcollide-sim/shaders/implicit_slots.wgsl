@@ -1,6 +1,7 @@
 // The implicit solve's per-vertex vectors: slots of each body's `work` buffer, `n` entries
-// each. Shared by implicit.wgsl and the couplings' passes (couple.wgsl, couple_gather.wgsl);
-// keep in sync with SLOTS, SLOT_KC0 and SLOT_E0 in src/gpu_implicit.rs.
+// each. Shared by the solve (implicit_solve.wgsl and its stems) and the couplings' passes
+// (couple.wgsl, couple_gather.wgsl); keep in sync with SLOTS, SLOT_KC0 and SLOT_E0 in
+// src/gpu/implicit.rs.
 
 const SLOT_F: u32 = 0u;      // xyz: the force; w: 1 on a floor row
 const SLOT_G: u32 = 1u;      // ∂V/∂x

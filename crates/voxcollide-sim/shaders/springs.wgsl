@@ -1,5 +1,5 @@
 // The paper's spring law, written once for every pass that needs it (forces.wgsl,
-// implicit.wgsl): a spring pulls its ends together with k·(L − L0)·(1 + stiffening·s²) along
+// implicit_solve.wgsl): a spring pulls its ends together with k·(L − L0)·(1 + stiffening·s²) along
 // it, s = (L − L0)/L0, plus damping along it. CPU twin: src/material/springs.rs, term for term.
 // Reads the pass's `sim` (SimParams, sim_common.wgsl) for the body's constants.
 

@@ -9,8 +9,10 @@ fn every_simulation_shader_validates() {
     for (name, source) in voxcollide_sim::gpu::SHADERS {
         wgsl::validate(name, source, &["main"]);
     }
-    // The implicit passes: one source, each pass its own value of the overridable `PASS`.
-    wgsl::validate("implicit", voxcollide_sim::gpu::implicit::IMPLICIT, &["main"]);
+    // The implicit passes: five stems, each pass an entry point of its own.
+    for (name, source, entries) in voxcollide_sim::gpu::implicit::IMPLICIT_STEMS {
+        wgsl::validate(name, source, entries);
+    }
     wgsl::validate("implicit_contact", voxcollide_sim::gpu::implicit::IMPLICIT_CONTACT, &["main"]);
     wgsl::validate("couple", voxcollide_sim::gpu::implicit::COUPLE, &["main"]);
     wgsl::validate("couple_gather", voxcollide_sim::gpu::implicit::COUPLE_GATHER, &["main"]);

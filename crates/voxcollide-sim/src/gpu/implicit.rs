@@ -1,6 +1,6 @@
 //! The implicit integrator on the GPU (docs/design.md §12): [`crate::GpuWorld`]'s step for a world of
 //! spring lattices and Neo-Hookean tetrahedra, with the voxel model's contacts or the surface
-//! contact's couplings, in WGSL (`shaders/implicit.wgsl`, `elements.wgsl`, `couple.wgsl`).
+//! contact's couplings, in WGSL (`shaders/implicit_solve.wgsl` and its stems `implicit_*.wgsl`, `elements.wgsl`, `couple.wgsl`).
 //!
 //! Each body's step is the CPU's ([`crate::integrator::implicit`]) term by term: the same forces, the same
 //! blocks of `A = M − h·D − h²·K` (springs, tetrahedra, a fill's rank-one term, each contact's
@@ -39,15 +39,51 @@ use crate::integrator::implicit::{Residual, StepStats};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
 
-/// The implicit passes' WGSL, composed with `sim_common.wgsl`.
-pub const IMPLICIT: &str = concat!(
-    include_str!("../../shaders/sim_common.wgsl"),
-    include_str!("../../shaders/implicit_slots.wgsl"),
-    include_str!("../../shaders/springs.wgsl"),
-    include_str!("../../shaders/held.wgsl"),
-    include_str!("../../shaders/elements.wgsl"),
-    include_str!("../../shaders/implicit.wgsl")
-);
+/// An implicit stem composed after what the solve's passes share (`implicit_solve.wgsl`, and the
+/// laws and modes it calls).
+macro_rules! implicit_stem {
+    ($stem:literal) => {
+        concat!(
+            include_str!("../../shaders/sim_common.wgsl"),
+            include_str!("../../shaders/implicit_slots.wgsl"),
+            include_str!("../../shaders/springs.wgsl"),
+            include_str!("../../shaders/held.wgsl"),
+            include_str!("../../shaders/elements.wgsl"),
+            include_str!("../../shaders/implicit_solve.wgsl"),
+            include_str!(concat!("../../shaders/", $stem))
+        )
+    };
+}
+/// The per-tetrahedron passes: each tetrahedron's stiffness and products.
+pub const IMPLICIT_TETRAHEDRA: &str = implicit_stem!("implicit_tetrahedra.wgsl");
+/// The system's passes: forces, the floor's rows, the right-hand side and preconditioner.
+pub const IMPLICIT_SYSTEM: &str = implicit_stem!("implicit_system.wgsl");
+/// The conjugate gradient's per-vertex passes.
+pub const IMPLICIT_CG: &str = implicit_stem!("implicit_cg.wgsl");
+/// The new velocity, the farthest move and the update.
+pub const IMPLICIT_MOVE: &str = implicit_stem!("implicit_move.wgsl");
+/// The single-workgroup passes that sum the partials into the solve's scalars.
+pub const IMPLICIT_SCALARS: &str = implicit_stem!("implicit_scalars.wgsl");
+/// Each implicit stem's name, its WGSL and its entry points (the passes).
+pub const IMPLICIT_STEMS: [(&str, &str, &[&str]); 5] = [
+    ("implicit_tetrahedra", IMPLICIT_TETRAHEDRA, &["tangent", "product_rhs", "product_p", "product_x"]),
+    ("implicit_system", IMPLICIT_SYSTEM, &["prepare", "floor_rows", "rhs"]),
+    ("implicit_cg", IMPLICIT_CG, &["guess", "start", "gp", "apply", "update", "direction"]),
+    ("implicit_move", IMPLICIT_MOVE, &["farthest", "advance"]),
+    (
+        "implicit_scalars",
+        IMPLICIT_SCALARS,
+        &[
+            "scalars_a",
+            "scalars_b",
+            "scalars_c",
+            "scalars_gp",
+            "scalars_alpha",
+            "scalars_beta",
+            "scalars_far",
+        ],
+    ),
+];
 /// The couplings' passes' WGSL (a surface contact in the implicit solve).
 pub const COUPLE: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
@@ -69,7 +105,7 @@ pub const IMPLICIT_CONTACT: &str = concat!(
 /// Conjugate-gradient iterations recorded between two looks at whether the solves converged.
 pub const BATCH: u32 = 8;
 
-// The passes (`PASS` in implicit.wgsl).
+// The passes, in `PASSES`' order.
 const PREPARE: usize = 0;
 const FLOOR: usize = 1;
 const RHS: usize = 2;
@@ -92,8 +128,31 @@ const TANGENT: usize = 18;
 const PRODUCT_RHS: usize = 19;
 const PRODUCT_P: usize = 20;
 const PRODUCT_X: usize = 21;
-/// Each pass's `PASS` constant, in the order above.
-const PASS_IDS: [u32; 22] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 20, 21, 22, 23, 24, 25, 26, 11, 12, 13, 14];
+/// Each pass's stem and entry point, in the order above.
+const PASSES: [(&str, &str); 22] = [
+    (IMPLICIT_SYSTEM, "prepare"),
+    (IMPLICIT_SYSTEM, "floor_rows"),
+    (IMPLICIT_SYSTEM, "rhs"),
+    (IMPLICIT_CG, "guess"),
+    (IMPLICIT_CG, "start"),
+    (IMPLICIT_CG, "gp"),
+    (IMPLICIT_CG, "apply"),
+    (IMPLICIT_CG, "update"),
+    (IMPLICIT_CG, "direction"),
+    (IMPLICIT_MOVE, "farthest"),
+    (IMPLICIT_MOVE, "advance"),
+    (IMPLICIT_SCALARS, "scalars_a"),
+    (IMPLICIT_SCALARS, "scalars_b"),
+    (IMPLICIT_SCALARS, "scalars_c"),
+    (IMPLICIT_SCALARS, "scalars_gp"),
+    (IMPLICIT_SCALARS, "scalars_alpha"),
+    (IMPLICIT_SCALARS, "scalars_beta"),
+    (IMPLICIT_SCALARS, "scalars_far"),
+    (IMPLICIT_TETRAHEDRA, "tangent"),
+    (IMPLICIT_TETRAHEDRA, "product_rhs"),
+    (IMPLICIT_TETRAHEDRA, "product_p"),
+    (IMPLICIT_TETRAHEDRA, "product_x"),
+];
 /// Whether each pass is one workgroup (the scalars) rather than one invocation per vertex.
 const fn single(pass: usize) -> bool {
     pass >= SCALARS_A && pass <= SCALARS_FAR
@@ -102,10 +161,10 @@ const fn single(pass: usize) -> bool {
 const fn per_tetrahedron(pass: usize) -> bool {
     pass >= TANGENT
 }
-/// `vec4`s per tetrahedron in `tet_work` (`TET_WORK` in implicit.wgsl).
+/// `vec4`s per tetrahedron in `tet_work` (`TET_WORK` in implicit_solve.wgsl).
 const TET_WORK: u64 = 15;
 
-/// Slots of per-vertex vectors in `work` (`SLOTS` in implicit.wgsl); the contact stiffness's,
+/// Slots of per-vertex vectors in `work` (`SLOTS` in implicit_solve.wgsl); the contact stiffness's,
 /// and the couplings' own blocks (`SLOT_E0`, `SLOT_E1`, written by the host).
 const SLOTS: u64 = 18;
 const SLOT_KC0: u32 = 5;
@@ -114,7 +173,7 @@ const SLOT_E0: u64 = 16;
 const COLUMNS: u64 = 8;
 const SCALARS: u64 = 16;
 const BODY_SCALARS: u64 = 8;
-// The joint scalars read back (`S_*` in implicit.wgsl).
+// The joint scalars read back (`S_*` in implicit_solve.wgsl).
 const S_DONE: usize = 7;
 const S_ITERATIONS: usize = 8;
 const S_RR: usize = 5;
@@ -124,7 +183,7 @@ const S_FARTHEST: usize = 12;
 const B_NET2: usize = 3;
 const B_GROSS2: usize = 4;
 
-/// Keep in sync with `ImplicitParams` in `shaders/implicit.wgsl`.
+/// Keep in sync with `ImplicitParams` in `shaders/implicit_solve.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 struct GpuImplicitParams {
@@ -159,17 +218,9 @@ impl ImplicitKernels {
             Uniform, Uniform, ReadWrite, ReadWrite, Read, Read, Read, Read, Read, Read, Read, ReadWrite,
             ReadWrite, ReadWrite, Read, Read, ReadWrite, Read,
         ];
-        let passes = PASS_IDS
+        let passes = PASSES
             .iter()
-            .map(|&id| {
-                Kernel::with_constants(
-                    device,
-                    "voxcollide implicit",
-                    IMPLICIT,
-                    &slots,
-                    &[("PASS", f64::from(id))],
-                )
-            })
+            .map(|&(stem, entry)| Kernel::entry(device, "voxcollide implicit", stem, &slots, entry))
             .collect();
         let contact =
             Kernel::new(device, "voxcollide implicit contact", IMPLICIT_CONTACT, &[Uniform, Read, ReadWrite]);
@@ -177,7 +228,7 @@ impl ImplicitKernels {
     }
 }
 
-/// The world's buffer of partial sums and scalars (`red` in implicit.wgsl), which every body's
+/// The world's buffer of partial sums and scalars (`red` in implicit_solve.wgsl), which every body's
 /// passes share: one solve over every body.
 pub(crate) struct Sums {
     red: Buffer,
@@ -573,7 +624,7 @@ pub(crate) fn solve(
         let Some(c) = recheck.filter(|_| changed) else { break (joint, own) };
         round += 1;
         c.set_round(queue, round);
-        // `PASS_GP` reads x while S_DONE is negative (the guess's g·x), as at the start.
+        // `gp` reads x while S_DONE is negative (the guess's g·x), as at the start.
         queue.write_buffer(&sums.red, 4 * S_DONE as u64, bytemuck::bytes_of(&-1.0f32));
         let again = Setup { guess_scale: 1.0, ..*setup };
         for (b, inputs) in bodies.iter().zip(inputs) {

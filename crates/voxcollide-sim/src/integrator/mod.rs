@@ -71,7 +71,7 @@ pub trait CpuIntegrator {
 
 /// The end of a step for a vertex that is not free, under either integrator: a pinned one back
 /// at `rest` and still; a driven one at its target, at the speed that took it there over `dt`.
-/// Nothing for a free one. CPU twin of `shaders/integrate.wgsl`'s and `implicit.wgsl`'s.
+/// Nothing for a free one. CPU twin of `shaders/integrate.wgsl`'s and `implicit_move.wgsl`'s.
 pub(crate) fn move_held(
     mode: Mode,
     inputs: &StepInputs,

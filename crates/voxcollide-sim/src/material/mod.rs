@@ -11,7 +11,7 @@
 //! [`Material`] gives its force on a vertex, its undamped terms (what a static answer balances),
 //! and a bound on its stiffness (the explicit integrator's stable step). The implicit solve's
 //! linearisation of each is in [`crate::integrator::implicit`] (`MassSpring::system`), and the
-//! GPU's in `shaders/implicit.wgsl`.
+//! GPU's in `shaders/implicit_system.wgsl`, `implicit_solve.wgsl` and `implicit_tetrahedra.wgsl`.
 //!
 //! A new material is a new file here that implements [`Material`], its WGSL twin, and a place in
 //! [`MassSpring::materials`].

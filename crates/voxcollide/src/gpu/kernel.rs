@@ -3,7 +3,7 @@
 //!
 //! The collision's passes are built from it, and so are other crates' passes that run beside
 //! them on the same device (the simulator's `forces` and `integrate`). A kernel's shader has one
-//! bind group of storage or uniform buffers, an entry point `main` with
+//! bind group of storage or uniform buffers, an entry point (`main`, or one named) with
 //! `@workgroup_size(64)` ([`super::WORKGROUP_SIZE`]), and finds its item as
 //! `gid.x + gid.y * num_workgroups.x * 64`, so that [`Kernel::dispatch`] can cover more than
 //! `65535 * 64` items in rows.
@@ -52,6 +52,24 @@ impl Kernel {
         slots: &[Slot],
         constants: &[(&str, f64)],
     ) -> Kernel {
+        Kernel::build(device, label, source, slots, "main", constants)
+    }
+
+    /// As [`new`](Self::new), for the entry point `entry` of a source that holds several passes
+    /// (each with the kernel's workgroup size and item indexing).
+    #[must_use]
+    pub fn entry(device: &Device, label: &'static str, source: &str, slots: &[Slot], entry: &str) -> Kernel {
+        Kernel::build(device, label, source, slots, entry, &[])
+    }
+
+    fn build(
+        device: &Device,
+        label: &'static str,
+        source: &str,
+        slots: &[Slot],
+        entry: &str,
+        constants: &[(&str, f64)],
+    ) -> Kernel {
         let entries: Vec<wgpu::BindGroupLayoutEntry> = slots
             .iter()
             .enumerate()
@@ -87,7 +105,7 @@ impl Kernel {
             label: Some(label),
             layout: Some(&pipeline_layout),
             module: &module,
-            entry_point: Some("main"),
+            entry_point: Some(entry),
             compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
             cache: None,
         });
