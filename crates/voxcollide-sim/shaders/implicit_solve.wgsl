@@ -271,7 +271,9 @@ fn contact_damping(i: u32, kc: mat3x3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
 }
 
-// `A·u` on free row i (`A = M − h·D − h²·K`), `gu` = g·u; or `−K·u` on any row when `stiff`.
+// `A·u` on free row i (`A = M − h·D − h²·K`), `gu` = g·u; or `−K·u` on any row when `stiff`:
+// the diagonal, the materials (springs, then tetrahedra), the contacts, then the fill, as the
+// CPU sums them (src/integrator/implicit.rs, `System::apply`).
 fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
     let h = ip.h;
     let ui = vget(s_u, i);
@@ -292,12 +294,6 @@ fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
         let d = ui - vget(s_u, j);
         r += a * d + (c * dot3(b.u, d)) * b.u;
     }
-    let kc = contact_k(i);
-    if stiff {
-        r += kc * ui;
-    } else {
-        r += (h * h * kc + h * contact_damping(i, kc)) * ui;
-    }
     if sim.tets > 0u {
         // The tetrahedra's −K·u, their products made per tetrahedron by implicit_tetrahedra.wgsl.
         var h2 = h * h;
@@ -305,6 +301,12 @@ fn apply_row(i: u32, s_u: u32, gu: f32, stiff: bool) -> vec3<f32> {
             h2 = 1.0;
         }
         r += h2 * gather_product(i, 0u);
+    }
+    let kc = contact_k(i);
+    if stiff {
+        r += kc * ui;
+    } else {
+        r += (h * h * kc + h * contact_damping(i, kc)) * ui;
     }
     if ip.fill_k > 0.0 {
         var h2 = h * h;

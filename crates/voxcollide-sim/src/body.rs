@@ -166,7 +166,7 @@ pub const REST_STRAIN: f64 = 1e-5;
 
 /// Vertices per parallel task of the force and integration loops: below this a body runs on
 /// one thread.
-const PAR_CHUNK: usize = 2048;
+pub(crate) const PAR_CHUNK: usize = 2048;
 
 /// The lanes of the volume sum (the `volume` pass's workgroup size).
 pub const VOLUME_LANES: usize = 256;

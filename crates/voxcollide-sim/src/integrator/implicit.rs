@@ -48,9 +48,7 @@ use super::{CpuIntegrator, Loads, move_held, onto_floor};
 use crate::body::{MassSpring, Mode, StepInputs, driven_target};
 pub use crate::contact::Coupling;
 use crate::contact::{POINT_VERTICES, entries};
-use crate::material::neo_hookean::{TetStiffness, corner_of};
-use crate::material::springs;
-
+use crate::material::Linearised;
 use voxcollide::math::cross;
 
 /// Vertices per parallel task; also the chunk of every dot product's fixed-order sum.
@@ -192,15 +190,10 @@ fn dot(a: &[Vec3], b: &[Vec3]) -> f64 {
     partial.iter().sum()
 }
 
-/// The symmetric blocks of one step's linear system.
+/// The symmetric blocks of one body's share of one step's linear system.
 struct System {
-    /// Per spring: its direction `u`. Each of its blocks is `a·I + b·uuᵀ`, kept as `[a, b]`:
-    /// a fifth of the nine numbers' memory, which the products stream through.
-    direction: Vec<Vec3>,
-    /// Per spring: `h²·H + h·c·uuᵀ`, the coupling of its two ends.
-    coupling: Vec<[f32; 2]>,
-    /// Per spring: `H`, its share of `−K`.
-    stiffness: Vec<[f32; 2]>,
+    /// Each of the body's materials' linearisation, in [`MassSpring::materials`] order.
+    materials: Vec<Box<dyn Linearised>>,
     /// Per vertex: `m + h·damping`.
     diagonal: Vec<f32>,
     /// Per vertex: the contacts' `k_c·nnᵀ` (their share of `−K`).
@@ -215,56 +208,38 @@ struct System {
     fill_k: f32,
     /// Per vertex: whether it is free (the others' `Δv` is prescribed).
     free: Vec<bool>,
-    /// Per tetrahedron of a body of finite elements: its material's projected stiffness
-    /// (empty for springs).
-    element_stiffness: Vec<TetStiffness>,
     /// Per vertex: the block-Jacobi preconditioner's inverse block.
     precondition: Vec<Mat3>,
-    /// The elements' products of one `apply`, kept from one to the next (a fresh one every
-    /// iteration faulted its pages in anew, on one thread).
-    element_products: std::sync::Mutex<Vec<Mat3>>,
+    /// Each material's scratch of one `apply` (its per-element products), kept from one to the
+    /// next (a fresh one every iteration faulted its pages in anew, on one thread).
+    scratch: std::sync::Mutex<Vec<Vec<Mat3>>>,
     h: f32,
 }
 
 impl System {
-    /// `A·u` restricted to `free` (`A = M − h·D − h²·K`), or `−K·u` when `stiff_only`.
+    /// `A·u` restricted to `free` (`A = M − h·D − h²·K`), or `−K·u` when `stiff_only`: per
+    /// vertex, the diagonal, each material's rows in order, the contacts, then the fill.
     fn apply(&self, body: &MassSpring, u: &[Vec3], out: &mut Vec<Vec3>, stiff_only: bool) {
         let fill = if self.fill_k > 0.0 { self.fill_k * dot(&self.fill_g, u) as f32 } else { 0.0 };
         let h2 = if stiff_only { 1.0 } else { self.h * self.h };
         debug_assert!(self.h > 0.0);
-        // The elements' `−K·u`, per tetrahedron, gathered per vertex below.
-        let mut elements = self.element_products.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        elements.clear();
-        if let Some(e) = body.elements.as_ref().filter(|_| !self.element_stiffness.is_empty()) {
-            elements.par_extend(
-                (0..e.tets.len())
-                    .into_par_iter()
-                    .with_min_len(CHUNK)
-                    .map(|k| self.element_stiffness[k].product(e.tets[k].map(|v| u[v as usize]))),
-            );
+        let mut scratch = self.scratch.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        scratch.resize_with(self.materials.len(), Vec::new);
+        for (m, s) in self.materials.iter().zip(scratch.iter_mut()) {
+            m.prepare(body, u, s);
         }
-        let elements = &*elements;
+        let scratch = &*scratch;
         out.clear();
         out.par_extend((0..body.len()).into_par_iter().with_min_len(CHUNK).map(|i| {
             if !stiff_only && !self.free[i] {
                 return Vec3::ZERO;
             }
             let ui = u[i];
-            let blocks = if stiff_only { &self.stiffness } else { &self.coupling };
             let mut r = if stiff_only { Vec3::ZERO } else { self.diagonal[i] * ui };
-            for &[j, s] in &body.adjacency[body.offsets[i] as usize..body.offsets[i + 1] as usize] {
-                let d = ui - u[j as usize];
-                let ([a, b], n) = (blocks[s as usize], self.direction[s as usize]);
-                r += a * d + (b * n.dot(d)) * n;
+            for (m, s) in self.materials.iter().zip(scratch) {
+                m.add_product(body, u, s, i, stiff_only, &mut r);
             }
             r += if stiff_only { self.contact[i] * ui } else { self.contact_block[i] * ui };
-            if let Some(e) = body.elements.as_ref().filter(|_| !elements.is_empty()) {
-                let mut sum = Vec3::ZERO;
-                for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
-                    sum += corner_of(&elements[k as usize], c as usize);
-                }
-                r += h2 * sum;
-            }
             if self.fill_k > 0.0 {
                 r += (h2 * fill) * self.fill_g[i];
             }
@@ -338,29 +313,8 @@ impl MassSpring {
         let n = self.len();
         let h = inputs.dt;
         let m = self.material;
-        let rest_scale = inputs.rest_scale;
-        // Per spring: the tangent stiffness along it and the tension across it.
-        type Blocks = ((Vec<Vec3>, Vec<[f32; 2]>), Vec<[f32; 2]>);
-        let ((direction, stiffness), coupling): Blocks = self
-            .springs
-            .par_iter()
-            .with_min_len(CHUNK)
-            .map(|s| {
-                let d = self.pos[s.j as usize] - self.pos[s.i as usize];
-                let len = d.length();
-                if len < 1e-12 {
-                    return ((Vec3::ZERO, [0.0; 2]), [0.0; 2]);
-                }
-                let u = d / len;
-                let rest = s.rest * rest_scale;
-                let tension = springs::tension(len, rest, s.k, m.stiffening);
-                let tangent = springs::tangent(len, rest, s.k, m.stiffening);
-                // tangent·uuᵀ + across·(I − uuᵀ) = across·I + (tangent − across)·uuᵀ.
-                let across = tension.max(0.0) / len;
-                let along = tangent - across;
-                ((u, [across, along]), [h * h * across, h * h * along + h * m.spring_damping])
-            })
-            .unzip();
+        let materials: Vec<Box<dyn Linearised>> =
+            self.materials().map(|mat| mat.linearise(self, inputs)).collect();
         let fill_k = Self::fill_stiffness(inputs);
         let fill_g = if fill_k > 0.0 { self.volume_gradient() } else { Vec::new() };
         let free: Vec<bool> = self.mode.iter().map(|m| *m == Mode::Free).collect();
@@ -382,10 +336,6 @@ impl MassSpring {
             .with_min_len(CHUNK)
             .map(|(kc, c)| h * h * *kc + h * *c)
             .collect();
-        // The elements' stiffness at the start of the step, and its diagonal blocks.
-        let element_stiffness = self.elements.as_ref().map_or_else(Vec::new, |e| e.stiffnesses(&self.pos));
-        let element_blocks: Vec<[Mat3; 4]> =
-            element_stiffness.par_iter().with_min_len(CHUNK).map(TetStiffness::diagonal_blocks).collect();
         let precondition: Vec<Mat3> = (0..n)
             .into_par_iter()
             .with_min_len(CHUNK)
@@ -394,26 +344,18 @@ impl MassSpring {
                 if let Some(e) = extra.get(i) {
                     b += *e;
                 }
-                for &[_, s] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-                    let [a, c] = coupling[s as usize];
-                    b += Mat3::from_diagonal(Vec3::splat(a)) + c * outer(direction[s as usize]);
+                for mat in &materials {
+                    mat.add_diagonal(self, i, &mut b);
                 }
                 if fill_k > 0.0 {
                     b += (h * h * fill_k) * outer(fill_g[i]);
-                }
-                if let Some(e) = self.elements.as_ref() {
-                    for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
-                        b += (h * h) * element_blocks[k as usize][c as usize];
-                    }
                 }
                 let inv = b.inverse();
                 if inv.is_finite() { inv } else { Mat3::from_diagonal(Vec3::splat(1.0 / diagonal[i])) }
             })
             .collect();
         System {
-            direction,
-            coupling,
-            stiffness,
+            materials,
             diagonal,
             contact: contact_k.to_vec(),
             contact_damping,
@@ -421,9 +363,8 @@ impl MassSpring {
             fill_g,
             fill_k,
             free,
-            element_stiffness,
             precondition,
-            element_products: std::sync::Mutex::new(Vec::new()),
+            scratch: std::sync::Mutex::new(Vec::new()),
             h,
         }
     }

@@ -34,8 +34,8 @@
 use glam::{Mat3, Mat3A, UVec3, Vec3, Vec3A};
 use std::collections::HashMap;
 
-use super::Material;
-use crate::body::MassSpring;
+use super::{Linearised, Material};
+use crate::body::{MassSpring, PAR_CHUNK, StepInputs};
 use voxcollide::error::Error;
 
 /// The tetrahedra of a body and their material.
@@ -239,6 +239,62 @@ impl Material for Elements {
 
     fn stiffness_bounds(&self, body: &MassSpring, _s_max: f32) -> Vec<f32> {
         self.stiffness_bound(body.len())
+    }
+
+    fn linearise(&self, body: &MassSpring, inputs: &StepInputs) -> Box<dyn Linearised> {
+        use rayon::prelude::*;
+        let stiffness = self.stiffnesses(&body.pos);
+        let diagonal =
+            stiffness.par_iter().with_min_len(PAR_CHUNK).map(TetStiffness::diagonal_blocks).collect();
+        Box::new(LinearElements { stiffness, diagonal, h: inputs.dt })
+    }
+}
+
+/// The elements' linearisation: per tetrahedron, its projected stiffness at the step's start
+/// ([`TetStiffness`]) and its diagonal blocks. A product is made per tetrahedron
+/// ([`Linearised::prepare`]), then gathered per vertex in adjacency order.
+struct LinearElements {
+    stiffness: Vec<TetStiffness>,
+    diagonal: Vec<[Mat3; 4]>,
+    h: f32,
+}
+
+impl Linearised for LinearElements {
+    fn prepare(&self, body: &MassSpring, u: &[Vec3], scratch: &mut Vec<Mat3>) {
+        use rayon::prelude::*;
+        scratch.clear();
+        let Some(e) = body.elements.as_ref() else { return };
+        scratch.par_extend(
+            (0..e.tets.len())
+                .into_par_iter()
+                .with_min_len(PAR_CHUNK)
+                .map(|k| self.stiffness[k].product(e.tets[k].map(|v| u[v as usize]))),
+        );
+    }
+
+    fn add_product(
+        &self,
+        body: &MassSpring,
+        _: &[Vec3],
+        scratch: &[Mat3],
+        i: usize,
+        stiff_only: bool,
+        r: &mut Vec3,
+    ) {
+        let Some(e) = body.elements.as_ref().filter(|_| !scratch.is_empty()) else { return };
+        let mut sum = Vec3::ZERO;
+        for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
+            sum += corner_of(&scratch[k as usize], c as usize);
+        }
+        let h2 = if stiff_only { 1.0 } else { self.h * self.h };
+        *r += h2 * sum;
+    }
+
+    fn add_diagonal(&self, body: &MassSpring, i: usize, b: &mut Mat3) {
+        let Some(e) = body.elements.as_ref() else { return };
+        for &[k, c] in &e.adjacency[e.offsets[i] as usize..e.offsets[i + 1] as usize] {
+            *b += (self.h * self.h) * self.diagonal[k as usize][c as usize];
+        }
     }
 }
 
