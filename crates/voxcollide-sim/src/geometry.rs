@@ -626,8 +626,8 @@ pub fn line_crossing(p: DVec3, d: DVec3, [a, b, c]: [DVec3; 3], eps: f64) -> Opt
     (w1 >= -eps && w2 >= -eps && w1 + w2 <= 1.0 + eps).then(|| e2.dot(q) / det)
 }
 
-/// The point of triangle `abc` nearest to `p` ([`closest_region`]); a sliver whose face
-/// weights round to nothing is measured on its edges.
+/// The point of triangle `abc` nearest to `p` (`closest_region`, which the surface contact
+/// shares); a sliver whose face weights round to nothing is measured on its edges.
 #[must_use]
 pub fn closest_point(p: DVec3, [a, b, c]: &[DVec3; 3]) -> DVec3 {
     let on_edge = |a: DVec3, b: DVec3| {

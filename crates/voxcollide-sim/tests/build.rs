@@ -13,6 +13,7 @@ use voxcollide_sim::{CpuWorld, Mode};
 const INDENT: &str = r#"
 units = "mm"
 [time]
+integrator = "explicit"
 duration = 0.4
 [[body]]
 name = "block"
@@ -233,7 +234,7 @@ fn an_expander_follows_its_fill_schedule() {
     // A free 20 mm sphere (32.9 mL) filled like a tissue expander: to 45 mL by 0.1 s, held
     // until 0.2 s, then to 60 mL by 0.3 s, held after. At each sample it holds the schedule's
     // volume (linear between the fills) within 3 %.
-    let text = "[time]\nduration = 0.45\n[[body]]\nname = \"expander\"\nkind = \"shell\"\nshape = { sphere = 20 }\nspacing = 3\nmaterial = { young_kpa = 50, damping = 0.3 }\ninflate = { schedule = [[0.1, 45], [0.2, 45], [0.3, 60]] }\n";
+    let text = "[time]\nintegrator = \"explicit\"\nduration = 0.45\n[[body]]\nname = \"expander\"\nkind = \"shell\"\nshape = { sphere = 20 }\nspacing = 3\nmaterial = { young_kpa = 50, damping = 0.3 }\ninflate = { schedule = [[0.1, 45], [0.2, 45], [0.3, 60]] }\n";
     let built = build_world(&SceneFile::parse("expander.toml", text).unwrap()).unwrap();
     let start = built.world.bodies[0].enclosed_volume() * 1e-3;
     let expected = |t: f64| match t {
@@ -294,7 +295,7 @@ fn an_expander_follows_its_fill_schedule() {
 fn a_skin_layer_stiffens_the_springs_within_it_and_no_others() {
     // Fat (2 kPa) 20 mm thick at a 5 mm spacing, z from 0 to 20; skin (30 kPa): the springs
     // with both ends above z = 17, the top surface's. A later layer overrides an earlier one.
-    let text = "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [40, 40, 20] }\nspacing = 5\nposition = [0, 0, 10]\nmaterial = { young_kpa = 2 }\nlayers = [{ region = { above = { z = 17 } }, young_kpa = 30 }, { region = { inside_box = { min = [-30, -30, 17], max = [0, 30, 30] } }, young_kpa = 10 }]\n";
+    let text = "[time]\nintegrator = \"explicit\"\n[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [40, 40, 20] }\nspacing = 5\nposition = [0, 0, 10]\nmaterial = { young_kpa = 2 }\nlayers = [{ region = { above = { z = 17 } }, young_kpa = 30 }, { region = { inside_box = { min = [-30, -30, 17], max = [0, 30, 30] } }, young_kpa = 10 }]\n";
     let built = build_world(&SceneFile::parse("skin.toml", text).unwrap()).unwrap();
     let b = &built.world.bodies[0];
     let fat = b.springs.iter().map(|s| s.k).fold(f32::MAX, f32::min);

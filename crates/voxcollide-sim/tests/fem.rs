@@ -129,7 +129,7 @@ fn moved_unloaded(world: World) -> f32 {
     b.pos.iter().zip(&b.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max)
 }
 
-const BLOCK: &str = "units = \"mm\"\n[time]\nduration = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [20, 20, 10] }\nspacing = 2.5\nmaterial = { model = \"neo-hookean\", young_kpa = 3.0, poisson = 0.45, density = 1000.0, damping = 0.5 }\nfixed = [{ below = { z = -4.9 } }]\n";
+const BLOCK: &str = "units = \"mm\"\n[time]\nintegrator = \"explicit\"\nduration = 0.05\n[[body]]\nname = \"block\"\nkind = \"soft\"\nshape = { box = [20, 20, 10] }\nspacing = 2.5\nmaterial = { model = \"neo-hookean\", young_kpa = 3.0, poisson = 0.45, density = 1000.0, damping = 0.5 }\nfixed = [{ below = { z = -4.9 } }]\n";
 
 #[test]
 fn a_scene_files_neo_hookean_block_is_tetrahedra_at_the_files_ratio() {

@@ -13,6 +13,7 @@ duration = 2.0
 dt = "auto"
 settle = true
 max_steps = 5000
+integrator = "explicit"
 
 [[body]]
 name = "tissue"
@@ -158,7 +159,9 @@ fn defaults_are_as_documented() {
             dt: Auto::Auto,
             settle: false,
             max_steps: 200_000,
-            integrator: IntegratorSpec::Explicit
+            // A scene in millimetres with no voxel-model contact: the integrator that comes to
+            // rest (docs/scene-files.md, "Which integrator").
+            integrator: IntegratorSpec::Implicit
         }
     );
     assert_eq!(s.output, Output { frames: 12, images: true, vtk: true });
@@ -456,4 +459,28 @@ fn a_scene_in_layer_units_has_no_millilitres() {
     assert_eq!(s.units.symbol(), "layer units");
     assert!(!s.units.is_physical());
     assert_eq!(s.metres(), 1.0);
+}
+
+#[test]
+fn a_scene_that_names_no_integrator_gets_the_one_that_comes_to_rest_unless_the_paper_needs_its_own() {
+    // docs/scene-files.md, "Which integrator": implicit in physical units with surface contacts
+    // (or none); explicit in the paper's layer units, with a voxel-model response, or by name.
+    let body = "[[body]]\nname = \"t\"\nkind = \"soft\"\nshape = { box = [10, 10, 10] }\nspacing = 2.5\n\
+                [[body]]\nname = \"b\"\nkind = \"rigid\"\nshape = { sphere = 3 }\nspacing = 1\nposition = [0, 0, 9]\n";
+    let contact = |response: &str| format!("[[contact]]\na = \"b\"\nb = \"t\"\n{response}");
+    for (units, time, response, expected) in [
+        ("", "", "", IntegratorSpec::Implicit),
+        ("units = \"cm\"\n", "", "response = \"surface\"\n", IntegratorSpec::Implicit),
+        ("units = \"m\"\n", "[time]\nsettle = true\n", "", IntegratorSpec::Implicit),
+        ("", "", "response = \"penalty\"\n", IntegratorSpec::Explicit),
+        ("", "", "response = \"constant\"\n", IntegratorSpec::Explicit),
+        ("units = \"layer\"\n", "", "", IntegratorSpec::Explicit),
+        ("", "[time]\nintegrator = \"explicit\"\n", "", IntegratorSpec::Explicit),
+        ("units = \"layer\"\n", "[time]\nintegrator = \"implicit\"\n", "", IntegratorSpec::Implicit),
+        ("", "[time]\nintegrator = \"implicit\"\n", "response = \"penalty\"\n", IntegratorSpec::Implicit),
+    ] {
+        let text = format!("{units}{time}{body}{}", contact(response));
+        let s = SceneFile::parse("p.toml", &text).unwrap();
+        assert_eq!(s.time.integrator, expected, "{text}");
+    }
 }

@@ -107,6 +107,7 @@ fn the_push_is_continuous_across_the_partners_edges() {
 const PRESS: &str = r#"
 units = "mm"
 [time]
+integrator = "explicit"
 steps = 400
 [[body]]
 name = "block"
@@ -159,6 +160,7 @@ fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {
 const DOME: &str = r#"
 units = "mm"
 [time]
+integrator = "explicit"
 steps = 300
 [[body]]
 name = "dome"
@@ -242,7 +244,7 @@ fn under_the_implicit_integrator_the_gpu_world_couples_a_surface_contact_as_the_
     // ball is driven, and on the dent it leaves.
     let Some(ctx) = common::gpu() else { return };
     for (name, text, steps) in [("press.toml", PRESS, 60), ("dome.toml", DOME, 60)] {
-        let implicit = text.replace("[time]", "[time]\nintegrator = \"implicit\"");
+        let implicit = text.replace("integrator = \"explicit\"", "integrator = \"implicit\"");
         let built = build_world(&SceneFile::parse(name, &implicit).unwrap()).unwrap();
         assert_ne!(built.world.integrator, Integrator::Explicit);
         let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
@@ -386,7 +388,7 @@ fn on_the_gpu_a_block_released_by_the_ball_springs_back_as_on_the_cpu() {
     // integrator: the couplings arrive, push, leave through the margin and are gone, and the
     // block springs back as on the CPU.
     let Some(ctx) = common::gpu() else { return };
-    let implicit = PRESS.replace("[time]", "[time]\nintegrator = \"implicit\"");
+    let implicit = PRESS.replace("integrator = \"explicit\"", "integrator = \"implicit\"");
     let dt =
         build_world(&SceneFile::parse("press.toml", &implicit).unwrap()).unwrap().world.inputs(0).unwrap()[0]
             .dt;

@@ -159,6 +159,7 @@ fn a_turning_paddle_sweeps_a_block_the_same_on_cpu_and_gpu() {
     // the block is pushed, and both backends agree to the bit on llvmpipe.
     let text = r#"
 [time]
+integrator = "explicit"
 steps = 240
 [[body]]
 name = "block"
@@ -228,6 +229,7 @@ fn a_shell_filled_to_a_volume_lifts_a_layer_the_same_on_cpu_and_gpu() {
     // trajectories agree to the bit on llvmpipe; the fill reaches its volume against the load.
     let text = r#"
 [time]
+integrator = "explicit"
 steps = 300
 [[body]]
 name = "skin"
