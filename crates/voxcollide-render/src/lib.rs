@@ -13,6 +13,18 @@
 //! A [`Legend`] (the colour map as a labelled bar under a title) is drawn over the read-back
 //! picture on the CPU by [`draw_legend`], with the shader's colour map reproduced there.
 //!
+//! **Drawing from the device.** A simulation that keeps its bodies on the GPU (`voxcollide-sim`'s
+//! `GpuWorld`, whose `positions(body)` is each body's buffer) is drawn without reading them
+//! back: a [`DeviceMesh`] binds such a buffer once, with the mesh's triangles and where its
+//! vertices started; [`Renderer::draw_device`] records the meshes into a texture view the app
+//! gives (a window's surface, say), in the app's encoder, and reads nothing back, and
+//! [`Renderer::render_device`] returns the picture for a file. The vertex stage
+//! (`shaders/render_device.wgsl`) reads each triangle's corners, takes its face normal and
+//! colours each vertex by how far it has moved, so a frame looks as the host path draws it
+//! (`tests/render.rs` compares the two). It needs a vertex stage that reads storage buffers,
+//! which every Vulkan, Metal and DX12 adapter has, and Mesa's GL; where an adapter lacks it,
+//! [`DeviceMesh::new`] says so.
+//!
 //! ```no_run
 //! use voxcollide::glam::Vec3;
 //! use voxcollide_render::{Legend, Renderer, Scene, SceneMesh};
@@ -45,6 +57,9 @@ use wgpu::{Buffer, BufferUsages, Device, Texture, TextureFormat, TextureUsages, 
 
 use voxcollide::gpu::scoped;
 use voxcollide::{Error, GpuContext};
+
+mod device;
+pub use device::{DEVICE_SHADER, DeviceMesh, DeviceView};
 
 /// The renderer's WGSL (vertex `vs_main`, fragment `fs_main`), for validating it without a GPU.
 pub const SHADER: &str = include_str!("../shaders/render.wgsl");
@@ -149,13 +164,19 @@ pub struct Renderer {
     max_buffer_size: u64,
     pipeline: wgpu::RenderPipeline,
     params: Buffer,
+    /// The layout of `params`' bind group (group 0), which the device path shares.
+    params_layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
+    /// Samples per pixel of the renderer's own picture.
+    samples: u32,
     /// The multisampled target, resolved into `resolved`; `None` at one sample, drawn
     /// straight into `resolved`.
     msaa: Option<TextureView>,
     depth: TextureView,
     resolved: Texture,
     resolved_view: TextureView,
+    /// The device path's pipelines ([`DeviceMesh`]), built on first use.
+    device: Option<device::DeviceParts>,
     readback: Buffer,
     vertices: Option<Buffer>,
     /// The expanded triangles of the last scene, kept to reuse the allocation.
@@ -218,12 +239,15 @@ impl Renderer {
             max_buffer_size: limits.max_buffer_size,
             pipeline: built.pipeline,
             params: built.params,
+            params_layout: built.layout,
             bind_group: built.bind_group,
+            samples,
             msaa: built.msaa,
             depth: built.depth,
             resolved_view: built.resolved.create_view(&wgpu::TextureViewDescriptor::default()),
             resolved: built.resolved,
             readback: built.readback,
+            device: None,
             vertices: None,
             scratch: Vec::new(),
             framed: Vec::new(),
@@ -355,39 +379,7 @@ impl Renderer {
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide render") });
         {
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("voxcollide render"),
-                color_attachments: &[Some(match &self.msaa {
-                    Some(msaa) => wgpu::RenderPassColorAttachment {
-                        view: msaa,
-                        depth_slice: None,
-                        resolve_target: Some(&self.resolved_view),
-                        // Only the resolved picture is needed afterwards.
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(BACKGROUND),
-                            store: wgpu::StoreOp::Discard,
-                        },
-                    },
-                    None => wgpu::RenderPassColorAttachment {
-                        view: &self.resolved_view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(BACKGROUND),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                ..Default::default()
-            });
+            let mut pass = self.begin_own_pass(&mut encoder);
             if let Some(buffer) = vertices {
                 pass.set_pipeline(&self.pipeline);
                 pass.set_bind_group(0, &self.bind_group, &[]);
@@ -395,6 +387,50 @@ impl Renderer {
                 pass.draw(0..self.scratch.len() as u32, 0..1);
             }
         }
+        self.copy_to_readback(&mut encoder);
+        queue.submit([encoder.finish()]);
+    }
+
+    /// A render pass into the renderer's own picture (multisampled and resolved where it has
+    /// samples), cleared to the background.
+    fn begin_own_pass<'e>(&self, encoder: &'e mut wgpu::CommandEncoder) -> wgpu::RenderPass<'e> {
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("voxcollide render"),
+            color_attachments: &[Some(match &self.msaa {
+                Some(msaa) => wgpu::RenderPassColorAttachment {
+                    view: msaa,
+                    depth_slice: None,
+                    resolve_target: Some(&self.resolved_view),
+                    // Only the resolved picture is needed afterwards.
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(BACKGROUND),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                },
+                None => wgpu::RenderPassColorAttachment {
+                    view: &self.resolved_view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(BACKGROUND),
+                        store: wgpu::StoreOp::Store,
+                    },
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            ..Default::default()
+        })
+    }
+
+    /// Copies the resolved picture into the readback buffer.
+    fn copy_to_readback(&self, encoder: &mut wgpu::CommandEncoder) {
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
                 texture: &self.resolved,
@@ -412,7 +448,6 @@ impl Renderer {
             },
             wgpu::Extent3d { width: self.width, height: self.height, depth_or_array_layers: 1 },
         );
-        queue.submit([encoder.finish()]);
     }
 
     /// Maps the readback buffer, waits for the device, and strips the row padding.
@@ -839,6 +874,7 @@ fn viridis_srgb8(t: f32) -> [u8; 3] {
 struct Built {
     pipeline: wgpu::RenderPipeline,
     params: Buffer,
+    layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     /// The multisampled target, resolved into `resolved`; `None` at one sample, drawn
     /// straight into `resolved`.
@@ -942,6 +978,7 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: 
     Built {
         pipeline,
         params,
+        layout,
         bind_group,
         msaa: (samples > 1).then(|| {
             view(texture("voxcollide render msaa", samples, COLOR_FORMAT, TextureUsages::RENDER_ATTACHMENT))

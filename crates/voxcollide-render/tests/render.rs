@@ -356,7 +356,7 @@ fn a_dented_slab_under_a_cylinder_cut_away_is_written_as_png() {
     let drawn = rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count();
     assert!(drawn > (w * h / 4) as usize, "only {drawn} pixels drawn");
     // The dent's bottom maps to the high end (yellow: red and green well over blue) somewhere.
-    let yellow = rgba.chunks(4).filter(|p| p[0] > p[2] + 60 && p[1] > p[2] + 60).count();
+    let yellow = rgba.chunks(4).filter(|p| is_yellow([p[0], p[1], p[2], p[3]])).count();
     assert!(yellow > 50, "{yellow} pixels show the deepest part of the dent");
     // The cylinder is drawn in its own blue-grey.
     let tool_px = rgba.chunks(4).filter(|p| p[2] > p[0] + 15 && p[1] > p[0] && p[2] > p[1]).count();
@@ -892,4 +892,194 @@ fn a_caption_draws_its_lines_on_a_panel_at_the_top_left() {
     let mut tiny = vec![0u8; 4 * 10 * 10];
     assert_eq!(voxcollide_render::draw_caption(&mut tiny, 10, 10, &long).unwrap(), None);
     assert!(voxcollide_render::draw_caption(&mut tiny, 11, 10, &long).is_err(), "a wrong length is an error");
+}
+
+/// A buffer on the device holding `positions` as a simulation keeps them: one `vec4<f32>` each.
+fn device_positions(ctx: &voxcollide::GpuContext, positions: &[Vec3]) -> wgpu::Buffer {
+    use wgpu::util::DeviceExt as _;
+    let data: Vec<[f32; 4]> = positions.iter().map(|p| p.extend(1.0).to_array()).collect();
+    ctx.device().create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("test positions"),
+        contents: bytemuck::cast_slice(&data),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+/// The colour map's high end: red and green well over blue (in `u16`: a light grey's blue
+/// plus 60 would wrap in `u8`).
+fn is_yellow(p: [u8; 4]) -> bool {
+    let [r, g, b] = [p[0], p[1], p[2]].map(u16::from);
+    r > b + 60 && g > b + 60
+}
+
+/// The share of pixels where two pictures differ by more than `tolerance` in some channel.
+fn differing(a: &[u8], b: &[u8], tolerance: u8) -> f64 {
+    assert_eq!(a.len(), b.len());
+    let n = a
+        .chunks(4)
+        .zip(b.chunks(4))
+        .filter(|(p, q)| p.iter().zip(*q).any(|(x, y)| x.abs_diff(*y) > tolerance))
+        .count();
+    n as f64 / (a.len() / 4) as f64
+}
+
+#[test]
+fn meshes_drawn_from_device_buffers_look_as_drawn_from_the_host() {
+    use voxcollide_render::{DeviceMesh, DeviceView};
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (480, 320);
+    let mut renderer = Renderer::new(&ctx, w, h).unwrap();
+    // The dented slab and the cylinder in it, as the host path draws them; on the device the
+    // slab started flat, so that each vertex's distance from its start is the host's scalar.
+    let tissue = slab(41);
+    let tool = cylinder(Vec3::new(0.0, -dent(0.0, 0.0), 0.0), 0.6, 1.6, 32);
+    let flat: Vec<Vec3> =
+        tissue.positions.iter().map(|p| if p.y > -0.5 { Vec3::new(p.x, 0.0, p.z) } else { *p }).collect();
+    let range = (0.0, dent(0.0, 0.0));
+    let view_dir = Vec3::new(-0.5, -0.6, -1.0);
+    let mut host =
+        scene(vec![tissue.mesh(true, [0.8, 0.6, 0.5]), tool.mesh(false, [0.35, 0.45, 0.6])], range, view_dir);
+    host.clip = Some((Vec3::ZERO, Vec3::NEG_Z));
+    let eye =
+        voxcollide_render::framing_eye(&tissue.positions, view_dir, Vec3::Y, w as f32 / h as f32).unwrap();
+    let expected = renderer.render_from(&host, Some(eye)).unwrap();
+
+    let tissue_buffer = device_positions(&ctx, &tissue.positions);
+    let tool_buffer = device_positions(&ctx, &tool.positions);
+    let t = DeviceMesh::new(&mut renderer, &tissue_buffer, &flat, &tissue.triangles, [0.8, 0.6, 0.5], true)
+        .unwrap();
+    let c = DeviceMesh::new(
+        &mut renderer,
+        &tool_buffer,
+        &tool.positions,
+        &tool.triangles,
+        [0.35, 0.45, 0.6],
+        false,
+    )
+    .unwrap();
+    let view = DeviceView { scalar_range: range, clip: host.clip, view_dir, up: Vec3::Y, eye: Some(eye) };
+    let drawn = renderer.render_device(&[&t, &c], &view).unwrap();
+    let off = differing(&expected, &drawn, 12);
+    assert!(off < 0.01, "{:.2} % of the pixels differ from the host's picture", 100.0 * off);
+    let yellow = drawn.chunks(4).filter(|p| is_yellow([p[0], p[1], p[2], p[3]])).count();
+    assert!(yellow > 50, "{yellow} pixels show the dent's deepest part");
+
+    // The positions change on the device (a simulation's step): the next frame follows them,
+    // with nothing read back. Flat again, the slab moved nowhere: no yellow, and the host's
+    // picture of the flat slab.
+    ctx.queue().write_buffer(
+        &tissue_buffer,
+        0,
+        bytemuck::cast_slice(&flat.iter().map(|p| p.extend(1.0).to_array()).collect::<Vec<_>>()),
+    );
+    let moved = renderer.render_device(&[&t, &c], &view).unwrap();
+    let yellow = moved.chunks(4).filter(|p| is_yellow([p[0], p[1], p[2], p[3]])).count();
+    assert_eq!(yellow, 0, "the flat slab has not moved");
+    let flat_body =
+        Body { positions: flat.clone(), triangles: tissue.triangles.clone(), scalars: vec![0.0; flat.len()] };
+    host.meshes[0] = flat_body.mesh(true, [0.8, 0.6, 0.5]);
+    let off = differing(&renderer.render_from(&host, Some(eye)).unwrap(), &moved, 12);
+    assert!(off < 0.01, "{:.2} % of the pixels differ from the host's flat slab", 100.0 * off);
+
+    // Into the app's own texture, in its own encoder: the same picture as the renderer's own
+    // target at one sample, to the byte.
+    let mut fast = Renderer::fast(&ctx, w, h).unwrap();
+    let t =
+        DeviceMesh::new(&mut fast, &tissue_buffer, &flat, &tissue.triangles, [0.8, 0.6, 0.5], true).unwrap();
+    let own = fast.render_device(&[&t], &view).unwrap();
+    let format = wgpu::TextureFormat::Rgba8UnormSrgb;
+    let texture = ctx.device().create_texture(&wgpu::TextureDescriptor {
+        label: Some("app target"),
+        size: wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let target = texture.create_view(&wgpu::TextureViewDescriptor::default());
+    let mut encoder = ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    fast.draw_device(&mut encoder, &target, format, (w, h), &[&t], &view).unwrap();
+    let row = (4 * w).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+    let readback = ctx.device().create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test readback"),
+        size: u64::from(row * h),
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    encoder.copy_texture_to_buffer(
+        texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &readback,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(h),
+            },
+        },
+        wgpu::Extent3d { width: w, height: h, depth_or_array_layers: 1 },
+    );
+    ctx.queue().submit([encoder.finish()]);
+    let padded = voxcollide::gpu::map_read(&ctx, &readback, readback.size()).unwrap();
+    let app: Vec<u8> = padded.chunks(row as usize).flat_map(|r| r[..4 * w as usize].to_vec()).collect();
+    assert_eq!(app, own, "the app's texture holds the renderer's picture");
+}
+
+#[test]
+fn bad_device_meshes_are_typed_errors() {
+    use voxcollide_render::{DeviceMesh, DeviceView};
+    let Some(ctx) = common::gpu() else { return };
+    let mut renderer = Renderer::new(&ctx, 64, 64).unwrap();
+    let body = sphere(Vec3::ZERO, 1.0, 8, 12);
+    let good = device_positions(&ctx, &body.positions);
+    let invalid = |r: Result<DeviceMesh, Error>, what: &str| match r {
+        Err(Error::Invalid { what: w, .. }) => assert_eq!(w, what),
+        other => panic!("{what}: {other:?}"),
+    };
+    let uniform = ctx.device().create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 16 * body.positions.len() as u64,
+        usage: wgpu::BufferUsages::UNIFORM,
+        mapped_at_creation: false,
+    });
+    invalid(
+        DeviceMesh::new(&mut renderer, &uniform, &body.positions, &body.triangles, [1.0; 3], true),
+        "positions",
+    );
+    let short = device_positions(&ctx, &body.positions[..3]);
+    invalid(
+        DeviceMesh::new(&mut renderer, &short, &body.positions, &body.triangles, [1.0; 3], true),
+        "positions",
+    );
+    let mut tris = body.triangles.clone();
+    tris[0][1] = body.positions.len() as u32;
+    invalid(DeviceMesh::new(&mut renderer, &good, &body.positions, &tris, [1.0; 3], true), "triangle index");
+    let mut start = body.positions.clone();
+    start[2] = Vec3::NAN;
+    invalid(DeviceMesh::new(&mut renderer, &good, &start, &body.triangles, [1.0; 3], true), "start");
+    invalid(
+        DeviceMesh::new(&mut renderer, &good, &body.positions, &body.triangles, [f32::NAN; 3], true),
+        "base_color",
+    );
+    let mesh =
+        DeviceMesh::new(&mut renderer, &good, &body.positions, &body.triangles, [1.0; 3], true).unwrap();
+    let view =
+        DeviceView { scalar_range: (0.0, 1.0), clip: None, view_dir: Vec3::ZERO, up: Vec3::Y, eye: None };
+    match renderer.render_device(&[&mesh], &view) {
+        Err(Error::Invalid { what, .. }) => assert_eq!(what, "view_dir"),
+        other => panic!("{:?}", other.map(|p| p.len())),
+    }
+    let view = DeviceView { view_dir: Vec3::NEG_Z, scalar_range: (0.0, f32::INFINITY), ..view };
+    assert!(matches!(
+        renderer.render_device(&[&mesh], &view),
+        Err(Error::Invalid { what: "scalar_range", .. })
+    ));
+    // A NaN in the buffer (a blown-up simulation) loses its triangles, not the picture.
+    let mut broken: Vec<[f32; 4]> = body.positions.iter().map(|p| p.extend(1.0).to_array()).collect();
+    broken[5] = [f32::NAN; 4];
+    ctx.queue().write_buffer(&good, 0, bytemuck::cast_slice(&broken));
+    let view = DeviceView { scalar_range: (0.0, 1.0), ..view };
+    let rgba = renderer.render_device(&[&mesh], &view).unwrap();
+    assert!(rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count() > 500);
 }

@@ -8,3 +8,8 @@ mod wgsl;
 fn the_render_shader_validates() {
     wgsl::validate("render", voxcollide_render::SHADER, &["vs_main", "fs_main"]);
 }
+
+#[test]
+fn the_device_paths_shader_validates() {
+    wgsl::validate("render_device", voxcollide_render::DEVICE_SHADER, &["vs_device", "fs_main"]);
+}

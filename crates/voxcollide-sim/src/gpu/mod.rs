@@ -475,6 +475,16 @@ impl GpuWorld {
         self.host_waits
     }
 
+    /// Body `body`'s positions as the device holds them: one `vec4<f32>` per vertex (xyz, in
+    /// the world's lengths, the scene file's units; w 1), in a `STORAGE` buffer that every step updates in place. An app draws
+    /// from it without reading it back (`voxcollide_render::DeviceMesh`, after the step's
+    /// commands on the same queue); [`sync`](Self::sync) copies it into `world`. `None` past
+    /// the last body.
+    #[must_use]
+    pub fn positions(&self, body: usize) -> Option<&wgpu::Buffer> {
+        self.bodies.get(body).map(|b| &b.pos)
+    }
+
     /// Records one step's collisions and, for every body, its contact sums, its fill's pressure
     /// and (explicit) its forces and integration; the encoder, not yet submitted.
     fn record(&mut self, inputs: &[StepInputs]) -> Result<wgpu::CommandEncoder, Error> {

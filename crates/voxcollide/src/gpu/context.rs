@@ -15,6 +15,8 @@ pub struct GpuContext {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter: Option<AdapterInfo>,
+    /// What the adapter can do below WebGPU's baseline (GL drivers lack some).
+    downlevel: Option<wgpu::DownlevelFlags>,
     lost: Option<Arc<AtomicBool>>,
     /// The pipelines built on this device, shared by every `GpuCollision` made on it.
     kernels: Arc<Mutex<super::KernelCache>>,
@@ -90,13 +92,21 @@ impl GpuContext {
         let lost = Arc::new(AtomicBool::new(false));
         let flag = lost.clone();
         device.set_device_lost_callback(move |_, _| flag.store(true, Ordering::SeqCst));
-        Ok(GpuContext { device, queue, adapter: Some(info), lost: Some(lost), kernels: Arc::default() })
+        let downlevel = Some(chosen.get_downlevel_capabilities().flags);
+        Ok(GpuContext {
+            device,
+            queue,
+            adapter: Some(info),
+            downlevel,
+            lost: Some(lost),
+            kernels: Arc::default(),
+        })
     }
 
     /// Wraps an app's own device and queue (the app keeps its error and device-lost handlers).
     #[must_use]
     pub fn from_device(device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
-        GpuContext { device, queue, adapter: None, lost: None, kernels: Arc::default() }
+        GpuContext { device, queue, adapter: None, downlevel: None, lost: None, kernels: Arc::default() }
     }
 
     /// The device.
@@ -116,6 +126,13 @@ impl GpuContext {
     #[must_use]
     pub fn adapter_info(&self) -> Option<&AdapterInfo> {
         self.adapter.as_ref()
+    }
+
+    /// The adapter's downlevel flags (what it can do below WebGPU's baseline); `None` for a
+    /// context made with [`from_device`](Self::from_device).
+    #[must_use]
+    pub fn downlevel_flags(&self) -> Option<wgpu::DownlevelFlags> {
+        self.downlevel
     }
 
     /// The adapter in words, e.g. `llvmpipe (LLVM 15.0.6, 256 bits) (Vulkan, Cpu)`.
