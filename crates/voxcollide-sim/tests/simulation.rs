@@ -2,7 +2,8 @@
 //! `Box<dyn Simulation>` on the CPU and on the GPU alike. Under the explicit integrator the two
 //! give the same positions and reports, to the bit (on llvmpipe); what varies with the
 //! integrator (`time`, `residual`, `parts`) is there only where the step varies; and only the
-//! GPU counts the times a step waited for the device.
+//! GPU counts the times a step waited for the device: never, for an explicit step with the
+//! voxel model's contact.
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
@@ -58,6 +59,33 @@ fn both_backends_step_an_explicit_world_through_one_seam_to_the_same_bits() {
     // Only the GPU waits for a device: here once a step, for the surface contact's search.
     assert_eq!(cpu.host_waits(), None);
     assert_eq!(gpu.host_waits(), Some(n));
+}
+
+#[test]
+fn an_explicit_step_with_the_voxel_models_contact_never_waits_for_the_device() {
+    // docs/design.md §5: a step stays on the device. With the voxel model's penalty the whole
+    // explicit step (collision, forces, integration) is recorded and submitted, nothing read
+    // back: no wait while it steps, and the contact is found (the reports, read at the frame,
+    // after the count, match the CPU's to the bit).
+    let Some(ctx) = common::gpu() else { return };
+    let text = include_str!("../../../scenes/indentation.toml")
+        .replace("[time]", "[time]\nintegrator = \"explicit\"")
+        .replace("b = \"block\"", "b = \"block\"\nresponse = \"penalty\"")
+        .replace("position = [0, 0, 14]", "position = [0, 0, 13.05]")
+        .replace("{ t = 0.0, position = [0, 0, 14] }", "{ t = 0.0, position = [0, 0, 13.05] }");
+    let built = build_world(&SceneFile::parse("indentation.toml", &text).unwrap()).unwrap();
+    assert!(built.world.contacts[0].surface().is_none(), "the voxel model's penalty");
+    let w = built.world;
+    let mut cpu = simulation(None, w.clone()).unwrap();
+    let mut gpu = simulation(Some(&ctx), w).unwrap();
+    let n = 200;
+    steps(&mut *cpu, n);
+    steps(&mut *gpu, n);
+    assert_eq!(gpu.host_waits(), Some(0), "an explicit step read something back");
+    let (_, cr) = cpu.frame().unwrap();
+    let (_, gr) = gpu.frame().unwrap();
+    assert!(!cr[0].colliding_b.is_empty(), "the ball should touch the block within {n} steps");
+    assert_eq!(cr[0].colliding_b, gr[0].colliding_b);
 }
 
 #[test]
