@@ -14,7 +14,7 @@ use wgpu::{
     BindGroup, BindGroupLayout, Buffer, BufferUsages, CommandEncoder, Device, TextureFormat, TextureView,
 };
 
-use crate::{BACKGROUND, Camera, DEPTH_FORMAT, GpuRenderParams, Renderer};
+use crate::{BACKGROUND, Camera, GpuRenderParams, Renderer, checked_view, depth_view, mesh_pipeline};
 use voxcollide::Error;
 use voxcollide::gpu::scoped;
 
@@ -204,35 +204,14 @@ impl Renderer {
 
     /// The uniforms of `view` over `meshes`, for a target of `aspect`, written to the queue.
     fn device_params(&mut self, meshes: &[&DeviceMesh], view: &DeviceView, aspect: f64) -> Result<(), Error> {
-        let invalid =
-            |what: &'static str, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
-        let forward = view.view_dir.as_dvec3().normalize_or_zero();
-        if !forward.is_finite() || forward == DVec3::ZERO {
-            return Err(invalid("view_dir", view.view_dir.to_string(), "must be finite and non-zero"));
-        }
+        let plane = checked_view(view.view_dir, view.scalar_range, view.clip)?;
+        let forward = view.view_dir.as_dvec3().normalize();
         let (lo, hi) = view.scalar_range;
-        if !lo.is_finite() || !hi.is_finite() {
-            return Err(invalid("scalar_range", format!("({lo}, {hi})"), "both ends must be finite"));
-        }
         if let Some(e) = view.eye
             && !e.is_finite()
         {
-            return Err(invalid("eye", e.to_string(), "must be finite"));
+            return Err(Error::Invalid { what: "eye", value: e.to_string(), rule: "must be finite".into() });
         }
-        let plane = match view.clip {
-            None => None,
-            Some((point, normal)) => {
-                let n = normal.as_dvec3().normalize_or_zero();
-                if !point.is_finite() || n == DVec3::ZERO {
-                    return Err(invalid(
-                        "clip",
-                        format!("(point {point}, normal {normal})"),
-                        "the point must be finite and the normal finite and non-zero",
-                    ));
-                }
-                Some(n.extend(-n.dot(point.as_dvec3())))
-            }
-        };
         self.framed.clear();
         for m in meshes {
             self.framed.extend_from_slice(&m.framed);
@@ -295,7 +274,7 @@ impl Renderer {
         let device = self.ctx.device().clone();
         let parts = self.device.as_mut().expect("built above");
         if parts.depth.as_ref().is_none_or(|(size, _)| *size != (width, height)) {
-            let depth = scoped(&device, || depth_target(&device, width, height, 1))?;
+            let depth = scoped(&device, || depth_view(&device, width, height, 1))?;
             parts.depth = Some(((width, height), depth));
         }
         let parts = self.device.as_ref().expect("built above");
@@ -412,55 +391,5 @@ fn build_pipeline(
     format: TextureFormat,
     samples: u32,
 ) -> wgpu::RenderPipeline {
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("voxcollide device render"),
-        layout: Some(&parts.pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &parts.module,
-            entry_point: Some("vs_device"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            front_face: wgpu::FrontFace::Ccw,
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        }),
-        multisample: wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false },
-        fragment: Some(wgpu::FragmentState {
-            module: &parts.module,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
-}
-
-fn depth_target(device: &Device, width: u32, height: u32, samples: u32) -> TextureView {
-    device
-        .create_texture(&wgpu::TextureDescriptor {
-            label: Some("voxcollide device render depth"),
-            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
-            mip_level_count: 1,
-            sample_count: samples,
-            dimension: wgpu::TextureDimension::D2,
-            format: DEPTH_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-            view_formats: &[],
-        })
-        .create_view(&wgpu::TextureViewDescriptor::default())
+    mesh_pipeline(device, &parts.pipeline_layout, &parts.module, ("vs_device", &[]), format, samples)
 }

@@ -909,47 +909,13 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: 
         source: wgpu::ShaderSource::Wgsl(SHADER.into()),
     });
     let attributes = wgpu::vertex_attr_array![0 => Float32x4, 1 => Float32x4, 2 => Float32x4];
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label,
-        layout: Some(&pipeline_layout),
-        vertex: wgpu::VertexState {
-            module: &module,
-            entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
-            buffers: &[Some(wgpu::VertexBufferLayout {
-                array_stride: VERTEX_BYTES,
-                step_mode: wgpu::VertexStepMode::Vertex,
-                attributes: &attributes,
-            })],
-        },
-        primitive: wgpu::PrimitiveState {
-            topology: wgpu::PrimitiveTopology::TriangleList,
-            front_face: wgpu::FrontFace::Ccw,
-            // Two-sided: a cut body shows its inside faces.
-            cull_mode: None,
-            ..Default::default()
-        },
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::Less),
-            stencil: wgpu::StencilState::default(),
-            bias: wgpu::DepthBiasState::default(),
-        }),
-        multisample: wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false },
-        fragment: Some(wgpu::FragmentState {
-            module: &module,
-            entry_point: Some("fs_main"),
-            compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: COLOR_FORMAT,
-                blend: None,
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
-        }),
-        multiview_mask: None,
-        cache: None,
-    });
+    let buffers = [Some(wgpu::VertexBufferLayout {
+        array_stride: VERTEX_BYTES,
+        step_mode: wgpu::VertexStepMode::Vertex,
+        attributes: &attributes,
+    })];
+    let pipeline =
+        mesh_pipeline(device, &pipeline_layout, &module, ("vs_main", &buffers), COLOR_FORMAT, samples);
     let params = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("voxcollide render params"),
         size: std::mem::size_of::<GpuRenderParams>() as u64,
@@ -983,12 +949,7 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: 
         msaa: (samples > 1).then(|| {
             view(texture("voxcollide render msaa", samples, COLOR_FORMAT, TextureUsages::RENDER_ATTACHMENT))
         }),
-        depth: view(texture(
-            "voxcollide render depth",
-            samples,
-            DEPTH_FORMAT,
-            TextureUsages::RENDER_ATTACHMENT,
-        )),
+        depth: depth_view(device, width, height, samples),
         resolved: texture(
             "voxcollide render resolved",
             1,
@@ -1004,6 +965,104 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: 
     }
 }
 
+/// The pipeline that draws triangles (two-sided, depth-tested) with `module`'s vertex stage
+/// `vertex` and its fragment stage `fs_main` into `format` at `samples`: the host path's and the
+/// device path's ([`DeviceMesh`]).
+fn mesh_pipeline(
+    device: &Device,
+    layout: &wgpu::PipelineLayout,
+    module: &wgpu::ShaderModule,
+    (vertex, buffers): (&str, &[Option<wgpu::VertexBufferLayout<'_>>]),
+    format: TextureFormat,
+    samples: u32,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("voxcollide render"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some(vertex),
+            compilation_options: Default::default(),
+            buffers,
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            front_face: wgpu::FrontFace::Ccw,
+            // Two-sided: a cut body shows its inside faces.
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil: Some(wgpu::DepthStencilState {
+            format: DEPTH_FORMAT,
+            depth_write_enabled: Some(true),
+            depth_compare: Some(wgpu::CompareFunction::Less),
+            stencil: wgpu::StencilState::default(),
+            bias: wgpu::DepthBiasState::default(),
+        }),
+        multisample: wgpu::MultisampleState { count: samples, mask: !0, alpha_to_coverage_enabled: false },
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_main"),
+            compilation_options: Default::default(),
+            targets: &[Some(wgpu::ColorTargetState {
+                format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// A depth target of `width × height` at `samples`.
+fn depth_view(device: &Device, width: u32, height: u32, samples: u32) -> TextureView {
+    device
+        .create_texture(&wgpu::TextureDescriptor {
+            label: Some("voxcollide render depth"),
+            size: wgpu::Extent3d { width, height, depth_or_array_layers: 1 },
+            mip_level_count: 1,
+            sample_count: samples,
+            dimension: wgpu::TextureDimension::D2,
+            format: DEPTH_FORMAT,
+            usage: TextureUsages::RENDER_ATTACHMENT,
+            view_formats: &[],
+        })
+        .create_view(&wgpu::TextureViewDescriptor::default())
+}
+
+/// Checks a view's direction, scalar range and clip, and returns the clip as a plane `(n, d)`
+/// with unit `n` (in `f64`, so huge coordinates cannot overflow the test).
+fn checked_view(
+    view_dir: Vec3,
+    (lo, hi): (f32, f32),
+    clip: Option<(Vec3, Vec3)>,
+) -> Result<Option<DVec4>, Error> {
+    let invalid =
+        |what: &'static str, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
+    let forward = view_dir.as_dvec3();
+    if !forward.is_finite() || forward == DVec3::ZERO {
+        return Err(invalid("view_dir", format!("{view_dir}"), "must be finite and non-zero"));
+    }
+    if !lo.is_finite() || !hi.is_finite() {
+        return Err(invalid("scalar_range", format!("({lo}, {hi})"), "both ends must be finite"));
+    }
+    match clip {
+        None => Ok(None),
+        Some((point, normal)) => {
+            let n = normal.as_dvec3().normalize_or_zero();
+            if !point.is_finite() || n == DVec3::ZERO {
+                return Err(invalid(
+                    "clip",
+                    format!("(point {point}, normal {normal})"),
+                    "the point must be finite and the normal finite and non-zero",
+                ));
+            }
+            Ok(Some(n.extend(-n.dot(point.as_dvec3()))))
+        }
+    }
+}
+
 /// Checks `scene`, expands its drawn triangles into `vertices`, collects the points to frame
 /// into `framed`, and returns the uniform: camera, light and clip plane.
 fn prepare(
@@ -1016,29 +1075,9 @@ fn prepare(
 ) -> Result<GpuRenderParams, Error> {
     let invalid =
         |what: &'static str, value: String, rule: &str| Error::Invalid { what, value, rule: rule.into() };
+    let plane = checked_view(scene.view_dir, scene.scalar_range, scene.clip)?;
     let view_dir = scene.view_dir.as_dvec3();
-    if !view_dir.is_finite() || view_dir == DVec3::ZERO {
-        return Err(invalid("view_dir", format!("{}", scene.view_dir), "must be finite and non-zero"));
-    }
     let (lo, hi) = scene.scalar_range;
-    if !lo.is_finite() || !hi.is_finite() {
-        return Err(invalid("scalar_range", format!("({lo}, {hi})"), "both ends must be finite"));
-    }
-    // The plane as (n, d) with unit n, in f64 so huge coordinates cannot overflow the test.
-    let plane = match scene.clip {
-        None => None,
-        Some((point, normal)) => {
-            let n = normal.as_dvec3().normalize_or_zero();
-            if !point.is_finite() || n == DVec3::ZERO {
-                return Err(invalid(
-                    "clip",
-                    format!("(point {point}, normal {normal})"),
-                    "the point must be finite and the normal finite and non-zero",
-                ));
-            }
-            Some(n.extend(-n.dot(point.as_dvec3())))
-        }
-    };
     let side = |p: DVec3| plane.map_or(0.0, |pl| pl.truncate().dot(p) + pl.w);
 
     vertices.clear();
