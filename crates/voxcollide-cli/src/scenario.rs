@@ -1,21 +1,22 @@
-//! Running a scene end to end: the backend (GPU when there is an adapter, else the CPU), the
-//! frames (PNG pictures, VTK files for ParaView, measurements), and the run's summary.
+//! The paper's two scenes end to end (`voxcollide run implant`, `run cylinder`): their worlds,
+//! stepped by the command's one run loop ([`crate::scene_run`]) as any scene file is, with the
+//! paper's measures at each frame (penetration by the exact inside test), its pictures (the
+//! layer cut open at its middle), and its `summary.json`.
 
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use glam::Vec3;
 use serde::Serialize;
 
 use crate::backend::{Backend, context};
-use crate::output::{BodyFrame, PvdSeries};
+use crate::scene_run::{BodySummary, ContactSummary, FileRunConfig, run_scene_on};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
 use voxcollide_render::{Legend, Renderer, Scene as RenderScene, SceneMesh};
-use voxcollide_sim::build::build_world;
+use voxcollide_sim::build::{BodyNote, Built, build_world};
 use voxcollide_sim::geometry::{ClosedSurface, penetration};
 use voxcollide_sim::scene_file::SceneFile;
-use voxcollide_sim::{CpuSim, GpuSim, Kind, Scene, SceneConfig};
+use voxcollide_sim::{Kind, Scene, SceneConfig, World};
 
 /// Everything a run needs.
 #[derive(Clone, Debug)]
@@ -100,9 +101,9 @@ pub struct Summary {
     /// Files written, relative to the output directory.
     pub files: Vec<String>,
     /// docs/design.md §8's per-body figures: the tissue and the foreign body.
-    pub bodies: Vec<crate::scene_run::BodySummary>,
+    pub bodies: Vec<BodySummary>,
     /// docs/design.md §8's per-contact figures: the one contact.
-    pub contacts: Vec<crate::scene_run::ContactSummary>,
+    pub contacts: Vec<ContactSummary>,
     /// Whether the bodies were found at rest (the paper scenes do not settle: false).
     pub settled: bool,
     /// Simulated seconds.
@@ -132,44 +133,17 @@ pub fn shipped(kind: Kind) -> &'static str {
     }
 }
 
-/// A simulation on one of the two backends.
-enum Sim {
-    Cpu(Box<CpuSim>),
-    Gpu(Box<GpuSim>),
-}
-
-impl Sim {
-    fn step(&mut self) -> Result<(), Error> {
-        match self {
-            Sim::Cpu(s) => s.step(),
-            Sim::Gpu(s) => s.step(),
-        }
-    }
-
-    /// The scene with up-to-date positions and the last contact report.
-    fn frame(&mut self) -> Result<(&Scene, ContactReport), Error> {
-        match self {
-            Sim::Cpu(s) => Ok((&s.scene, s.report.clone())),
-            Sim::Gpu(s) => {
-                let report = s.sync()?;
-                Ok((&s.scene, report))
-            }
-        }
-    }
-}
-
-/// The report's forces for a body of `n` vertices, borrowed; zeros before the first step, when
-/// the report is still empty.
-fn forces_or_zero(v: &[Vec3], n: usize) -> std::borrow::Cow<'_, [Vec3]> {
-    if v.len() == n { v.into() } else { vec![Vec3::ZERO; n].into() }
-}
-
 fn io(path: &Path, e: impl std::fmt::Display) -> Error {
     Error::Io { path: path.display().to_string(), message: e.to_string() }
 }
 
 /// Runs `config`, calling `progress(steps_done)` as it goes and `note(line)` for anything the
 /// user should read (the backend chosen, a fallback to the CPU, pictures skipped).
+///
+/// A paper scene runs through the command's one run loop ([`run_scene_on`]), as a scene file
+/// does: at its defaults from its shipped file, with other options as the built-in generator
+/// builds it (the same world to the bit at the defaults). The loop steps it and writes its
+/// ParaView files; this adds the paper's measures and pictures at each frame.
 ///
 /// # Errors
 /// Set-up errors of the scene, [`Error::NoAdapter`] for `Backend::Gpu` without an adapter,
@@ -183,138 +157,104 @@ pub fn run(
         return Err(Error::Invalid { what: "frames", value: "0".into(), rule: "must be at least 1".into() });
     }
     let scene = Scene::new(config.scene)?;
+    let kind = config.scene.kind;
+    let name = kind.name();
+    let path = shipped_path(kind);
+    let mut file = SceneFile::parse(path, shipped(kind))?;
     // At its defaults, a paper scene runs as its shipped scene file describes it (proven the
     // same to the bit by voxcollide-sim's tests/shipped_scenes.rs); other options have only the
-    // built-in generator.
-    let shipped = if config.scene == SceneConfig::new(config.scene.kind) {
-        let (path, text) = (shipped_path(config.scene.kind), shipped(config.scene.kind));
-        let built = build_world(&SceneFile::parse(path, text)?)?;
-        Some((path, built.world))
+    // built-in generator, whose world takes the file's names.
+    let at_defaults = config.scene == SceneConfig::new(kind);
+    let built = if at_defaults {
+        note(&format!("{name} from the shipped {path}"));
+        build_world(&file)?
     } else {
-        None
+        note(&format!("{name} from the built-in generator, for options other than {path}'s"));
+        let mut world = scene.world()?;
+        world.names = file.bodies.iter().map(|b| b.name.clone()).collect();
+        let notes = world
+            .names
+            .iter()
+            .zip(&world.bodies)
+            .map(|(n, b)| BodyNote {
+                name: n.clone(),
+                vertices: b.len(),
+                coverage: None,
+                remarks: Vec::new(),
+                full_shape: None,
+                reference: None,
+                landmarks: Vec::new(),
+                wall_faces: None,
+            })
+            .collect();
+        Built { world, dt: scene.dt, steps: config.scene.steps, notes }
     };
+    scene.check_world(&built.world)?;
+    // The loop writes the ParaView files; the pictures are the paper's own (below).
+    file.output.frames = config.frames;
+    file.output.images = false;
+    file.output.vtk = config.vtk;
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let (ctx, without) = context(config.backend, config.image.is_some(), note)?;
-    let (mut sim, backend, adapter) = match (config.backend, &ctx) {
-        (Backend::Cpu, _) | (Backend::Auto, None) => (
-            Sim::Cpu(Box::new(match &shipped {
-                Some((_, world)) => CpuSim::with_world(scene.clone(), world.clone())?,
-                None => CpuSim::new(scene.clone())?,
-            })),
-            "cpu",
-            ctx.as_ref().map_or(without, |c| format!("pictures on {}", c.adapter_name())),
-        ),
-        (_, Some(ctx)) => (
-            Sim::Gpu(Box::new(match &shipped {
-                Some((_, world)) => GpuSim::with_world(ctx, scene.clone(), world.clone())?,
-                None => GpuSim::new(ctx, scene.clone())?,
-            })),
-            "gpu",
-            ctx.adapter_name(),
-        ),
-        (Backend::Gpu, None) => unreachable!("Backend::Gpu returned early without an adapter"),
-    };
-    let source = match &shipped {
-        Some((path, _)) => format!("the shipped {path}"),
-        None => {
-            format!("the built-in generator, for options other than {}'s", shipped_path(config.scene.kind))
-        }
-    };
-    note(&format!("{} on the {backend} backend ({adapter}), from {source}", config.scene.kind.name()));
     let mut renderer = match (&ctx, config.image) {
         (Some(ctx), Some((w, h))) => Some(Renderer::new(ctx, w, h)?),
         _ => None,
     };
-    let name = config.scene.kind.name();
-    let mut series = config.vtk.then(|| {
-        (
-            PvdSeries::new(config.out.join("tissue.pvd")),
-            PvdSeries::new(config.out.join(format!("{name}.pvd"))),
-        )
-    });
-
-    let steps = config.scene.steps;
+    let mut frames = Vec::new();
+    let mut pictures = Vec::new();
+    let run_config = FileRunConfig {
+        path: path.into(),
+        backend: config.backend,
+        out: config.out.clone(),
+        image: config.image.unwrap_or((1, 1)),
+    };
+    let ran = run_scene_on(
+        ctx.as_ref(),
+        &without,
+        &file,
+        built,
+        &run_config,
+        &mut |done, _| progress(done),
+        note,
+        &mut |world, reports, at| {
+            let frame = frames.len() as u32;
+            let f = measure(frame, at.step, &scene, world, reports.first())?;
+            if let Some(r) = renderer.as_mut() {
+                let png = format!("{name}_{frame:04}.png");
+                let tissue = &world.bodies[0];
+                let moved: Vec<f32> =
+                    tissue.pos.iter().zip(&tissue.rest_pos).map(|(p, r)| p.distance(*r)).collect();
+                let shown = picture(&scene, world, &moved);
+                let legend = Legend::new("tissue displacement (layer units)", shown.scalar_range);
+                r.render_png_with_legend(&shown, Some(&legend), &config.out.join(&png))?;
+                pictures.push(png);
+            }
+            frames.push(f);
+            Ok(())
+        },
+    )?;
+    let steps = ran.steps;
     let mut summary = Summary {
         scenario: name.into(),
-        backend: backend.into(),
-        adapter,
+        backend: ran.backend.clone(),
+        adapter: ran.adapter.clone(),
         steps,
         vertices_a: scene.foreign.len(),
         vertices_b: scene.tissue.len(),
+        steps_per_second: ran.steps_per_second,
+        host_waits_per_step: ran.host_waits_per_step,
         layer_thickness: scene.layer_thickness(),
         voxel_size: scene.grid.voxel_size(),
         magnitude: scene.params.magnitude,
         stiffness: config.scene.stiffness,
         dt: scene.dt,
-        scene_file: shipped.as_ref().map(|(path, _)| (*path).to_string()),
+        frames,
+        files: pictures,
+        scene_file: at_defaults.then(|| path.to_string()),
+        simulated_time: steps as f64 * f64::from(scene.dt),
         ..Summary::default()
     };
-    let mut stepping = 0.0f64;
-    let mut done = 0u64;
-    for frame in 0..=config.frames {
-        let target = (u64::from(frame) * steps).div_ceil(u64::from(config.frames));
-        let started = Instant::now();
-        while done < target {
-            sim.step()?;
-            done += 1;
-            if done.is_multiple_of(16) || done == target {
-                progress(done);
-            }
-        }
-        let (scene, report) = sim.frame()?;
-        stepping += started.elapsed().as_secs_f64();
-        let f = measure(frame, done, scene, &report)?;
-        if let Some(r) = renderer.as_mut() {
-            let file = format!("{name}_{frame:04}.png");
-            let moved: Vec<f32> =
-                scene.tissue.pos.iter().zip(&scene.tissue.rest_pos).map(|(p, r)| p.distance(*r)).collect();
-            let shown = picture(scene, &moved);
-            let legend = Legend::new("tissue displacement (layer units)", shown.scalar_range);
-            r.render_png_with_legend(&shown, Some(&legend), &config.out.join(&file))?;
-            summary.files.push(file);
-        }
-        if let Some((tissue, foreign)) = series.as_mut() {
-            let time = f.time;
-            let colliding: Vec<bool> = {
-                let mut c = vec![false; scene.tissue.len()];
-                report.colliding_b.iter().for_each(|&j| c[j as usize] = true);
-                c
-            };
-            let (ft, ff) = (
-                forces_or_zero(&report.force_b, scene.tissue.len()),
-                forces_or_zero(&report.force_a, scene.foreign.len()),
-            );
-            for (pvd, body, forces, flags, prefix) in [
-                (tissue, &scene.tissue, &ft, colliding, "tissue"),
-                (foreign, &scene.foreign, &ff, ff.iter().map(|f| *f != Vec3::ZERO).collect(), name),
-            ] {
-                let displacement: Vec<Vec3> =
-                    body.pos.iter().zip(&body.rest_pos).map(|(p, r)| *p - *r).collect();
-                let file = format!("{prefix}_{frame:04}.vtp");
-                pvd.write_frame(
-                    time,
-                    &file,
-                    &BodyFrame {
-                        positions: &body.pos,
-                        triangles: &body.surface.triangles,
-                        displacement: &displacement,
-                        contact_force: forces,
-                        colliding: &flags,
-                    },
-                )?;
-                summary.files.push(file);
-            }
-        }
-        summary.frames.push(f);
-    }
-    if series.is_some() {
-        summary.files.extend(["tissue.pvd".to_string(), format!("{name}.pvd")]);
-    }
-    summary.steps_per_second = if stepping > 0.0 { steps as f64 / stepping } else { 0.0 };
-    summary.host_waits_per_step = match &sim {
-        Sim::Gpu(s) => Some(s.host_waits() as f64 / steps.max(1) as f64),
-        Sim::Cpu(_) => None,
-    };
+    summary.files.extend(ran.files.into_iter().filter(|f| f != "summary.json"));
     let settle = steps / 10;
     for f in summary.frames.iter().filter(|f| f.step > settle) {
         summary.max_penetration = summary.max_penetration.max(f.max_penetration);
@@ -324,16 +264,16 @@ pub fn run(
         summary.frames.iter().map(|f| f.max_tissue_displacement).fold(0.0, f32::max);
     let max_foreign = summary.frames.iter().map(|f| f.max_foreign_displacement).fold(0.0, f32::max);
     summary.bodies = vec![
-        crate::scene_run::BodySummary {
+        BodySummary {
             name: "tissue".into(),
             kind: "soft".into(),
             vertices: summary.vertices_b,
             max_displacement: summary.max_tissue_displacement,
             ..Default::default()
         },
-        crate::scene_run::BodySummary {
+        BodySummary {
             name: name.into(),
-            kind: match config.scene.kind {
+            kind: match kind {
                 Kind::Cylinder => "soft",
                 Kind::Implant => "shell",
             }
@@ -358,7 +298,7 @@ pub fn run(
             f.max_penetration, f.step, f.frame
         )
     });
-    summary.contacts = vec![crate::scene_run::ContactSummary {
+    summary.contacts = vec![ContactSummary {
         a: name.into(),
         b: "tissue".into(),
         max_penetration: summary.frames.iter().map(|f| f.max_penetration).fold(0.0, f32::max),
@@ -374,7 +314,6 @@ pub fn run(
         checks: summary.frames.len() as u32,
     }];
     summary.held = worst.is_none();
-    summary.simulated_time = steps as f64 * f64::from(scene.dt);
     let path = config.out.join("summary.json");
     let json = serde_json::to_string_pretty(&summary).map_err(|e| io(&path, e))?;
     std::fs::write(&path, json + "\n").map_err(|e| io(&path, e))?;
@@ -382,50 +321,65 @@ pub fn run(
     Ok(summary)
 }
 
-/// The measurements of one frame; penetration by the exact inside test on the foreign body's
-/// current closed surface, independent of the voxel model.
-fn measure(frame: u32, step: u64, scene: &Scene, report: &ContactReport) -> Result<FrameSummary, Error> {
-    let surface = ClosedSurface::new(&scene.foreign.pos, &scene.foreign.surface)?;
-    let p = penetration(&surface, &scene.tissue.pos);
+/// The measurements of one frame (`world`: the tissue and the foreign body; `report`: their
+/// contact's); penetration by the exact inside test on the foreign body's current closed
+/// surface, independent of the voxel model.
+fn measure(
+    frame: u32,
+    step: u64,
+    scene: &Scene,
+    world: &World,
+    report: Option<&ContactReport>,
+) -> Result<FrameSummary, Error> {
+    let [tissue, foreign] = &world.bodies[..] else {
+        return Err(scene.check_world(world).err().unwrap_or(Error::Invalid {
+            what: "scene world",
+            value: format!("{} bodies", world.bodies.len()),
+            rule: "a paper scene has two".into(),
+        }));
+    };
+    let surface = ClosedSurface::new(&foreign.pos, &foreign.surface)?;
+    let p = penetration(&surface, &tissue.pos);
     let max_disp =
         |pos: &[Vec3], rest: &[Vec3]| pos.iter().zip(rest).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
     Ok(FrameSummary {
         frame,
         step,
         time: step as f64 * f64::from(scene.dt),
-        colliding: report.colliding_b.len(),
+        colliding: report.map_or(0, |r| r.colliding_b.len()),
         penetrating_fraction: p.fraction,
         max_penetration: p.max_depth,
-        max_tissue_displacement: max_disp(&scene.tissue.pos, &scene.tissue.rest_pos),
-        max_foreign_displacement: max_disp(&scene.foreign.pos, &scene.foreign.rest_pos),
+        max_tissue_displacement: max_disp(&tissue.pos, &tissue.rest_pos),
+        max_foreign_displacement: max_disp(&foreign.pos, &foreign.rest_pos),
     })
 }
 
 /// The picture of a frame: seen from the front and a little above, the front half cut away at
 /// y = 0, the tissue coloured by how far it moved (the cut face is the tissue's middle plane),
 /// the foreign body in a plain colour.
-fn picture<'a>(scene: &'a Scene, tissue_scalars: &'a [f32]) -> RenderScene<'a> {
+fn picture<'a>(scene: &'a Scene, world: &'a World, tissue_scalars: &'a [f32]) -> RenderScene<'a> {
     let colour = match scene.config.kind {
         Kind::Cylinder => [0.45, 0.55, 0.7],
         Kind::Implant => [0.95, 0.6, 0.25],
     };
+    let (tissue, foreign) = (&world.bodies[0], &world.bodies[1]);
     RenderScene {
         meshes: vec![
             SceneMesh {
-                positions: &scene.tissue.pos,
-                triangles: &scene.tissue.surface.triangles,
+                positions: &tissue.pos,
+                triangles: &tissue.surface.triangles,
                 scalars: Some(tissue_scalars),
                 base_color: [0.8; 3],
             },
             SceneMesh {
-                positions: &scene.tissue.pos,
+                positions: &tissue.pos,
                 triangles: &scene.tissue_slice,
                 scalars: Some(tissue_scalars),
                 base_color: [0.8; 3],
             },
             SceneMesh {
-                positions: &scene.foreign.pos,
-                triangles: &scene.foreign.surface.triangles,
+                positions: &foreign.pos,
+                triangles: &foreign.surface.triangles,
                 scalars: None,
                 base_color: colour,
             },

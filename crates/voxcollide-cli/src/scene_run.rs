@@ -548,9 +548,13 @@ pub fn run_scene_on(
             let body = &world.bodies[k];
             let force = contact_forces(world, &reports, k);
             let mut colliding = vec![false; body.len()];
+            // B's vertices the voxel model found colliding; A's that it pushed.
             for (pair, r) in world.contacts.iter().zip(&reports) {
                 if pair.b == k && r.force_b.len() == body.len() {
                     r.colliding_b.iter().for_each(|&j| colliding[j as usize] = true);
+                }
+                if pair.a == k && r.force_a.len() == body.len() {
+                    colliding.iter_mut().zip(&r.force_a).for_each(|(c, f)| *c |= *f != Vec3::ZERO);
                 }
             }
             let name = format!("{}_{frame:04}.vtp", world.names[k]);
@@ -663,9 +667,14 @@ pub fn run_scene_on(
             }
             break;
         }
-        // Past the schedule, frames a settling window apart.
-        let next = if done >= planned { chunk.max(window) } else { chunk };
-        let target = (done + next).min(if file.time.settle { file.time.max_steps } else { planned });
+        // On the schedule, frame k at step ⌈k · steps / frames⌉ (evenly, the last at its end);
+        // past it, frames a settling window apart.
+        let next = if done >= planned {
+            done + chunk.max(window)
+        } else {
+            ((u64::from(frame) + 1) * planned).div_ceil(frames).max(done + 1)
+        };
+        let target = next.min(if file.time.settle { file.time.max_steps } else { planned });
         if file.time.settle && done >= planned {
             run.accelerate(SETTLE_ACCELERATION);
         }
