@@ -1,10 +1,11 @@
 //! Which backend steps a run, and the device it runs on: `--backend auto|gpu|cpu`, the one
-//! GPU context a command opens (and passes to every run it makes), and why `auto` chooses the
-//! CPU for a world that could step on the GPU.
+//! GPU context a command opens (and passes to every run it makes), where a world steps on it
+//! ([`place`], for `run`, `compare` and `view` alike), and why `auto` chooses the CPU for a
+//! world that could step on the GPU.
 
 use voxcollide::error::Error;
 use voxcollide::gpu::GpuContext;
-use voxcollide_sim::{Integrator, World};
+use voxcollide_sim::{Integrator, Simulation, World, simulation};
 
 /// Which backend runs the simulation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -66,4 +67,82 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
     } else {
         None
     }
+}
+
+/// What a software adapter (lavapipe, WARP) does for a command under `--backend auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum OnSoftware {
+    /// It steps the world, as a GPU would (`run`: the paper's GPU path, shown on any adapter).
+    Steps,
+    /// It only draws, and the CPU steps: a software adapter draws on the cores the CPU backend
+    /// steps on, and steps slower than it (`view`, whose frames compete with the steps, and
+    /// `compare`, whose candidates step one per core).
+    Draws,
+}
+
+/// A world placed on a backend: the simulation, which backend steps it (`"gpu"` or `"cpu"`),
+/// and the adapter in words (or, when none is used, why).
+pub(crate) struct Placed {
+    /// The simulation.
+    pub run: Box<dyn Simulation + Send>,
+    /// `"gpu"` or `"cpu"`.
+    pub backend: &'static str,
+    /// The adapter that steps it, `pictures on …` where it only draws, or why there is none.
+    pub adapter: String,
+}
+
+/// Where `world` steps for `backend`, on `ctx` (`None`: no adapter, for the reason `without`),
+/// saying through `note` why `auto` keeps it on the CPU where it does.
+///
+/// # Errors
+/// [`Error::NoAdapter`] for [`Backend::Gpu`] without an adapter, or on one without compute
+/// shaders; the world's errors on the backend it steps on.
+pub(crate) fn place(
+    backend: Backend,
+    ctx: Option<&GpuContext>,
+    without: &str,
+    world: World,
+    software: OnSoftware,
+    note: &mut dyn FnMut(&str),
+) -> Result<Placed, Error> {
+    let name = ctx.map(GpuContext::adapter_name);
+    let computes = ctx
+        .and_then(GpuContext::downlevel_flags)
+        .is_none_or(|f| f.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS));
+    let is_software =
+        ctx.and_then(GpuContext::adapter_info).is_some_and(|i| i.device_type == wgpu::DeviceType::Cpu);
+    let on_gpu = match (backend, &name) {
+        (Backend::Cpu, _) | (Backend::Auto, None) => false,
+        (Backend::Gpu, None) => return Err(Error::NoAdapter { message: without.to_string() }),
+        (Backend::Gpu, Some(name)) if !computes => {
+            return Err(Error::NoAdapter { message: format!("{name} has no compute shaders to step on") });
+        }
+        (Backend::Gpu, Some(_)) => true,
+        (Backend::Auto, Some(name)) if !computes => {
+            note(&format!("{name} has no compute shaders: stepping on the CPU"));
+            false
+        }
+        (Backend::Auto, Some(name)) if is_software && software == OnSoftware::Draws => {
+            note(&format!(
+                "{name} is a software adapter: stepping on the CPU, which is faster there, and drawing on it (--backend gpu steps on it)"
+            ));
+            false
+        }
+        (Backend::Auto, Some(_)) => match cpu_first(&world) {
+            Some(why) => {
+                note(&format!("{why} steps on the CPU, on every core (the GPU draws the pictures)"));
+                false
+            }
+            None => true,
+        },
+    };
+    Ok(if on_gpu {
+        Placed { run: simulation(ctx, world)?, backend: "gpu", adapter: name.unwrap_or_default() }
+    } else {
+        Placed {
+            run: simulation(None, world)?,
+            backend: "cpu",
+            adapter: name.map_or_else(|| without.to_string(), |n| format!("pictures on {n}")),
+        }
+    })
 }

@@ -174,3 +174,28 @@ fn a_lost_device_is_an_error() {
     assert!(matches!(err, Error::DeviceLost { .. } | Error::Gpu { .. }), "{err:?}");
     eprintln!("after destroy: {err}");
 }
+
+#[test]
+fn an_app_device_wrapped_with_its_adapter_reports_the_adapter_and_steps() {
+    if gpu().is_none() {
+        return;
+    }
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter =
+        pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default())).unwrap();
+    let desc = wgpu::DeviceDescriptor { label: Some("app"), ..Default::default() };
+    let (device, queue) = pollster::block_on(adapter.request_device(&desc)).unwrap();
+    let info = adapter.get_info();
+    let ctx = GpuContext::from_adapter(&adapter, device.clone(), queue.clone());
+    assert_eq!(ctx.adapter_info().map(|i| (&i.name, i.device_type)), Some((&info.name, info.device_type)));
+    assert_eq!(ctx.downlevel_flags(), Some(adapter.get_downlevel_capabilities().flags));
+    assert!(ctx.adapter_name().contains(&info.name), "{}", ctx.adapter_name());
+    // Without the adapter, the same device says only that it is the app's.
+    let bare = GpuContext::from_device(device, queue);
+    assert_eq!((bare.adapter_info(), bare.downlevel_flags()), (None, None));
+    assert_eq!(bare.adapter_name(), "app-provided device");
+    let (a, b, voxel, grid) = bodies(43, 2000);
+    let params = all_params(1.0, voxel)[0];
+    let report = GpuCollision::new(&ctx, grid, params).unwrap().step(&a, &b).unwrap();
+    assert_eq!(report, CpuCollision::new(grid, params).unwrap().step(&a, &b).unwrap());
+}

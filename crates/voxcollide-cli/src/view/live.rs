@@ -22,7 +22,7 @@ use super::blit::Blit;
 use super::controls::{Action, Colouring, HELP, Orbit};
 use super::stepper::{Snapshot, Stepper};
 use super::{ViewConfig, ViewReport};
-use crate::backend::Backend;
+use crate::backend::{OnSoftware, place};
 use crate::scene_run::{contact_forces, meshes, shown_and_moved};
 use voxcollide_render::{
     Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
@@ -311,7 +311,7 @@ impl Live {
         .map_err(|e| Error::NoAdapter {
             message: format!("could not open a device on {adapter_name}: {e}"),
         })?;
-        let ctx = GpuContext::from_device(device, queue);
+        let ctx = GpuContext::from_adapter(&adapter, device, queue);
         let size = window.inner_size();
         let (width, height) = (size.width.max(1), size.height.max(1));
         let mut surface_config = surface.get_default_config(&adapter, width, height).ok_or_else(|| {
@@ -322,36 +322,6 @@ impl Live {
         let renderer = Renderer::fast(&ctx, width, height)?;
         let blit = Blit::new(ctx.device(), surface_config.format, (width, height));
 
-        let computes =
-            adapter.get_downlevel_capabilities().flags.contains(wgpu::DownlevelFlags::COMPUTE_SHADERS);
-        let on_gpu = match config.backend {
-            Backend::Cpu => false,
-            Backend::Gpu if !computes => {
-                return Err(Error::NoAdapter {
-                    message: format!("{adapter_name} has no compute shaders to step on"),
-                });
-            }
-            Backend::Gpu => true,
-            Backend::Auto if !computes => {
-                note(&format!("{adapter_name} has no compute shaders: stepping on the CPU"));
-                false
-            }
-            // A software adapter draws on the same cores the CPU backend steps on, and steps
-            // slower than it: there the CPU steps and the adapter only draws.
-            Backend::Auto if info.device_type == wgpu::DeviceType::Cpu => {
-                note(&format!(
-                    "{adapter_name} is a software adapter: stepping on the CPU, which is faster there (--backend gpu steps on it)"
-                ));
-                false
-            }
-            Backend::Auto => match crate::backend::cpu_first(&built.world) {
-                Some(why) => {
-                    note(&format!("{why} steps on the CPU"));
-                    false
-                }
-                None => true,
-            },
-        };
         let world = &built.world;
         let extent = world
             .bodies
@@ -366,11 +336,10 @@ impl Live {
             per_step: DRAG_PER_STEP * scene_size,
         }));
         let first = draggable(built.world.clone(), &drags);
-        let stepper = Stepper::start(
-            simulation(on_gpu.then_some(&ctx), first.clone())?,
-            f64::from(built.dt),
-            config.steps_per_frame.is_some(),
-        )?;
+        // A software adapter only draws here: the frames compete with the steps for its cores.
+        let placed = place(config.backend, Some(&ctx), "", first.clone(), OnSoftware::Draws, note)?;
+        let on_gpu = placed.backend == "gpu";
+        let stepper = Stepper::start(placed.run, f64::from(built.dt), config.steps_per_frame.is_some())?;
         let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
         let eye = framing_eye(&points, FIRST_VIEW, Vec3::Z, width as f32 / height as f32)
             .unwrap_or(centre - FIRST_VIEW.normalize() * 3.0 * scene_size);

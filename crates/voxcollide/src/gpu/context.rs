@@ -109,6 +109,19 @@ impl GpuContext {
         GpuContext { device, queue, adapter: None, downlevel: None, lost: None, kernels: Arc::default() }
     }
 
+    /// Wraps an app's own device and queue, opened on `adapter`, whose name, type and
+    /// capabilities it then reports ([`adapter_info`](Self::adapter_info),
+    /// [`downlevel_flags`](Self::downlevel_flags)); the app keeps its error and device-lost
+    /// handlers, as with [`from_device`](Self::from_device).
+    #[must_use]
+    pub fn from_adapter(adapter: &Adapter, device: wgpu::Device, queue: wgpu::Queue) -> GpuContext {
+        GpuContext {
+            adapter: Some(adapter.get_info()),
+            downlevel: Some(adapter.get_downlevel_capabilities().flags),
+            ..GpuContext::from_device(device, queue)
+        }
+    }
+
     /// The device.
     #[must_use]
     pub fn device(&self) -> &wgpu::Device {
