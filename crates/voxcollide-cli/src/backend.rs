@@ -1,6 +1,6 @@
 //! Which backend steps a run, and the device it runs on: `--backend auto|gpu|cpu`, the one
 //! GPU context a command opens (and passes to every run it makes), where a world steps on it
-//! ([`place`], for `run`, `compare` and `view` alike), and why `auto` chooses the CPU for a
+//! (`place`, for `run` and `view` alike), and why `auto` chooses the CPU for a
 //! world that could step on the GPU.
 
 use voxcollide::error::Error;

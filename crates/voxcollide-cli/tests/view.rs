@@ -495,3 +495,56 @@ fn the_implicit_integrator_steps_in_the_window_on_the_gpu() {
     assert!(block > 0.5, "the ball pressed the block {block} mm");
     std::fs::remove_dir_all(&d).unwrap();
 }
+
+#[test]
+fn on_the_gpu_the_bodies_are_drawn_where_they_step_and_read_back_a_few_times_a_second() {
+    let Some(x) = Xvfb::start() else { return };
+    let d = dir("device");
+    let run = |name: &str, args: &[&str]| -> (Value, Vec<[u8; 4]>) {
+        let (report, shot) = (d.join(format!("{name}.json")), d.join(format!("{name}.png")));
+        let mut all = vec!["implant", "--size", "480x320"];
+        all.extend_from_slice(args);
+        ok(x.view(&all)
+            .args(["--report".as_ref(), report.as_os_str(), "--screenshot".as_ref(), shot.as_os_str()])
+            .output()
+            .unwrap());
+        (json(&report), png(&shot).0)
+    };
+    // Repeatable (fixed steps a frame): the same frames drawn from the device on the GPU
+    // backend as from the read-back positions on the CPU's, to within the edges' rasterising.
+    let fixed = ["--frames", "12", "--steps-per-frame", "50"];
+    let (gpu, gpu_shot) = run("gpu", &[&["--backend", "gpu"][..], &fixed[..]].concat());
+    let (cpu, cpu_shot) = run("cpu", &[&["--backend", "cpu"][..], &fixed[..]].concat());
+    assert_eq!(
+        (gpu["backend"].as_str(), gpu["frames_from_device"].as_u64()),
+        (Some("gpu"), Some(12)),
+        "{gpu}"
+    );
+    assert_eq!(
+        (cpu["backend"].as_str(), cpu["frames_from_device"].as_u64()),
+        (Some("cpu"), Some(0)),
+        "{cpu}"
+    );
+    let differ = gpu_shot
+        .iter()
+        .zip(&cpu_shot)
+        .filter(|(a, b)| a.iter().zip(*b).any(|(p, q)| p.abs_diff(*q) > 24))
+        .count();
+    // The heads-up line's figures (steps/s, frames/s) differ; the bodies do not.
+    assert!(differ < gpu_shot.len() / 50, "{differ} of {} pixels differ", gpu_shot.len());
+    assert!(gpu_shot.iter().filter(|p| dent(**p)).count() > 50, "no lifted tissue drawn from the device");
+    // In real time the window takes a state (a read-back on the GPU) at most ten times a second
+    // while it draws the bodies from the device.
+    let (live, _) = run("live", &["--backend", "gpu", "--frames", "30"]);
+    let (frames, states, seconds) = (
+        live["frames_from_device"].as_u64().unwrap(),
+        live["states_read"].as_u64().unwrap(),
+        live["seconds"].as_f64().unwrap(),
+    );
+    assert_eq!(frames, 30, "{live}");
+    assert!(states >= 1 && (states as f64) <= 10.0 * seconds + 3.0, "{states} states in {seconds} s: {live}");
+    // Coloured by contact force, the frames come from the read-back states.
+    let (force, _) = run("force", &[&["--backend", "gpu", "--colouring", "force"][..], &fixed[..]].concat());
+    assert_eq!(force["frames_from_device"].as_u64(), Some(0), "{force}");
+    std::fs::remove_dir_all(&d).unwrap();
+}

@@ -308,6 +308,18 @@ impl Renderer {
     /// # Errors
     /// As [`draw_device`](Self::draw_device), and [`Error::DeviceLost`] when the device fails.
     pub fn render_device(&mut self, meshes: &[&DeviceMesh], view: &DeviceView) -> Result<Vec<u8>, Error> {
+        self.draw_picture_device(meshes, view)?;
+        self.read_picture()
+    }
+
+    /// Draws `meshes` from their device buffers into the renderer's own picture and submits,
+    /// reading nothing back, as [`draw_picture`](Self::draw_picture) draws a host scene: the
+    /// picture stays on the device ([`picture_view`](Self::picture_view),
+    /// [`read_picture`](Self::read_picture)).
+    ///
+    /// # Errors
+    /// As [`draw_device`](Self::draw_device), and [`Error::DeviceLost`] when the device is lost.
+    pub fn draw_picture_device(&mut self, meshes: &[&DeviceMesh], view: &DeviceView) -> Result<(), Error> {
         self.device_parts()?;
         let k = self.device_pipeline(crate::COLOR_FORMAT, self.samples)?;
         self.device_params(meshes, view, f64::from(self.width) / f64::from(self.height))?;
@@ -323,9 +335,8 @@ impl Renderer {
             let mut pass = self.begin_own_pass(&mut encoder);
             record(&mut pass, &parts.pipelines[k].1, &self.bind_group, meshes);
         }
-        self.copy_to_readback(&mut encoder);
         scoped(&device, || self.ctx.queue().submit([encoder.finish()]))?;
-        self.read_back()
+        Ok(())
     }
 }
 

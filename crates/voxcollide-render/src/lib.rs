@@ -64,9 +64,10 @@ pub use device::{DEVICE_SHADER, DeviceMesh, DeviceView};
 /// The renderer's WGSL (vertex `vs_main`, fragment `fs_main`), for validating it without a GPU.
 pub const SHADER: &str = include_str!("../shaders/render.wgsl");
 
-/// The colour target: sRGB-encoded, so the shader works in linear light and the PNG gets
-/// display-ready bytes. WebGPU guarantees it renders, resolves and multisamples.
-const COLOR_FORMAT: TextureFormat = TextureFormat::Rgba8UnormSrgb;
+/// The format of the renderer's own picture ([`Renderer::picture_view`]): sRGB-encoded, so
+/// the shader works in linear light and the PNG gets display-ready bytes. WebGPU guarantees it
+/// renders, resolves and multisamples.
+pub const COLOR_FORMAT: TextureFormat = TextureFormat::Rgba8UnormSrgb;
 const DEPTH_FORMAT: TextureFormat = TextureFormat::Depth32Float;
 /// MSAA samples: 4 is the count WebGPU guarantees for both formats.
 const SAMPLES: u32 = 4;
@@ -260,6 +261,41 @@ impl Renderer {
         (self.width, self.height)
     }
 
+    /// Draws `scene` (the camera at `eye`, or framing it) into the renderer's own picture and
+    /// submits, reading nothing back: the picture stays on the device, where
+    /// [`picture_view`](Self::picture_view) shows it to an app's own passes (a live view's
+    /// compositing onto a window) and [`read_picture`](Self::read_picture) fetches it.
+    ///
+    /// # Errors
+    /// As [`render_from`](Self::render_from).
+    pub fn draw_picture(&mut self, scene: &Scene, eye: Option<Vec3>) -> Result<(), Error> {
+        self.draw_clear_of(scene, eye, 0)
+    }
+
+    /// The renderer's own picture on the device, as the last draw left it: `width × height`,
+    /// [`COLOR_FORMAT`] (sampled, its texels read as linear light), one sample.
+    #[must_use]
+    pub fn picture_view(&self) -> &TextureView {
+        &self.resolved_view
+    }
+
+    /// Reads the renderer's own picture back, as the last draw left it ([`render`](Self::render)'s
+    /// bytes). Blocks until the device is done.
+    ///
+    /// # Errors
+    /// [`Error::Gpu`] or [`Error::DeviceLost`] when the device fails.
+    pub fn read_picture(&self) -> Result<Vec<u8>, Error> {
+        let device = self.ctx.device();
+        scoped(device, || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("voxcollide render read"),
+            });
+            self.copy_to_readback(&mut encoder);
+            self.ctx.queue().submit([encoder.finish()]);
+        })?;
+        self.read_back()
+    }
+
     /// Draws `scene` and returns its picture: RGBA8, sRGB-encoded, `width * height * 4` bytes,
     /// top row first. Blocks until the device is done.
     ///
@@ -299,6 +335,13 @@ impl Renderer {
     /// [`render_from`](Self::render_from), a framed picture keeping the rightmost `clear`
     /// pixels free of the bodies.
     fn render_clear_of(&mut self, scene: &Scene, eye: Option<Vec3>, clear: u32) -> Result<Vec<u8>, Error> {
+        self.draw_clear_of(scene, eye, clear)?;
+        self.read_picture()
+    }
+
+    /// [`draw_picture`](Self::draw_picture), a framed picture keeping the rightmost `clear`
+    /// pixels free of the bodies.
+    fn draw_clear_of(&mut self, scene: &Scene, eye: Option<Vec3>, clear: u32) -> Result<(), Error> {
         if let Some(e) = eye
             && !e.is_finite()
         {
@@ -323,8 +366,7 @@ impl Renderer {
             return Err(Error::DeviceLost { message: "the device was lost before this render".into() });
         }
         let device = self.ctx.device().clone();
-        scoped(&device, || self.submit(&device, &params, bytes))?;
-        self.read_back()
+        scoped(&device, || self.submit(&device, &params, bytes))
     }
 
     /// [`render`](Self::render)s `scene` and writes it to `path` as an RGBA PNG.
@@ -355,8 +397,8 @@ impl Renderer {
         write_png(path, self.width, self.height, &rgba)
     }
 
-    /// Uploads the prepared vertices and `params`, records the pass and the copy into the
-    /// readback buffer, and submits. Run inside error scopes: a device error surfaces there.
+    /// Uploads the prepared vertices and `params`, records the pass, and submits. Run inside
+    /// error scopes: a device error surfaces there.
     fn submit(&mut self, device: &Device, params: &GpuRenderParams, bytes: u64) {
         let queue = self.ctx.queue();
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(params));
@@ -387,7 +429,6 @@ impl Renderer {
                 pass.draw(0..self.scratch.len() as u32, 0..1);
             }
         }
-        self.copy_to_readback(&mut encoder);
         queue.submit([encoder.finish()]);
     }
 
@@ -954,7 +995,8 @@ fn build(device: &Device, width: u32, height: u32, readback_size: u64, samples: 
             "voxcollide render resolved",
             1,
             COLOR_FORMAT,
-            TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC,
+            // Copied out for a read back; sampled by an app that composes it on the device.
+            TextureUsages::RENDER_ATTACHMENT | TextureUsages::COPY_SRC | TextureUsages::TEXTURE_BINDING,
         ),
         readback: device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("voxcollide render readback"),

@@ -1083,3 +1083,36 @@ fn bad_device_meshes_are_typed_errors() {
     let rgba = renderer.render_device(&[&mesh], &view).unwrap();
     assert!(rgba.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count() > 500);
 }
+
+#[test]
+fn a_picture_drawn_and_kept_on_the_device_reads_back_as_rendered() {
+    use voxcollide_render::{DeviceMesh, DeviceView};
+    let Some(ctx) = common::gpu() else { return };
+    let (w, h) = (320, 200);
+    let mut renderer = Renderer::fast(&ctx, w, h).unwrap();
+    let ball = sphere(Vec3::ZERO, 1.0, 24, 48);
+    let view_dir = Vec3::new(0.2, -0.3, -1.0);
+    let host = scene(vec![ball.mesh(true, [0.8, 0.6, 0.5])], (0.0, 1.0), view_dir);
+    let eye =
+        voxcollide_render::framing_eye(&ball.positions, view_dir, Vec3::Y, w as f32 / h as f32).unwrap();
+    // Drawn and kept: the picture on the device, sampled by an app's pass, read back only when
+    // asked, equal to the bytes render_from returns.
+    renderer.draw_picture(&host, Some(eye)).unwrap();
+    let kept = renderer.read_picture().unwrap();
+    assert_eq!(kept, renderer.render_from(&host, Some(eye)).unwrap());
+    assert!(kept.chunks(4).filter(|p| !is_background([p[0], p[1], p[2], p[3]])).count() > 5000);
+    let size = renderer.picture_view().texture().size();
+    assert_eq!((size.width, size.height), (w, h));
+    assert_eq!(renderer.picture_view().texture().format(), voxcollide_render::COLOR_FORMAT);
+    assert!(renderer.picture_view().texture().usage().contains(wgpu::TextureUsages::TEXTURE_BINDING));
+    // The same from device buffers.
+    let buffer = device_positions(&ctx, &ball.positions);
+    let mesh =
+        DeviceMesh::new(&mut renderer, &buffer, &ball.positions, &ball.triangles, [0.3, 0.5, 0.7], false)
+            .unwrap();
+    let view = DeviceView { scalar_range: (0.0, 1.0), clip: None, view_dir, up: Vec3::Y, eye: Some(eye) };
+    renderer.draw_picture_device(&[&mesh], &view).unwrap();
+    let kept = renderer.read_picture().unwrap();
+    assert_eq!(kept, renderer.render_device(&[&mesh], &view).unwrap());
+    assert_ne!(kept, renderer.render_from(&host, Some(eye)).unwrap(), "a plain ball, not the coloured one");
+}

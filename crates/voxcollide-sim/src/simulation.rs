@@ -60,6 +60,14 @@ pub trait Simulation {
 
     /// Which backend steps it, in words (for summaries and messages).
     fn backend(&self) -> &'static str;
+
+    /// On a GPU: body `body`'s positions where they live, the buffer each step updates in place
+    /// ([`GpuWorld::positions`]), for drawing without reading them back; `None` on the CPU
+    /// (where `world()` holds them) and past the last body.
+    fn positions_buffer(&self, body: usize) -> Option<wgpu::Buffer> {
+        let _ = body;
+        None
+    }
 }
 
 /// `world` on `ctx`'s device, or on the CPU without one.
@@ -163,5 +171,9 @@ impl Simulation for GpuWorld {
 
     fn backend(&self) -> &'static str {
         "gpu"
+    }
+
+    fn positions_buffer(&self, body: usize) -> Option<wgpu::Buffer> {
+        self.positions(body).cloned()
     }
 }

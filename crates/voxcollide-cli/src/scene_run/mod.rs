@@ -1,11 +1,11 @@
 //! The command's one run loop (`voxcollide run`, the paper scenes, `compare`'s candidates): a
 //! scene file's world on the GPU or the CPU, in three parts.
 //!
-//! - **Set-up**: the build's findings said, the backend placed ([`crate::backend::place`]),
-//!   the summary started ([`summary`]) and the frame files readied ([`frames`]).
+//! - **Set-up**: the build's findings said, the backend placed (`backend::place`), the
+//!   summary started (`summary.rs`) and the frame files readied (`frames.rs`).
 //! - **Stepping**: frames over the schedule, the contacts checked at and between them
-//!   ([`checks`]), then, where the file settles, frames a settling window apart until the
-//!   bodies are at rest ([`rest`]) or `max_steps`. An observer sees every frame.
+//!   (`checks.rs`), then, where the file settles, frames a settling window apart until the
+//!   bodies are at rest (`rest.rs`) or `max_steps`. An observer sees every frame.
 //! - **Summary**: the last frame's figures, the totals, and `summary.json` with
 //!   docs/design.md §8's keys.
 //!

@@ -50,7 +50,7 @@ impl Stall {
 pub const REST_TOLERANCE: f32 = 0.05;
 
 /// The implicit integrator is at rest when the net force on its free vertices is at most this
-/// fraction of the gross force (see [`FileSummary::residual`]).
+/// fraction of the gross force (see [`FileSummary::residual`](super::FileSummary::residual)).
 pub const RESIDUAL_TOLERANCE: f64 = 1e-3;
 
 /// Past the schedule, the implicit step may grow to this many times the schedule's while it

@@ -161,17 +161,17 @@ pub struct FileSummary {
     /// Simulated seconds per wall-clock second.
     pub realtime_factor: f64,
     /// Whether the bodies came to rest (`[time] settle`: over a settling window after the
-    /// schedule, no vertex that is not held moved more than [`REST_TOLERANCE`] of its body's
+    /// schedule, no vertex that is not held moved more than [`REST_TOLERANCE`](super::REST_TOLERANCE) of its body's
     /// spacing); false without settling.
     pub settled: bool,
     /// The farthest a vertex moved over the last settling window (or, without settling, the
     /// last frame), in spacings of its body: what `settled` is judged by (at rest: at most
-    /// [`REST_TOLERANCE`]).
+    /// [`REST_TOLERANCE`](super::REST_TOLERANCE)).
     pub rest_motion: f32,
     /// `"explicit"` or `"implicit"` (docs/design.md §12).
     pub integrator: String,
     /// The criterion for rest that `settled` was judged by: `"rest_motion"` under the explicit
-    /// integrator ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`] over a settling
+    /// integrator ([`rest_motion`](Self::rest_motion) within [`REST_TOLERANCE`](super::REST_TOLERANCE) over a settling
     /// window) or `"residual"` under the implicit one (the net force at rest within
     /// [`RESIDUAL_TOLERANCE`] of the gross force, [`residual`](Self::residual)); said whether or
     /// not it was met. `"stalled residual, rest_motion"`: the implicit one's residual stopped
@@ -199,7 +199,7 @@ pub struct FileSummary {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub most_parts: Option<u32>,
     /// The settling window, in seconds: twice the time an elastic wave takes to cross the
-    /// largest deformable body ([`settling_window`]).
+    /// largest deformable body ([`settling_window`](super::settling_window)).
     pub rest_window: f64,
     /// Per body.
     pub bodies: Vec<BodySummary>,

@@ -25,7 +25,8 @@ use super::{ViewConfig, ViewReport};
 use crate::backend::{OnSoftware, place};
 use crate::scene_run::{contact_forces, meshes, shown_and_moved};
 use voxcollide_render::{
-    Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye, write_png,
+    DeviceMesh, DeviceView, Legend, Renderer, Scene as RenderScene, draw_caption, draw_legend, framing_eye,
+    legend_panel, write_png,
 };
 use voxcollide_sim::simulation;
 
@@ -39,6 +40,9 @@ const DRAG_PER_STEP: f32 = 0.002;
 const FIRST_VIEW: Vec3 = Vec3::new(0.3, 1.0, -0.35);
 /// Body colours where they are not colour-mapped, as in the run's pictures.
 const COLOURS: [[f32; 3]; 4] = [[0.95, 0.6, 0.25], [0.45, 0.55, 0.7], [0.6, 0.8, 0.5], [0.8, 0.5, 0.7]];
+/// Wall seconds between the states the window takes while it draws the bodies from the
+/// device (the heads-up numbers' refresh; on the GPU backend, its read-backs).
+const SNAPSHOT_EVERY: f64 = 0.1;
 
 /// Why the view could not go on.
 pub(super) enum Failure {
@@ -265,8 +269,21 @@ struct Live {
     broken: Option<Error>,
     /// Something else the heads-up line should say (a size it cannot draw).
     notice: Option<String>,
-    /// The last frame drawn, legend included, caption not: shown again while stopped.
-    last_picture: Vec<u8>,
+    /// Whether the renderer's picture holds a frame (shown again, with the message, while
+    /// stopped), and the legend it was drawn with.
+    drawn: bool,
+    legend: Option<Legend>,
+    /// The overlay's bytes (legend and heads-up lines), kept to reuse the allocation.
+    overlay: Vec<u8>,
+    /// On the GPU backend: each body's positions on the device, for drawing them where they
+    /// are; and the meshes bound to them (made on first use, again after a reset or resize).
+    buffers: Vec<wgpu::Buffer>,
+    device_meshes: Option<Vec<DeviceMesh>>,
+    /// Whether the adapter cannot draw from device buffers (its vertex stage reads no storage
+    /// buffers): frames are then drawn from the read-back positions.
+    device_refused: bool,
+    /// Frames whose bodies were drawn from their positions on the device.
+    frames_from_device: u64,
     /// Whether the screenshot was written.
     shot: bool,
     /// Steps over the whole view, resets included.
@@ -278,7 +295,6 @@ struct Live {
     penetration: f32,
     displacement: Vec<f32>,
     displacement_centre: Vec<[f32; 3]>,
-    picture: Vec<u8>,
     /// Seconds a frame's measuring and drawing took lately (a running mean).
     draw_time: f64,
     screenshot: Option<std::path::PathBuf>,
@@ -320,7 +336,7 @@ impl Live {
         surface_config.present_mode = wgpu::PresentMode::AutoNoVsync;
         surface.configure(ctx.device(), &surface_config);
         let renderer = Renderer::fast(&ctx, width, height)?;
-        let blit = Blit::new(ctx.device(), surface_config.format, (width, height));
+        let blit = Blit::new(ctx.device(), surface_config.format, renderer.picture_view(), (width, height));
 
         let world = &built.world;
         let extent = world
@@ -339,10 +355,21 @@ impl Live {
         // A software adapter only draws here: the frames compete with the steps for its cores.
         let placed = place(config.backend, Some(&ctx), "", first.clone(), OnSoftware::Draws, note)?;
         let on_gpu = placed.backend == "gpu";
+        let buffers = device_buffers(&*placed.run, world.bodies.len());
         let stepper = Stepper::start(placed.run, f64::from(built.dt), config.steps_per_frame.is_some())?;
         let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
-        let eye = framing_eye(&points, FIRST_VIEW, Vec3::Z, width as f32 / height as f32)
+        // Framed left of the legend's panel, so that it covers none of the bodies: framed for
+        // the window's width less the panel's, and the camera moved right by half the panel.
+        let legend = Legend::new(format!("displacement ({})", file.units.symbol()), (0.0, scene_size));
+        let clear = legend_panel(width, height, &legend)?.map_or(0, |p| width - p.x);
+        let clear = if 2 * clear < width { clear } else { 0 };
+        let framed = framing_eye(&points, FIRST_VIEW, Vec3::Z, (width - clear) as f32 / height as f32)
             .unwrap_or(centre - FIRST_VIEW.normalize() * 3.0 * scene_size);
+        let forward = FIRST_VIEW.normalize();
+        let depth = (centre - framed).dot(forward);
+        let per_pixel =
+            2.0 * depth * (0.5 * voxcollide_render::FOV_Y_DEGREES as f32).to_radians().tan() / height as f32;
+        let eye = framed + forward.cross(Vec3::Z).normalize() * (0.5 * clear as f32 * per_pixel);
         let orbit = Orbit::from_eye(eye, FIRST_VIEW, centre);
         let backend = if on_gpu { "gpu" } else { "cpu" };
         note(&format!("{} on the {backend} backend, drawn on {adapter_name}", config.scene));
@@ -395,7 +422,13 @@ impl Live {
             time: 0.0,
             broken: None,
             notice: None,
-            last_picture: Vec::new(),
+            drawn: false,
+            legend: None,
+            overlay: Vec::new(),
+            buffers,
+            device_meshes: None,
+            device_refused: false,
+            frames_from_device: 0,
             shot: false,
             steps_total: 0,
             ended: None,
@@ -403,7 +436,6 @@ impl Live {
             penetration: 0.0,
             displacement: vec![0.0; world.bodies.len()],
             displacement_centre: vec![[0.0; 3]; world.bodies.len()],
-            picture: Vec::new(),
             screenshot: config.screenshot.clone(),
             ctx,
         })
@@ -434,8 +466,10 @@ impl Live {
         self.surface_config.width = width;
         self.surface_config.height = height;
         self.surface.configure(self.ctx.device(), &self.surface_config);
-        self.blit.resize(self.ctx.device(), width, height);
-        self.last_picture.clear();
+        self.blit.resize(self.ctx.device(), self.renderer.picture_view(), (width, height));
+        // The meshes were bound to the old renderer, and its picture is gone.
+        self.device_meshes = None;
+        self.drawn = false;
     }
 
     fn act(&mut self, action: Action) {
@@ -457,6 +491,8 @@ impl Live {
                 let on_gpu = self.backend == "gpu";
                 match simulation(on_gpu.then_some(&self.ctx), self.first.clone()) {
                     Ok(sim) => {
+                        self.buffers = device_buffers(&*sim, self.first.bodies.len());
+                        self.device_meshes = None;
                         self.stepper.reset(sim);
                         self.steps = 0;
                         self.time = 0.0;
@@ -597,19 +633,13 @@ impl Live {
                 if self.frames == 0 {
                     self.locate_instruments(&snapshot.world);
                 }
-                let picture = self.picture_of(&snapshot.world, &snapshot.reports);
+                let drawn = self.draw(&snapshot.world, &snapshot.reports);
                 self.shown = Some(snapshot);
-                self.show(picture?)?;
+                drawn?;
+                self.show()?;
             }
             // Stopped: the last frame again, with the message.
-            None => {
-                let (w, h) = (self.surface_config.width, self.surface_config.height);
-                let picture = match self.last_picture.len() == (4 * w * h) as usize {
-                    true => self.last_picture.clone(),
-                    false => vec![200; (4 * w * h) as usize],
-                };
-                self.show(picture)?;
-            }
+            None => self.show()?,
         }
         let took = drawing.elapsed().as_secs_f64();
         self.draw_time = if self.draw_time > 0.0 { 0.8 * self.draw_time + 0.2 * took } else { took };
@@ -680,45 +710,125 @@ impl Live {
             .fold(0.0, f32::max);
     }
 
-    /// The frame's picture: the bodies in their colouring, and its legend.
-    fn picture_of(&mut self, world: &World, reports: &[ContactReport]) -> Result<Vec<u8>, Error> {
-        let (width, height) = (self.surface_config.width, self.surface_config.height);
-        let mut shown = shown_and_moved(world);
+    /// Draws the frame's bodies in their colouring into the renderer's picture, on the
+    /// device: from their positions there where they step on the GPU (coloured by
+    /// displacement, each drawn by its own surface), else from `world`'s. Nothing is read back.
+    fn draw(&mut self, world: &World, reports: &[ContactReport]) -> Result<(), Error> {
+        let eye = Some(self.orbit.eye());
         let (range, title) = match self.colouring {
             Colouring::Displacement => ((0.0, 0.1 * self.size), format!("displacement ({})", self.units)),
-            Colouring::ContactForce => {
-                for (k, (_, values)) in shown.iter_mut().enumerate() {
-                    *values = contact_force(world, reports, k);
+            Colouring::ContactForce => ((0.0, 0.0), "contact force (N)".to_string()),
+        };
+        let from_device = self.colouring == Colouring::Displacement && self.device_meshes_ready(world);
+        // Drawn from the device, a state read back serves only the heads-up numbers: a few a
+        // second will do.
+        self.stepper.set_snapshot_every(if from_device { SNAPSHOT_EVERY } else { 0.0 });
+        let range = if from_device {
+            let meshes: Vec<&DeviceMesh> = self.device_meshes.iter().flatten().collect();
+            let view = DeviceView {
+                scalar_range: range,
+                clip: None,
+                view_dir: self.orbit.view_dir(),
+                up: Vec3::Z,
+                eye,
+            };
+            self.renderer.draw_picture_device(&meshes, &view)?;
+            self.frames_from_device += 1;
+            range
+        } else {
+            let mut shown = shown_and_moved(world);
+            let range = match self.colouring {
+                Colouring::Displacement => range,
+                Colouring::ContactForce => {
+                    for (k, (_, values)) in shown.iter_mut().enumerate() {
+                        *values = contact_force(world, reports, k);
+                    }
+                    let top = shown.iter().flat_map(|s| s.1.iter()).fold(0.0f32, |a, &b| a.max(b));
+                    // The scale only grows, so that colours compare across frames.
+                    self.force_scale = self.force_scale.max(top).max(f32::MIN_POSITIVE);
+                    (0.0, self.force_scale)
                 }
-                let top = shown.iter().flat_map(|s| s.1.iter()).fold(0.0f32, |a, &b| a.max(b));
-                // The scale only grows, so that colours compare across frames.
-                self.force_scale = self.force_scale.max(top).max(f32::MIN_POSITIVE);
-                ((0.0, self.force_scale), "contact force (N)".to_string())
-            }
+            };
+            let soft = &self.soft;
+            let scene = RenderScene {
+                meshes: meshes(world, &shown, |k| soft[k], |k| COLOURS[k % COLOURS.len()]),
+                scalar_range: range,
+                clip: None,
+                view_dir: self.orbit.view_dir(),
+                up: Vec3::Z,
+            };
+            self.renderer.draw_picture(&scene, eye)?;
+            range
         };
-        let soft = &self.soft;
-        let scene = RenderScene {
-            meshes: meshes(world, &shown, |k| soft[k], |k| COLOURS[k % COLOURS.len()]),
-            scalar_range: range,
-            clip: None,
-            view_dir: self.orbit.view_dir(),
-            up: Vec3::Z,
-        };
-        let mut rgba = self.renderer.render_from(&scene, Some(self.orbit.eye()))?;
-        draw_legend(&mut rgba, width, height, &Legend::new(title, range))?;
-        self.last_picture.clone_from(&rgba);
-        Ok(rgba)
+        self.legend = Some(Legend::new(title, range));
+        self.drawn = true;
+        Ok(())
     }
 
-    /// Adds the heads-up lines to `rgba` and puts it on the window (and keeps it for the
-    /// screenshot).
-    fn show(&mut self, mut rgba: Vec<u8>) -> Result<(), Error> {
+    /// Whether the bodies can be drawn from their positions on the device: they step on the
+    /// GPU, each is drawn by its own surface (a user's surface carried by the lattice is
+    /// interpolated on the host), and the adapter draws from storage buffers. Binds the meshes
+    /// the first time.
+    fn device_meshes_ready(&mut self, world: &World) -> bool {
+        if self.device_refused
+            || self.buffers.len() != world.bodies.len()
+            || world.bodies.iter().any(|b| b.embedded.is_some())
+        {
+            return false;
+        }
+        if self.device_meshes.is_none() {
+            let made: Result<Vec<DeviceMesh>, Error> = self
+                .first
+                .bodies
+                .iter()
+                .zip(&self.buffers)
+                .enumerate()
+                .map(|(k, (b, buffer))| {
+                    let colour = COLOURS[k % COLOURS.len()];
+                    DeviceMesh::new(
+                        &mut self.renderer,
+                        buffer,
+                        b.start(),
+                        &b.surface.triangles,
+                        colour,
+                        self.soft[k],
+                    )
+                })
+                .collect();
+            match made {
+                Ok(m) => self.device_meshes = Some(m),
+                Err(_) => {
+                    self.device_refused = true;
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// Draws the legend (where a frame is drawn; a grey field before the first) and the
+    /// heads-up lines into the overlay and composes it over the renderer's picture onto the
+    /// window.
+    fn show(&mut self) -> Result<(), Error> {
         let (width, height) = (self.surface_config.width, self.surface_config.height);
-        draw_caption(&mut rgba, width, height, &self.hud())?;
+        let mut overlay = std::mem::take(&mut self.overlay);
+        overlay.clear();
+        overlay.resize((4 * width * height) as usize, 0);
+        if !self.drawn {
+            overlay.chunks_mut(4).for_each(|p| p.copy_from_slice(&[200, 200, 200, 255]));
+        }
+        let caption = draw_caption(&mut overlay, width, height, &self.hud())?;
+        // The legend below the heads-up lines, so that neither covers the other.
+        if let Some(legend) = self.legend.as_ref().filter(|_| self.drawn) {
+            let top = caption.map_or(0, |p| p.y + p.height);
+            let row = 4 * width as usize;
+            let below = &mut overlay[top as usize * row..];
+            draw_legend(below, width, height - top, legend)?;
+        }
         match self.surface.get_current_texture() {
             wgpu::CurrentSurfaceTexture::Success(frame) | wgpu::CurrentSurfaceTexture::Suboptimal(frame) => {
                 let view = frame.texture.create_view(&wgpu::TextureViewDescriptor::default());
-                self.blit.draw(&self.ctx, &rgba, &view);
+                self.blit.draw(&self.ctx, &overlay, &view);
                 self.window.pre_present_notify();
                 self.ctx.queue().present(frame);
             }
@@ -727,9 +837,7 @@ impl Live {
             }
             _ => {}
         }
-        if self.screenshot.is_some() {
-            self.picture = rgba;
-        }
+        self.overlay = overlay;
         Ok(())
     }
 
@@ -761,7 +869,9 @@ impl Live {
     /// Writes the last frame as PNG, if one was asked for.
     fn screenshot(&mut self) -> Result<(), Error> {
         if let Some(path) = &self.screenshot {
-            write_png(path, self.surface_config.width, self.surface_config.height, &self.picture)?;
+            // The last frame as it was composed onto the window, read back once.
+            let rgba = self.blit.screenshot(&self.ctx)?;
+            write_png(path, self.surface_config.width, self.surface_config.height, &rgba)?;
             self.shot = true;
         }
         Ok(())
@@ -802,6 +912,8 @@ impl Live {
             dragged: self.dragged,
             instruments: self.instruments.clone(),
             paused: self.paused,
+            frames_from_device: self.frames_from_device,
+            states_read: self.stepper.snapshots(),
             colouring: match self.colouring {
                 Colouring::Displacement => "displacement".into(),
                 Colouring::ContactForce => "force".into(),
@@ -814,6 +926,12 @@ impl Live {
 
 /// The magnitude of the contact force on each shown vertex of body `k` (its user surface's,
 /// interpolated from the lattice, where it has one).
+/// On the GPU backend, each of `bodies` bodies' positions on the device (`run`'s buffers);
+/// none on the CPU.
+fn device_buffers(run: &dyn voxcollide_sim::Simulation, bodies: usize) -> Vec<wgpu::Buffer> {
+    (0..bodies).map_while(|k| run.positions_buffer(k)).collect()
+}
+
 fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32> {
     let force = contact_forces(world, reports, k);
     match &world.bodies[k].embedded {

@@ -8,8 +8,11 @@
 //! it falls behind. `--frames N --screenshot PATH` draws N frames,
 //! writes the last as PNG and exits; `--drag` scripts a drag; `--steps-per-frame` makes a run
 //! repeatable (a fixed number of steps a frame instead of real time). Each frame is drawn by
-//! [`Renderer`](voxcollide_render::Renderer) offscreen, its legend and heads-up line added on the
-//! CPU, and copied onto the window: the screenshot is exactly the frame shown.
+//! [`Renderer`](voxcollide_render::Renderer) on the device (from the bodies' positions there,
+//! where they step on the GPU), its legend and heads-up lines drawn on the CPU as an overlay,
+//! and the two composed onto the window: no picture is read back, and on the GPU backend no
+//! position either, but for a few states a second for the heads-up numbers. The screenshot is
+//! the same composition, read back once.
 
 mod blit;
 mod controls;
@@ -107,6 +110,13 @@ pub struct ViewReport {
     pub screenshot: Option<PathBuf>,
     /// Whether it was paused at the end.
     pub paused: bool,
+    /// Frames whose bodies were drawn from their positions on the device, where they step
+    /// (the GPU backend, coloured by displacement): nothing read back to draw them.
+    pub frames_from_device: u64,
+    /// States of the run handed to the window (the heads-up numbers, picking, the report's
+    /// figures); on the GPU backend each is read back from the device, a few a second while
+    /// the bodies are drawn from the device, after every batch of steps otherwise.
+    pub states_read: u64,
     /// The colouring at the end: `"displacement"` or `"force"`.
     pub colouring: String,
     /// The camera at the end: its yaw and pitch (radians) and its distance from what it orbits.

@@ -55,6 +55,10 @@ struct Shared {
     broken: Option<Error>,
     /// Whether the last batch fell behind real time.
     behind: bool,
+    /// In real time, the least wall time between published states (0: after every batch).
+    snapshot_every: f64,
+    /// States read from the run and published (on the GPU backend, each a read-back).
+    snapshots: u64,
 }
 
 /// The stepping thread and what it shares with the window.
@@ -75,6 +79,7 @@ impl Stepper {
     /// [`Error::Invalid`] when the thread cannot be started.
     pub fn start(mut run: Run, dt: f64, fixed: bool) -> Result<Stepper, Error> {
         let first = snapshot(&mut run, 0, dt as f32).ok();
+        let snapshots = u64::from(first.is_some());
         let shared = Arc::new((
             Mutex::new(Shared {
                 paused: false,
@@ -88,6 +93,8 @@ impl Stepper {
                 steps_total: 0,
                 broken: None,
                 behind: false,
+                snapshot_every: 0.0,
+                snapshots,
             }),
             Condvar::new(),
         ));
@@ -136,6 +143,19 @@ impl Stepper {
         }
     }
 
+    /// In real time, publishes the run's state at most every `seconds` of wall time instead of
+    /// after every batch: while the window draws the bodies from their positions on the device,
+    /// a state serves only the heads-up numbers, and on the GPU backend each is a read-back.
+    /// Fixed steps a frame publish after every batch regardless (a repeatable run).
+    pub fn set_snapshot_every(&self, seconds: f64) {
+        lock(&self.shared).snapshot_every = seconds;
+    }
+
+    /// States published so far (on the GPU backend, each read back from the device).
+    pub fn snapshots(&self) -> u64 {
+        lock(&self.shared).snapshots
+    }
+
     /// The state published since the last call, if any.
     pub fn take_latest(&self) -> Option<Snapshot> {
         lock(&self.shared).latest.take()
@@ -170,9 +190,12 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
     let mut pacing = Pacing::new(dt, BATCH);
     let mut steps = 0u64;
     let mut last = Instant::now();
+    let mut published = Instant::now();
+    // Steps done since the state was last published.
+    let mut owed = false;
     loop {
-        // What to do now, decided under the lock.
-        let n = {
+        // What to do now, decided under the lock; and whether to publish the state after it.
+        let (n, every) = {
             let mut s = lock(shared);
             if s.quit {
                 return;
@@ -182,6 +205,9 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
                 steps = 0;
                 pacing.owed = 0.0;
                 s.latest = snapshot(&mut run, 0, dt as f32).ok();
+                s.snapshots += u64::from(s.latest.is_some());
+                published = Instant::now();
+                owed = false;
             }
             let now = Instant::now();
             let elapsed = now.duration_since(last).as_secs_f64();
@@ -198,7 +224,11 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
                 s.behind = behind;
                 n
             };
-            if n == 0 {
+            if n == 0 && owed && s.broken.is_none() && (s.paused || s.fixed) {
+                // Nothing to step until the user or a frame asks: the state a throttled
+                // publishing held back, now (in real time the next batch is due soon).
+                (0, 0.0)
+            } else if n == 0 {
                 // Until a frame asks, or a step is owed.
                 let wait = if s.fixed || s.paused || s.broken.is_some() {
                     Duration::from_millis(50)
@@ -207,8 +237,9 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
                 };
                 drop(shared.1.wait_timeout(s, wait).unwrap_or_else(std::sync::PoisonError::into_inner));
                 continue;
+            } else {
+                (n, if s.fixed || s.paused { 0.0 } else { s.snapshot_every })
             }
-            n
         };
         let t = Instant::now();
         let mut stepped = 0;
@@ -221,10 +252,15 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
             stepped += 1;
         }
         steps += stepped;
-        pacing.took(stepped, t.elapsed().as_secs_f64());
+        owed |= stepped > 0;
+        if n > 0 {
+            pacing.took(stepped, t.elapsed().as_secs_f64());
+        }
         // A stopped run is not read again: on the GPU the read-back is where a blow-up shows.
+        let due = published.elapsed().as_secs_f64() >= every;
         let shot = match broken {
             Some(_) => None,
+            None if !due => None,
             None => match snapshot(&mut run, steps, dt as f32) {
                 Ok(s) => Some(s),
                 Err(e) => {
@@ -241,6 +277,9 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
         if s.reset.is_none() {
             if let Some(shot) = shot {
                 s.latest = Some(shot);
+                s.snapshots += 1;
+                published = Instant::now();
+                owed = false;
             }
             if broken.is_some() {
                 s.broken = broken;
