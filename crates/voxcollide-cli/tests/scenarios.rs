@@ -11,7 +11,7 @@ use voxcollide::Error;
 use voxcollide::glam::Vec3;
 use voxcollide_cli::backend::Backend;
 use voxcollide_cli::scenario::{RunConfig, Summary, run};
-use voxcollide_sim::{CpuSim, Kind, Scene, SceneConfig};
+use voxcollide_sim::{CpuWorld, Kind, Scene, SceneConfig};
 
 fn out_dir(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("voxcollide-test-{name}-{}", std::process::id()));
@@ -87,7 +87,7 @@ fn both_scenarios_meet_the_quality_bar_on_the_gpu() {
 fn the_implant_shell_is_deformed_by_the_layer_it_lifts() {
     // The same shell inflated with and without the tissue on top: the load flattens it.
     let config = SceneConfig { resolution: 12, steps: 600, ..SceneConfig::new(Kind::Implant) };
-    let mut loaded = CpuSim::new(Scene::new(config).unwrap()).unwrap();
+    let mut loaded = CpuWorld::new(Scene::new(config).unwrap().world().unwrap()).unwrap();
     let mut free = Scene::new(config).unwrap();
     let mut f = Vec::new();
     for step in 0..config.steps {
@@ -98,17 +98,12 @@ fn the_implant_shell_is_deformed_by_the_layer_it_lifts() {
         free.foreign.integrate(&inputs, &f.clone());
     }
     let top = |pos: &[Vec3]| pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
-    let (top_loaded, top_free) = (top(&loaded.scene.foreign.pos), top(&free.foreign.pos));
+    let loaded_foreign = &loaded.world.bodies[1];
+    let (top_loaded, top_free) = (top(&loaded_foreign.pos), top(&free.foreign.pos));
     let rise = top_free - free.foreign.rest_pos.iter().map(|p| p.z).fold(f32::MIN, f32::max);
     assert!(rise > 0.3, "the free shell rose only {rise}");
-    let deviation = loaded
-        .scene
-        .foreign
-        .pos
-        .iter()
-        .zip(&free.foreign.pos)
-        .map(|(a, b)| a.distance(*b))
-        .fold(0.0, f32::max);
+    let deviation =
+        loaded_foreign.pos.iter().zip(&free.foreign.pos).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
     eprintln!("rise {rise}, loaded top {top_loaded}, free top {top_free}, largest deviation {deviation}");
     assert!(
         top_loaded < top_free,
@@ -257,21 +252,16 @@ fn at_their_defaults_the_paper_scenes_run_their_shipped_files() {
         assert_eq!(shipped.scene_file.as_deref(), Some(path.as_str()));
         assert!(notes.iter().any(|n| n.contains(&format!("the shipped {path}"))), "{notes:?}");
         // The built-in generator stepped alongside: the same tissue at every frame's step.
-        let mut builtin = CpuSim::new(Scene::new(config.scene).unwrap()).unwrap();
+        let mut builtin = CpuWorld::new(Scene::new(config.scene).unwrap().world().unwrap()).unwrap();
         let mut done = 0;
         for f in &shipped.frames {
             while done < f.step {
                 builtin.step().unwrap();
                 done += 1;
             }
-            let moved = builtin
-                .scene
-                .tissue
-                .pos
-                .iter()
-                .zip(&builtin.scene.tissue.rest_pos)
-                .map(|(p, r)| p.distance(*r))
-                .fold(0.0, f32::max);
+            let tissue = &builtin.world.bodies[0];
+            let moved =
+                tissue.pos.iter().zip(&tissue.rest_pos).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
             assert_eq!(
                 moved.to_bits(),
                 f.max_tissue_displacement.to_bits(),
@@ -279,7 +269,13 @@ fn at_their_defaults_the_paper_scenes_run_their_shipped_files() {
                 kind.name(),
                 f.frame
             );
-            assert_eq!(builtin.report.colliding_b.len(), f.colliding, "{} frame {}", kind.name(), f.frame);
+            assert_eq!(
+                builtin.reports[0].colliding_b.len(),
+                f.colliding,
+                "{} frame {}",
+                kind.name(),
+                f.frame
+            );
         }
         let other = RunConfig { scene: SceneConfig { steps: 100, ..config.scene }, ..config.clone() };
         let s = run(&other, &mut |_| {}, &mut |_| {}).unwrap();

@@ -9,7 +9,6 @@ use crate::integrator::explicit::Explicit;
 use crate::integrator::implicit::{Guess, Implicit, ImplicitSettings, Residual, StepStats};
 use crate::integrator::substep::{Parts, Stepper, after_implicit_step};
 use crate::integrator::{CpuIntegrator, Loads};
-use crate::scene::Scene;
 use crate::world::{Integrator, World};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
@@ -249,56 +248,5 @@ impl Stepper for CpuWorld {
 
     fn set_solves(&mut self, stats: Vec<StepStats>) {
         self.stats = stats;
-    }
-}
-
-/// A paper scene stepping on the CPU: the scene's world of two bodies (tissue, foreign body)
-/// and one contact.
-pub struct CpuSim {
-    /// The scene, whose bodies move as it steps.
-    pub scene: Scene,
-    world: CpuWorld,
-    /// The last step's contact report.
-    pub report: ContactReport,
-}
-
-impl CpuSim {
-    /// Starts `scene` at step 0.
-    ///
-    /// # Errors
-    /// The contact-parameter errors of [`CpuWorld::new`].
-    pub fn new(scene: Scene) -> Result<CpuSim, Error> {
-        let world = CpuWorld::new(scene.world()?)?;
-        Ok(CpuSim { scene, world, report: ContactReport::default() })
-    }
-
-    /// Starts `scene` as `world` steps it: the world of a scene file that stands for it
-    /// ([`Scene::check_world`]), such as the shipped `scenes/implant.toml`.
-    ///
-    /// # Errors
-    /// Those of [`Scene::check_world`] and of [`CpuWorld::new`].
-    pub fn with_world(scene: Scene, world: World) -> Result<CpuSim, Error> {
-        scene.check_world(&world)?;
-        let world = CpuWorld::new(world)?;
-        Ok(CpuSim { scene, world, report: ContactReport::default() })
-    }
-
-    /// Steps taken so far.
-    #[must_use]
-    pub fn steps_done(&self) -> u64 {
-        self.world.steps_done()
-    }
-
-    /// One step: collision (A = foreign body, B = tissue) → penalty forces → spring forces →
-    /// integration.
-    ///
-    /// # Errors
-    /// Collision errors, and [`Error::Simulation`] when a vertex's position stops being finite
-    /// or its speed runs away.
-    pub fn step(&mut self) -> Result<(), Error> {
-        let result = self.world.step();
-        self.scene.follow(&self.world.world);
-        self.report.clone_from(&self.world.reports[0]);
-        result
     }
 }

@@ -11,9 +11,9 @@ pub mod body; //     `MassSpring`: the nonlinear mass-spring body and its integr
 pub mod build; //    a scene file's world: bodies from shapes and meshes, physical units
 pub mod catalogue; // implant catalogues (docs/design.md §9): the candidates `compare` runs, checked
 pub mod contact; //  contacts as one piece: the voxel model's and the surface contact, on the CPU
-pub mod cpu; //      `CpuWorld`, `CpuSim`: a world stepped on the CPU
+pub mod cpu; //      `CpuWorld`: a world stepped on the CPU
 pub mod geometry; // closed triangle surfaces: winding numbers, distances
-pub mod gpu; //      `GpuWorld`, `GpuSim`: a world stepped on the GPU, and its implicit passes
+pub mod gpu; //      `GpuWorld`: a world stepped on the GPU, and its implicit passes
 pub mod integrator; // how bodies move: explicit, implicit (backward Euler), sub-stepping
 pub mod material; // materials as energies: springs, Neo-Hookean tetrahedra
 pub mod mesh; //     `TriangleMesh`: triangles over a body's vertices
@@ -29,8 +29,8 @@ pub mod world; //    `World`: any number of bodies and contacts, each pair its o
 
 pub use body::{Embedding, MassSpring, Material, Mode, Spring, StepInputs};
 pub use contact::{ContactModel, CpuContacts, SurfaceContact, SurfacePenalty};
-pub use cpu::{CpuSim, CpuWorld};
-pub use gpu::{GpuSim, GpuWorld};
+pub use cpu::CpuWorld;
+pub use gpu::GpuWorld;
 pub use integrator::implicit::{Guess, ImplicitSettings, Residual};
 pub use integrator::substep::Parts;
 pub use integrator::{CpuIntegrator, Integrator};

@@ -23,31 +23,37 @@ fn gpu_and_cpu_trajectories_agree_over_the_first_steps() {
     for kind in [Kind::Cylinder, Kind::Implant] {
         let config = SceneConfig { resolution: 10, steps: 200, ..SceneConfig::new(kind) };
         let scene = Scene::new(config).unwrap();
-        let mut cpu = CpuSim::new(scene.clone()).unwrap();
-        let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+        let mut cpu = CpuWorld::new(scene.world().unwrap()).unwrap();
+        let mut gpu = GpuWorld::new(&ctx, scene.world().unwrap()).unwrap();
         let mut contacts = 0;
         for step in 1..=120 {
             cpu.step().unwrap();
             gpu.step().unwrap();
             if step % 20 == 0 {
-                let report = gpu.sync().unwrap();
-                contacts += cpu.report.colliding_b.len();
-                let dt = max_diff(&cpu.scene.tissue.pos, &gpu.scene.tissue.pos);
-                let df = max_diff(&cpu.scene.foreign.pos, &gpu.scene.foreign.pos);
+                let report = gpu.sync().unwrap().swap_remove(0);
+                // The paper's two bodies: the tissue (0) and the foreign body (1).
+                let ([c_tissue, c_foreign], [g_tissue, g_foreign]) =
+                    (&cpu.world.bodies[..], &gpu.world.bodies[..])
+                else {
+                    panic!("a paper scene has two bodies")
+                };
+                contacts += cpu.reports[0].colliding_b.len();
+                let dt = max_diff(&c_tissue.pos, &g_tissue.pos);
+                let df = max_diff(&c_foreign.pos, &g_foreign.pos);
                 eprintln!(
                     "{kind:?} step {step}: tissue {dt:e} foreign {df:e} contacts cpu {} gpu {}",
-                    cpu.report.colliding_b.len(),
+                    cpu.reports[0].colliding_b.len(),
                     report.colliding_b.len()
                 );
                 if exact {
                     // Bit-identical on llvmpipe (Vulkan and GL): the README says so.
                     assert!(
-                        same_bits(&cpu.scene.tissue.pos, &gpu.scene.tissue.pos)
-                            && same_bits(&cpu.scene.foreign.pos, &gpu.scene.foreign.pos)
-                            && same_bits(&cpu.scene.tissue.vel, &gpu.scene.tissue.vel),
+                        same_bits(&c_tissue.pos, &g_tissue.pos)
+                            && same_bits(&c_foreign.pos, &g_foreign.pos)
+                            && same_bits(&c_tissue.vel, &g_tissue.vel),
                         "{kind:?} step {step}: trajectories differ by {dt:e} / {df:e}"
                     );
-                    assert_eq!(cpu.report, report, "{kind:?} step {step}: contact reports");
+                    assert_eq!(cpu.reports[0], report, "{kind:?} step {step}: contact reports");
                 } else {
                     // Elsewhere fused multiply-adds may round differently: a small drift.
                     assert!(

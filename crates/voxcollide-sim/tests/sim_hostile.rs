@@ -15,16 +15,18 @@ fn scene(kind: Kind) -> Scene {
 
 /// The scene after `steps` CPU steps: a run in progress, with the bodies in contact.
 fn mid_run(kind: Kind, steps: u32) -> Scene {
-    let mut cpu = CpuSim::new(scene(kind)).unwrap();
+    let mut scene = scene(kind);
+    let mut cpu = CpuWorld::new(scene.world().unwrap()).unwrap();
     for _ in 0..steps {
         cpu.step().unwrap();
     }
-    cpu.scene
+    scene.follow(&cpu.world);
+    scene
 }
 
 /// What may become of a poisoned vertex: a blow-up named by its body and vertex, or a run that
 /// stays finite.
-fn assert_named_or_finite(what: &str, result: Result<(), Error>, scene: &Scene) {
+fn assert_named_or_finite(what: &str, result: Result<(), Error>, world: &World) {
     match result {
         Err(Error::Simulation { step, message }) => {
             assert!(step >= 1, "{what}: step {step}");
@@ -32,7 +34,7 @@ fn assert_named_or_finite(what: &str, result: Result<(), Error>, scene: &Scene) 
         }
         Err(e) => panic!("{what}: not a simulation error: {e:?}"),
         Ok(()) => {
-            for body in [&scene.tissue, &scene.foreign] {
+            for body in &world.bodies {
                 assert!(
                     body.pos.iter().chain(&body.vel).all(|v| v.is_finite()),
                     "{what}: a NaN was handed on"
@@ -59,7 +61,7 @@ fn nan_or_huge_positions_mid_run_stop_the_cpu_run_with_a_named_error() {
                 let what = format!("{kind:?} tissue {tissue} value {value}");
                 let mut scene = mid_run(kind, 30);
                 poison(&mut scene, tissue, value);
-                let mut cpu = CpuSim::new(scene).unwrap();
+                let mut cpu = CpuWorld::new(scene.world().unwrap()).unwrap();
                 let mut result = Ok(());
                 for _ in 0..20 {
                     result = cpu.step();
@@ -72,7 +74,7 @@ fn nan_or_huge_positions_mid_run_stop_the_cpu_run_with_a_named_error() {
                     let Err(Error::Simulation { step, .. }) = &result else { panic!("{what}: {result:?}") };
                     assert_eq!(*step, 1, "{what}");
                 }
-                assert_named_or_finite(&what, result, &cpu.scene);
+                assert_named_or_finite(&what, result, &cpu.world);
             }
         }
     }
@@ -87,7 +89,7 @@ fn nan_or_huge_positions_mid_run_stop_the_gpu_run_with_a_named_error() {
                 let what = format!("{kind:?} tissue {tissue} value {value}");
                 let mut scene = mid_run(kind, 30);
                 poison(&mut scene, tissue, value);
-                let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+                let mut gpu = GpuWorld::new(&ctx, scene.world().unwrap()).unwrap();
                 let mut result = Ok(());
                 for _ in 0..20 {
                     result = gpu.step();
@@ -98,7 +100,7 @@ fn nan_or_huge_positions_mid_run_stop_the_gpu_run_with_a_named_error() {
                 if !value.is_finite() {
                     assert!(matches!(synced, Err(Error::Simulation { step: 1, .. })), "{what}: {synced:?}");
                 }
-                assert_named_or_finite(&what, synced.and(result), &gpu.scene);
+                assert_named_or_finite(&what, synced.and(result), &gpu.world);
             }
         }
     }
@@ -136,17 +138,17 @@ fn bodies_without_volume_are_errors_or_finite_runs() {
     .unwrap();
     let mut scene = base.clone();
     scene.foreign = disc;
-    let mut cpu = CpuSim::new(scene.clone()).unwrap();
+    let mut cpu = CpuWorld::new(scene.world().unwrap()).unwrap();
     let result = (0..100).try_for_each(|_| cpu.step());
     eprintln!("flat shell on the CPU: {result:?}");
-    assert_named_or_finite("flat shell, cpu", result, &cpu.scene);
+    assert_named_or_finite("flat shell, cpu", result, &cpu.world);
     if let Some(ctx) = common::gpu() {
-        let mut gpu = GpuSim::new(&ctx, scene).unwrap();
+        let mut gpu = GpuWorld::new(&ctx, scene.world().unwrap()).unwrap();
         for _ in 0..100 {
             gpu.step().unwrap();
         }
         let synced = gpu.sync().map(|_| ());
-        assert_named_or_finite("flat shell, gpu", synced, &gpu.scene);
+        assert_named_or_finite("flat shell, gpu", synced, &gpu.world);
     }
 }
 

@@ -26,7 +26,6 @@ use crate::contact::SurfaceStats;
 use crate::integrator::implicit::Coupling;
 use crate::integrator::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::integrator::substep::{Parts, Stepper, after_implicit_step};
-use crate::scene::Scene;
 use crate::world::{Integrator, World};
 use contact::DeviceContact;
 use implicit::{BodyBuffers, CoupledPair, Couplings, ImplicitBody, ImplicitKernels, Setup, Sums};
@@ -907,68 +906,5 @@ impl Stepper for GpuWorld {
         if let Some(imp) = self.implicit.as_mut() {
             imp.stats = stats;
         }
-    }
-}
-
-/// A paper scene stepping on the GPU: the scene's world of two bodies and one contact.
-pub struct GpuSim {
-    /// The scene. Its bodies' positions and velocities are only brought up to date by
-    /// [`sync`](Self::sync).
-    pub scene: Scene,
-    world: GpuWorld,
-}
-
-impl GpuSim {
-    /// Uploads `scene` to the device of `ctx`.
-    ///
-    /// # Errors
-    /// [`Error::Gpu`] when the device rejects a pipeline or a buffer; the contact errors of
-    /// [`GpuCollision::new`](voxcollide::GpuCollision::new).
-    pub fn new(ctx: &GpuContext, scene: Scene) -> Result<GpuSim, Error> {
-        let world = GpuWorld::new(ctx, scene.world()?)?;
-        Ok(GpuSim { scene, world })
-    }
-
-    /// Uploads `scene` as `world` steps it (see [`crate::CpuSim::with_world`]).
-    ///
-    /// # Errors
-    /// Those of [`Scene::check_world`] and of [`GpuWorld::new`].
-    pub fn with_world(ctx: &GpuContext, scene: Scene, world: World) -> Result<GpuSim, Error> {
-        scene.check_world(&world)?;
-        let world = GpuWorld::new(ctx, world)?;
-        Ok(GpuSim { scene, world })
-    }
-
-    /// Steps taken so far.
-    #[must_use]
-    pub fn steps_done(&self) -> u64 {
-        self.world.steps_done()
-    }
-
-    /// One step, recorded into one encoder and submitted: collision (A = foreign body, B =
-    /// tissue) → forces → integration. Nothing is read back.
-    ///
-    /// # Errors
-    /// As [`GpuWorld::step`].
-    pub fn step(&mut self) -> Result<(), Error> {
-        self.world.step()
-    }
-
-    /// The world's [`GpuWorld::host_waits`].
-    #[must_use]
-    pub fn host_waits(&self) -> u64 {
-        self.world.host_waits()
-    }
-
-    /// Reads both bodies' positions and velocities back into [`scene`](Self::scene), checks
-    /// for a blow-up, and returns the last step's contact report.
-    ///
-    /// # Errors
-    /// [`Error::Simulation`] when a vertex blew up (naming the first step it was seen at),
-    /// and the readback's device errors.
-    pub fn sync(&mut self) -> Result<ContactReport, Error> {
-        let mut reports = self.world.sync()?;
-        self.scene.follow(&self.world.world);
-        Ok(reports.swap_remove(0))
     }
 }
