@@ -172,21 +172,7 @@ pub fn run(
         note(&format!("{name} from the built-in generator, for options other than {path}'s"));
         let mut world = scene.world()?;
         world.names = file.bodies.iter().map(|b| b.name.clone()).collect();
-        let notes = world
-            .names
-            .iter()
-            .zip(&world.bodies)
-            .map(|(n, b)| BodyNote {
-                name: n.clone(),
-                vertices: b.len(),
-                coverage: None,
-                remarks: Vec::new(),
-                full_shape: None,
-                reference: None,
-                landmarks: Vec::new(),
-                wall_faces: None,
-            })
-            .collect();
+        let notes = world.names.iter().zip(&world.bodies).map(|(n, b)| BodyNote::new(n, b.len())).collect();
         Built { world, dt: scene.dt, steps: config.scene.steps, notes }
     };
     scene.check_world(&built.world)?;

@@ -72,6 +72,23 @@ pub struct BodyNote {
     pub wall_faces: Option<Vec<u32>>,
 }
 
+impl BodyNote {
+    /// Body `name` of `vertices` vertices, about which building found nothing yet.
+    #[must_use]
+    pub fn new(name: &str, vertices: usize) -> BodyNote {
+        BodyNote {
+            name: name.to_string(),
+            vertices,
+            coverage: None,
+            remarks: Vec::new(),
+            full_shape: None,
+            reference: None,
+            landmarks: Vec::new(),
+            wall_faces: None,
+        }
+    }
+}
+
 /// A named point on a body's outer surface, carried by it (docs/design.md §14).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Landmark {
@@ -305,16 +322,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
     let offset = Vec3::from_array(spec.position.map(|v| v as f32));
     let place = |p: Vec3| rot * (scale * p) + offset;
     let h = spec.spacing.map(|h| h as f32);
-    let mut note = BodyNote {
-        name: spec.name.clone(),
-        vertices: 0,
-        coverage: None,
-        remarks: Vec::new(),
-        full_shape: None,
-        reference: None,
-        landmarks: Vec::new(),
-        wall_faces: None,
-    };
+    let mut note = BodyNote::new(&spec.name, 0);
     let material_for = |h: f32, mass: f64| {
         let kspring = f64::from(spring_k(m.young_kpa, f64::from(h), s));
         let critical = 2.0 * (kspring * mass).sqrt();
