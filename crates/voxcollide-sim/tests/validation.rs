@@ -5,7 +5,7 @@
 //!
 //! `examples/validation.rs` runs the same cases and draws docs/validation.svg.
 
-use voxcollide_sim::validation::{Cantilever, LargeStretch, SelfWeight};
+use voxcollide_sim::validation::{Cantilever, HeavyElastica, LargeStretch, SelfWeight};
 
 #[test]
 fn a_cantilevers_tip_load_converges_to_beam_theorys_under_refinement() {
@@ -67,6 +67,64 @@ fn a_cantilever_bends_under_its_own_weight_as_beam_theory_says() {
     assert!(errors.iter().all(|e| *e > -0.02), "more flexible than beam theory: {errors:?}");
     assert!(errors[0] > 3.0 * errors[1], "not converging: {errors:?}");
     assert!(errors[1] < 0.05, "8 across: {:.1} % from beam theory", 100.0 * errors[1]);
+}
+
+/// The heavy elastica's own small-load limits: beam theory's drop `α/8` and tip slope `α/6`,
+/// the tip's reach the whole length; and under a large load, less drop than beam theory says.
+#[test]
+fn the_heavy_elastica_is_beam_theory_under_a_small_load_and_falls_short_of_it_under_a_large_one() {
+    let small = HeavyElastica::solve(0.08);
+    assert!((small.drop / 0.01 - 1.0).abs() < 1e-3, "{small:?}");
+    assert!((small.tip_slope / (0.08 / 6.0) - 1.0).abs() < 1e-3, "{small:?}");
+    assert!(1.0 - small.reach < 1e-4, "{small:?}");
+    let large = HeavyElastica::solve(6.0);
+    assert!(large.drop < 0.8 * 6.0 / 8.0 && large.drop > 0.5, "{large:?}");
+    assert!((large.drop.powi(2) + large.reach.powi(2)).sqrt() < 1.0, "the tip beyond the length: {large:?}");
+    let none = HeavyElastica::solve(0.0);
+    assert!(none.drop == 0.0 && none.tip_slope == 0.0 && (none.reach - 1.0).abs() < 1e-12, "{none:?}");
+}
+
+/// Under its own weight through a large deflection (docs/gravity.md): the cantilever of
+/// [`a_cantilever_bends_under_its_own_weight_as_beam_theory_says`], 75 times heavier
+/// (`qL³/(EI)` = 6: beam theory's tip drop would be three quarters of its length), against
+/// the heavy elastica, at two refinements. Linear tetrahedra lock in bending as under a small
+/// load; extrapolated from the two (second order), the drop is the elastica's.
+#[test]
+fn a_cantilever_bends_under_a_large_weight_as_the_heavy_elastica_says() {
+    let alpha = 6.0;
+    let elastica = HeavyElastica::solve(alpha);
+    let (drop, shortening) = (10.0 * elastica.drop, 10.0 * (1.0 - elastica.reach));
+    let mut errors = Vec::new();
+    for across in [3, 6] {
+        let c = SelfWeight { across, gravity: (alpha / 12_000.0) as f32, ..SelfWeight::standard() };
+        let r = c.solve().unwrap();
+        eprintln!(
+            "{across} across ({} vertices, {} steps, residual {:.1e}): drop {:.4} (elastica {drop:.4}, beam theory {:.4}), shortening {:.4} (elastica {shortening:.4})",
+            r.vertices,
+            r.steps,
+            r.residual,
+            r.deflection,
+            10.0 * alpha / 8.0,
+            r.shortening
+        );
+        assert!(r.residual < 5e-3, "not at rest: residual {}", r.residual);
+        errors.push((1.0 - r.deflection / drop, 1.0 - r.shortening / shortening));
+    }
+    let [(d3, s3), (d6, s6)] = errors[..] else { unreachable!() };
+    // Measured: the drop 20.7 % and 5.6 % short, the tip's shortening 40.6 % and 13.7 % short.
+    assert!(d3 > 3.0 * d6 && d6 > 0.0 && d6 < 0.07, "drop errors {d3} {d6}");
+    assert!(s3 > 2.5 * s6 && s6 > 0.0 && s6 < 0.2, "shortening errors {s3} {s6}");
+    let (drop_extrapolated, shortening_extrapolated) = (d6 - (d3 - d6) / 3.0, s6 - (s3 - s6) / 3.0);
+    assert!(
+        drop_extrapolated.abs() < 0.02,
+        "extrapolated drop {:.1} % from the elastica",
+        100.0 * drop_extrapolated
+    );
+    assert!(
+        shortening_extrapolated.abs() < 0.06,
+        "extrapolated shortening {:.1} % from the elastica",
+        100.0 * shortening_extrapolated
+    );
 }
 
 #[test]
