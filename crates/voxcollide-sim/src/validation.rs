@@ -304,9 +304,11 @@ impl SelfWeight {
 }
 
 /// The heavy elastica: an inextensible, unshearable cantilever clamped level and bending under
-/// its own weight through large deflections (Euler's elastica under a distributed load, as
-/// reviewed by C. Y. Wang, "A critical review of the heavy elastica", Int. J. Mech. Sci. 28
-/// (1986) 549–559). With `s` the arc length over the length `L` and `θ` the slope below level,
+/// its own weight through large deflections: Euler's elastica under a uniform load that keeps
+/// its direction, as M. Dado and S. Al-Sadder solve it for cantilevers under uniform loads ("A
+/// new technique for large deflection analysis of non-prismatic cantilever beams", Mechanics
+/// Research Communications 32 (2005) 692–703). With `s` the arc length over the length `L` and
+/// `θ` the slope below level,
 /// `θ'' = −α (1 − s) cos θ`, `θ(0) = 0`, `θ'(1) = 0`, where `α = qL³/(EI)` is the load's
 /// measure. It is solved here by shooting on the root's curvature (bisection, each try a
 /// fourth-order Runge–Kutta sweep of 4,000 steps), independently of any finite element.
