@@ -31,8 +31,8 @@ use crate::integrator::implicit::ImplicitSettings;
 use crate::mesh::TriangleMesh;
 use crate::mesh_io::{Surface, read_sheet, read_surface, read_tetrahedra};
 use crate::scene_file::{
-    Auto, BodyKind, BodySpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle, IntegratorSpec,
-    MaterialModel, ResponseSpec, SceneFile, SearchSpec, Shape,
+    Auto, BodyKind, BodySpec, ContactSpec, DirectionSpec, Ease, Fixed, Geometry, ImplantStyle,
+    IntegratorSpec, MaterialModel, ResponseSpec, SceneFile, SearchSpec, Shape,
 };
 use crate::world::{ContactPair, Integrator, World};
 
@@ -853,6 +853,167 @@ pub fn gravity(file: &SceneFile) -> Vec3 {
     file.world.gravity.map_or(Vec3::ZERO, |g| (DVec3::from_array(g) / file.metres()).as_vec3())
 }
 
+/// The step a world's contacts are sized for: the time step, the bodies' stability bound, and
+/// whether the implicit integrator steps them.
+#[derive(Clone, Copy)]
+struct Timing {
+    dt: f32,
+    stable: f32,
+    implicit: bool,
+}
+
+/// Contact `c` of `file` between its built `bodies` (with each body's spring `stiffness` and
+/// each filled shell's start and target volumes, `fills`): its reach, voxel, stiffness and
+/// response where the file leaves them to be worked out, its grid, and its model.
+///
+/// # Errors
+/// [`Error::Invalid`] naming the pair for parameters the response or the surface contact
+/// refuses; the grid's errors.
+fn contact_pair(
+    file: &SceneFile,
+    c: &ContactSpec,
+    (bodies, stiffness, fills): (&[MassSpring], &[f32], &[Option<(f64, f64)>]),
+    Timing { dt, stable, implicit }: Timing,
+) -> Result<ContactPair, Error> {
+    let s = file.metres();
+    let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
+    // A shell filled or inflated grows its edges with it: the plane of the three nearest
+    // needs them within the radius wherever b meets a face (a face's centre is 1/√3 of an
+    // edge from its corners), so the radius and the voxel follow the grown edge.
+    let edge_growth = |k: usize| -> f32 {
+        match (file.bodies[k].inflate.as_ref(), fills[k]) {
+            (None, _) => 1.0,
+            _ if file.bodies[k].flatten.is_some() => 1.0,
+            (Some(_), Some((start, target))) => (target / start).cbrt().max(1.0) as f32,
+            (Some(_), None) => 1.6,
+        }
+    };
+    let grown = |k: usize| spacing(k) * edge_growth(k);
+    let h = spacing(c.a).max(spacing(c.b));
+    // (The paper's constant response keeps the rules it was shipped with: 0.75 h.)
+    let reach = match c.response {
+        ResponseSpec::Penalty | ResponseSpec::Surface => {
+            (0.75 * h).max(0.65 * grown(c.a)).max(0.65 * grown(c.b))
+        }
+        ResponseSpec::Constant => 0.75 * h,
+    };
+    let voxel = match c.voxel_size {
+        Auto::Value(v) => v as f32,
+        Auto::Auto => 2f32.powi(h.max(reach).log2().ceil() as i32),
+    };
+    let radius = match c.radius {
+        Auto::Value(r) => r as f32,
+        Auto::Auto => reach.min(voxel),
+    };
+    // The penalty's stiffness: half of what the step allows the lightest free vertex of the
+    // pair, `0.5 m / dt²` (a contact spring adds `k/m` to the `omega²` whose bound is
+    // `4/dt²`, of which the bodies' springs take a quarter at the automatic step), so that
+    // a depth is pushed out within a few steps, whatever the load.
+    let lightest = [c.a, c.b]
+        .iter()
+        .flat_map(|&k| {
+            let b = &bodies[k];
+            b.inv_mass.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Free).map(|(im, _)| 1.0 / *im)
+        })
+        .fold(f32::MAX, f32::min);
+    let lightest = if lightest == f32::MAX { 1.0 / bodies[c.b].inv_mass[0] } else { lightest };
+    // Under the implicit integrator the contact's stiffness enters the solve, so it keeps
+    // the explicit bound's (a property of the bodies, not of the step), but at most
+    // IMPLICIT_CONTACT times the softer body's springs: the bound follows the stiffer body
+    // (a 3,000 kPa shell's bound is a thousand times a 1 kPa tissue's springs), and a
+    // contact far stiffer than what it pushes only makes the solve ill-conditioned and its
+    // residual at rest noise (a hundredth of a millimetre of depth is then a force no
+    // spring of the tissue can balance). A hundred times the softer springs still keeps the
+    // depth under load within a hundredth of its spacing times its strain.
+    let material_dt = if implicit { stable.min(dt) } else { dt };
+    let softer = [c.a, c.b]
+        .iter()
+        .filter(|&&k| bodies[k].mode.contains(&Mode::Free))
+        .map(|&k| stiffness[k])
+        .fold(f32::MAX, f32::min);
+    let contact_k = match c.stiffness {
+        Auto::Value(n_per_m) => n_per_m as f32,
+        Auto::Auto if implicit && softer < f32::MAX => {
+            (0.5 * lightest / (material_dt * material_dt)).min(IMPLICIT_CONTACT * softer)
+        }
+        Auto::Auto => 0.5 * lightest / (material_dt * material_dt),
+    };
+    let gap = match c.gap {
+        Auto::Value(g) => g as f32,
+        Auto::Auto => 0.0,
+    };
+    let response = match c.response {
+        ResponseSpec::Constant => Response::Constant,
+        ResponseSpec::Penalty | ResponseSpec::Surface => Response::Penalty { stiffness: contact_k, gap },
+    };
+    // The surface contact pushes from as deep as the contact's bound (its voxel size): a
+    // vertex beyond it has failed the contact, and from farther than half a thin body's
+    // thickness its nearest surface point is on the far side.
+    let surface = (c.response == ResponseSpec::Surface).then_some(SurfacePenalty {
+        stiffness: contact_k,
+        gap,
+        reach: voxel.max(2.0 * gap),
+        // The implicit solve sees a contact a quarter of the reach before it arrives.
+        margin: if implicit { 0.25 * voxel.max(2.0 * gap) } else { 0.0 },
+    });
+    let magnitude = match (c.magnitude, c.response) {
+        (Auto::Value(newtons), _) => (newtons / s) as f32,
+        (Auto::Auto, ResponseSpec::Constant) => 4.0 * stiffness[c.b] * spacing(c.b),
+        // The penalty's largest force: at a depth of two voxels, twice the contact's bound,
+        // so that it never caps a contact that holds.
+        (Auto::Auto, ResponseSpec::Penalty | ResponseSpec::Surface) => contact_k * 2.0 * voxel,
+    };
+    let params = ContactParams {
+        magnitude,
+        search: match c.search {
+            SearchSpec::Neighbours => Search::Neighbours { radius },
+            SearchSpec::Voxel => Search::Voxel,
+        },
+        direction: match c.direction {
+            DirectionSpec::Pairwise => Direction::Pairwise,
+            DirectionSpec::PlaneNormal => Direction::PlaneNormal,
+        },
+        anchor: Anchor::FollowA,
+    };
+    // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
+    // grid keeps its dims as it follows A; what leaves it is discarded).
+    let a = &bodies[c.a].pos;
+    let growth = match (file.bodies[c.a].inflate.as_ref(), fills[c.a]) {
+        (None, _) => 0.0,
+        // Flattened: it rises to its full height.
+        (Some(_), Some(_)) if file.bodies[c.a].flatten.is_some() => {
+            (1.0 / file.bodies[c.a].flatten.unwrap_or(1.0)).min(10.0) as f32 - 0.8
+        }
+        // To a volume: its linear growth, and a fifth of its size more.
+        (Some(_), Some((start, target))) => (target / start).cbrt().clamp(1.0, 10.0) as f32 - 0.8,
+        (Some(_), None) => 0.6,
+    };
+    let margin = if growth > 0.0 {
+        let (lo, hi) = a.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+        (growth * (hi - lo).max_element() / voxel).ceil() as u32 + 2
+    } else {
+        2
+    };
+    let grid = Initializer::new(voxel).margin(margin).build(a)?;
+    response.validate(&params, &grid).map_err(|e| Error::Invalid {
+        what: "contact",
+        value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
+        rule: e.to_string(),
+    })?;
+    let model = match surface {
+        Some(surface) => {
+            surface.validate().map_err(|e| Error::Invalid {
+                what: "contact",
+                value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
+                rule: e.to_string(),
+            })?;
+            ContactModel::Surface(surface)
+        }
+        None => ContactModel::Voxel(response),
+    };
+    Ok(ContactPair { a: c.a, b: c.b, grid, params, model })
+}
+
 /// Builds the world of `file`.
 ///
 /// # Errors
@@ -1039,145 +1200,12 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             rule: "the bodies give no finite stability bound; give [time] dt".into(),
         });
     }
-    let spacing = |k: usize| file.bodies[k].spacing.unwrap_or(1.0) as f32;
-    let mut contacts = Vec::with_capacity(file.contacts.len());
-    for c in &file.contacts {
-        // A shell filled or inflated grows its edges with it: the plane of the three nearest
-        // needs them within the radius wherever b meets a face (a face's centre is 1/√3 of an
-        // edge from its corners), so the radius and the voxel follow the grown edge.
-        let edge_growth = |k: usize| -> f32 {
-            match (file.bodies[k].inflate.as_ref(), fills[k]) {
-                (None, _) => 1.0,
-                _ if file.bodies[k].flatten.is_some() => 1.0,
-                (Some(_), Some((start, target))) => (target / start).cbrt().max(1.0) as f32,
-                (Some(_), None) => 1.6,
-            }
-        };
-        let grown = |k: usize| spacing(k) * edge_growth(k);
-        let h = spacing(c.a).max(spacing(c.b));
-        // (The paper's constant response keeps the rules it was shipped with: 0.75 h.)
-        let reach = match c.response {
-            ResponseSpec::Penalty | ResponseSpec::Surface => {
-                (0.75 * h).max(0.65 * grown(c.a)).max(0.65 * grown(c.b))
-            }
-            ResponseSpec::Constant => 0.75 * h,
-        };
-        let voxel = match c.voxel_size {
-            Auto::Value(v) => v as f32,
-            Auto::Auto => 2f32.powi(h.max(reach).log2().ceil() as i32),
-        };
-        let radius = match c.radius {
-            Auto::Value(r) => r as f32,
-            Auto::Auto => reach.min(voxel),
-        };
-        // The penalty's stiffness: half of what the step allows the lightest free vertex of the
-        // pair, `0.5 m / dt²` (a contact spring adds `k/m` to the `omega²` whose bound is
-        // `4/dt²`, of which the bodies' springs take a quarter at the automatic step), so that
-        // a depth is pushed out within a few steps, whatever the load.
-        let lightest = [c.a, c.b]
-            .iter()
-            .flat_map(|&k| {
-                let b = &bodies[k];
-                b.inv_mass.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Free).map(|(im, _)| 1.0 / *im)
-            })
-            .fold(f32::MAX, f32::min);
-        let lightest = if lightest == f32::MAX { 1.0 / bodies[c.b].inv_mass[0] } else { lightest };
-        // Under the implicit integrator the contact's stiffness enters the solve, so it keeps
-        // the explicit bound's (a property of the bodies, not of the step), but at most
-        // IMPLICIT_CONTACT times the softer body's springs: the bound follows the stiffer body
-        // (a 3,000 kPa shell's bound is a thousand times a 1 kPa tissue's springs), and a
-        // contact far stiffer than what it pushes only makes the solve ill-conditioned and its
-        // residual at rest noise (a hundredth of a millimetre of depth is then a force no
-        // spring of the tissue can balance). A hundred times the softer springs still keeps the
-        // depth under load within a hundredth of its spacing times its strain.
-        let material_dt = if implicit { stable.min(dt) } else { dt };
-        let softer = [c.a, c.b]
-            .iter()
-            .filter(|&&k| bodies[k].mode.contains(&Mode::Free))
-            .map(|&k| stiffness[k])
-            .fold(f32::MAX, f32::min);
-        let contact_k = match c.stiffness {
-            Auto::Value(n_per_m) => n_per_m as f32,
-            Auto::Auto if implicit && softer < f32::MAX => {
-                (0.5 * lightest / (material_dt * material_dt)).min(IMPLICIT_CONTACT * softer)
-            }
-            Auto::Auto => 0.5 * lightest / (material_dt * material_dt),
-        };
-        let gap = match c.gap {
-            Auto::Value(g) => g as f32,
-            Auto::Auto => 0.0,
-        };
-        let response = match c.response {
-            ResponseSpec::Constant => Response::Constant,
-            ResponseSpec::Penalty | ResponseSpec::Surface => Response::Penalty { stiffness: contact_k, gap },
-        };
-        // The surface contact pushes from as deep as the contact's bound (its voxel size): a
-        // vertex beyond it has failed the contact, and from farther than half a thin body's
-        // thickness its nearest surface point is on the far side.
-        let surface = (c.response == ResponseSpec::Surface).then_some(SurfacePenalty {
-            stiffness: contact_k,
-            gap,
-            reach: voxel.max(2.0 * gap),
-            // The implicit solve sees a contact a quarter of the reach before it arrives.
-            margin: if implicit { 0.25 * voxel.max(2.0 * gap) } else { 0.0 },
-        });
-        let magnitude = match (c.magnitude, c.response) {
-            (Auto::Value(newtons), _) => (newtons / s) as f32,
-            (Auto::Auto, ResponseSpec::Constant) => 4.0 * stiffness[c.b] * spacing(c.b),
-            // The penalty's largest force: at a depth of two voxels, twice the contact's bound,
-            // so that it never caps a contact that holds.
-            (Auto::Auto, ResponseSpec::Penalty | ResponseSpec::Surface) => contact_k * 2.0 * voxel,
-        };
-        let params = ContactParams {
-            magnitude,
-            search: match c.search {
-                SearchSpec::Neighbours => Search::Neighbours { radius },
-                SearchSpec::Voxel => Search::Voxel,
-            },
-            direction: match c.direction {
-                DirectionSpec::Pairwise => Direction::Pairwise,
-                DirectionSpec::PlaneNormal => Direction::PlaneNormal,
-            },
-            anchor: Anchor::FollowA,
-        };
-        // Two voxels of margin, and room for an inflating shell to grow by 60 % of its size (the
-        // grid keeps its dims as it follows A; what leaves it is discarded).
-        let a = &bodies[c.a].pos;
-        let growth = match (file.bodies[c.a].inflate.as_ref(), fills[c.a]) {
-            (None, _) => 0.0,
-            // Flattened: it rises to its full height.
-            (Some(_), Some(_)) if file.bodies[c.a].flatten.is_some() => {
-                (1.0 / file.bodies[c.a].flatten.unwrap_or(1.0)).min(10.0) as f32 - 0.8
-            }
-            // To a volume: its linear growth, and a fifth of its size more.
-            (Some(_), Some((start, target))) => (target / start).cbrt().clamp(1.0, 10.0) as f32 - 0.8,
-            (Some(_), None) => 0.6,
-        };
-        let margin = if growth > 0.0 {
-            let (lo, hi) = a.iter().fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
-            (growth * (hi - lo).max_element() / voxel).ceil() as u32 + 2
-        } else {
-            2
-        };
-        let grid = Initializer::new(voxel).margin(margin).build(a)?;
-        response.validate(&params, &grid).map_err(|e| Error::Invalid {
-            what: "contact",
-            value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
-            rule: e.to_string(),
-        })?;
-        let model = match surface {
-            Some(surface) => {
-                surface.validate().map_err(|e| Error::Invalid {
-                    what: "contact",
-                    value: format!("{} – {}", file.bodies[c.a].name, file.bodies[c.b].name),
-                    rule: e.to_string(),
-                })?;
-                ContactModel::Surface(surface)
-            }
-            None => ContactModel::Voxel(response),
-        };
-        contacts.push(ContactPair { a: c.a, b: c.b, grid, params, model });
-    }
+    let timing = Timing { dt, stable, implicit };
+    let contacts = file
+        .contacts
+        .iter()
+        .map(|c| contact_pair(file, c, (&bodies, &stiffness, &fills), timing))
+        .collect::<Result<Vec<_>, Error>>()?;
     let steps = match (file.time.steps, file.time.duration) {
         (Some(n), _) => n,
         (None, Some(d)) => ((d / f64::from(dt)).ceil() as u64).max(1),
