@@ -853,6 +853,153 @@ pub fn gravity(file: &SceneFile) -> Vec3 {
     file.world.gravity.map_or(Vec3::ZERO, |g| (DVec3::from_array(g) / file.metres()).as_vec3())
 }
 
+/// Landmark `name`, given at `p` on body `k` of `file` (built as `b`): moved onto the body's
+/// outer surface, its nearest point, and carried by that triangle's corners from then on.
+///
+/// # Errors
+/// [`Error::Invalid`] naming the file and the body's `landmarks` key for a landmark farther
+/// than twice the body's spacing from its surface.
+fn landmark_on(
+    file: &SceneFile,
+    k: usize,
+    name: &str,
+    p: [f64; 3],
+    b: &MassSpring,
+) -> Result<Landmark, Error> {
+    let spec = &file.bodies[k];
+    let given = Vec3::from_array(p.map(|v| v as f32));
+    let q = given.as_dvec3();
+    let mut best = (f64::INFINITY, [0u32; 3], DVec3::ZERO);
+    for t in &b.surface.triangles {
+        let corners = t.map(|i| b.pos[i as usize].as_dvec3());
+        let c = crate::geometry::closest_point(q, &corners);
+        let d = c.distance(q);
+        if d < best.0 {
+            best = (d, *t, c);
+        }
+    }
+    let reach = 2.0 * f64::from(spec.spacing.unwrap_or(1.0) as f32);
+    if best.0.is_nan() || best.0 > reach {
+        return Err(file.body_error(
+            k,
+            "landmarks",
+            format!(
+                "landmark {name:?} at {p:?} is {:.3} {} from the body's surface, more than twice its spacing: put it on the skin",
+                best.0,
+                file.units.symbol()
+            ),
+        ));
+    }
+    let [a, b2, c] = best.1.map(|i| b.pos[i as usize].as_dvec3());
+    // Barycentric weights of the closest point.
+    let (v0, v1, v2) = (b2 - a, c - a, best.2 - a);
+    let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
+    let den = d00 * d11 - d01 * d01;
+    let (wb, wc) =
+        if den > 0.0 { ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den) } else { (0.0, 0.0) };
+    Ok(Landmark {
+        name: name.to_string(),
+        given,
+        triangle: best.1,
+        weights: [(1.0 - wb - wc) as f32, wb as f32, wc as f32],
+    })
+}
+
+/// What body `k` of `file` (built as `bodies[k]`, with the bodies' spring `stiffness`, their
+/// `fills` and build `notes`) is given at each step: its keyframes (time, offset from the
+/// first, rotation), its final pressure or volume and its ramp, its floor and its gravity
+/// (`hold`: a fill's integral pace under the explicit integrator).
+fn body_schedule(
+    file: &SceneFile,
+    k: usize,
+    (bodies, stiffness, fills, notes): (&[MassSpring], &[f32], &[Fill], &[BodyNote]),
+    (implicit, hold): (bool, f32),
+) -> BodySchedule {
+    let s = file.metres();
+    let b = &file.bodies[k];
+    let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
+    let keys = b
+        .motion
+        .iter()
+        .map(|m| {
+            (m.t, (DVec3::from_array(m.position) - base).as_vec3(), DVec3::from_array(m.rotation), m.ease)
+        })
+        .collect();
+    let (mut pressure, mut growth, mut fill, mut ramp, mut ease) = (0.0, None, None, 0.0, Ease::Linear);
+    let mut steps = Vec::new();
+    if let Some(i) = &b.inflate {
+        (ramp, ease) = (i.ramp, i.ease);
+        pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
+        if let Some((start, target)) = fills[k] {
+            growth = b.flatten.is_none().then_some(target / start);
+            let bulk = fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape);
+            // The implicit solve takes the fill's bulk response whole: a fill as
+            // incompressible as the liquid it stands for.
+            let bulk = if implicit { IMPLICIT_BULK * bulk } else { bulk };
+            fill = Some((start, target, bulk));
+            // The schedule's volumes as fractions of the way from the first to the last.
+            let span = target - start;
+            steps = i
+                .schedule
+                .iter()
+                .map(|&[t, ml]| {
+                    let v = ml * 1e-6 / s.powi(3);
+                    (t, if span.abs() > 0.0 { (v - start) / span } else { 1.0 })
+                })
+                .collect();
+        }
+    }
+    BodySchedule {
+        keys,
+        pivot: Vec3::from_array(b.position.map(|v| v as f32)),
+        pressure,
+        growth,
+        fill,
+        steps,
+        ramp,
+        ease,
+        // On a curved wall the floor is the wall itself, raised by `floor` along its normal.
+        floor: match (bodies[k].wall.is_some(), b.floor) {
+            (true, f) => f.unwrap_or(0.0) as f32,
+            (false, f) => f.map_or(f32::MIN, |f| f as f32),
+        },
+        sink: b.sink as f32,
+        hold: if fill.is_some() && !implicit { hold } else { 0.0 },
+        gravity: if b.kind == BodyKind::Rigid { Vec3::ZERO } else { gravity(file) },
+    }
+}
+
+/// The pocket of body `k` of `file` where it is an implant placed on a patient and in contact
+/// with her tissue (`bodies` as built, with their `fills` and build `notes`): closed around it
+/// (crate::pocket), its suction adding up at the pace `hold` a fill's does. `None` for any
+/// other body.
+fn pocket(
+    file: &SceneFile,
+    k: usize,
+    (bodies, fills, notes): (&[MassSpring], &[Fill], &[BodyNote]),
+    hold: f32,
+) -> Option<crate::pocket::Pocket> {
+    let s = file.metres();
+    let place = file.bodies[k].place.as_ref()?;
+    let t = place.body;
+    let touching = file.contacts.iter().any(|c| (c.a, c.b) == (k, t) || (c.a, c.b) == (t, k));
+    let wall_faces = notes[t].wall_faces.as_ref().filter(|_| touching)?;
+    let tissue = &bodies[t];
+    let faces = wall_faces
+        .iter()
+        .map(|&f| tissue.surface.triangles[f as usize])
+        .filter(|f| f.iter().any(|&i| tissue.mode[i as usize] == Mode::Free))
+        .collect();
+    let young = file.bodies[t].material.young_kpa * 1e3;
+    let stiffness = (crate::pocket::SUCTION * young * s) as f32;
+    let volume = fills[k].map_or_else(|| bodies[k].enclosed_volume(), |(_, target)| target);
+    Some(crate::pocket::Pocket { tissue: t, implant: k, faces, stiffness, volume, hold, held: 0.0 })
+}
+
+/// A shell filled to a volume: the volume it encloses at first and its target, in cubic file
+/// units; `None` for any other body.
+type Fill = Option<(f64, f64)>;
+
 /// The step a world's contacts are sized for: the time step, the bodies' stability bound, and
 /// whether the implicit integrator steps them.
 #[derive(Clone, Copy)]
@@ -872,7 +1019,7 @@ struct Timing {
 fn contact_pair(
     file: &SceneFile,
     c: &ContactSpec,
-    (bodies, stiffness, fills): (&[MassSpring], &[f32], &[Option<(f64, f64)>]),
+    (bodies, stiffness, fills): (&[MassSpring], &[f32], &[Fill]),
     Timing { dt, stable, implicit }: Timing,
 ) -> Result<ContactPair, Error> {
     let s = file.metres();
@@ -1048,46 +1195,8 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // Landmarks: each moved onto its body's outer surface, no farther than twice its spacing.
     for (k, spec) in file.bodies.iter().enumerate() {
         for (name, p) in &spec.landmarks {
-            let b = &bodies[k];
-            let given = Vec3::from_array(p.map(|v| v as f32));
-            let q = given.as_dvec3();
-            let mut best = (f64::INFINITY, [0u32; 3], DVec3::ZERO);
-            for t in &b.surface.triangles {
-                let corners = t.map(|i| b.pos[i as usize].as_dvec3());
-                let c = crate::geometry::closest_point(q, &corners);
-                let d = c.distance(q);
-                if d < best.0 {
-                    best = (d, *t, c);
-                }
-            }
-            let reach = 2.0 * f64::from(spec.spacing.unwrap_or(1.0) as f32);
-            if best.0.is_nan() || best.0 > reach {
-                return Err(file.body_error(
-                    k,
-                    "landmarks",
-                    format!(
-                        "landmark {name:?} at {p:?} is {:.3} {} from the body's surface, more than twice its spacing: put it on the skin",
-                        best.0,
-                        file.units.symbol()
-                    ),
-                ));
-            }
-            let [a, b2, c] = best.1.map(|i| b.pos[i as usize].as_dvec3());
-            // Barycentric weights of the closest point.
-            let (v0, v1, v2) = (b2 - a, c - a, best.2 - a);
-            let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));
-            let den = d00 * d11 - d01 * d01;
-            let (wb, wc) = if den > 0.0 {
-                ((d11 * d20 - d01 * d21) / den, (d00 * d21 - d01 * d20) / den)
-            } else {
-                (0.0, 0.0)
-            };
-            notes[k].landmarks.push(Landmark {
-                name: name.clone(),
-                given,
-                triangle: best.1,
-                weights: [(1.0 - wb - wc) as f32, wb as f32, wc as f32],
-            });
+            let landmark = landmark_on(file, k, name, *p, &bodies[k])?;
+            notes[k].landmarks.push(landmark);
         }
     }
     // Shells placed on a patient's chest wall under a landmark (docs/design.md §15).
@@ -1105,7 +1214,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     }
     // Per shell filled to a volume: the volume it encloses at first and its target, in cubic
     // file units (the voxel model's margin and the schedule both follow from them).
-    let mut fills: Vec<Option<(f64, f64)>> = Vec::with_capacity(file.bodies.len());
+    let mut fills: Vec<Fill> = Vec::with_capacity(file.bodies.len());
     for (k, b) in file.bodies.iter().enumerate() {
         let Some(ml) = b.inflate.as_ref().and_then(|i| i.volume_ml) else {
             fills.push(None);
@@ -1237,92 +1346,18 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // slower than the mechanics it steers (a faster one rings); the implicit solve holds a fill
     // through its bulk term alone.
     let hold = (f64::from(dt) / (2.0 * crate::world::response_time(&bodies)).max(f64::from(dt))) as f32;
-    for (k, b) in file.bodies.iter().enumerate() {
-        let base = b.motion.first().map_or(DVec3::ZERO, |m| DVec3::from_array(m.position));
-        let keys = b
-            .motion
-            .iter()
-            .map(|m| {
-                (m.t, (DVec3::from_array(m.position) - base).as_vec3(), DVec3::from_array(m.rotation), m.ease)
-            })
-            .collect();
-        let (mut pressure, mut growth, mut fill, mut ramp, mut ease) = (0.0, None, None, 0.0, Ease::Linear);
-        let mut steps = Vec::new();
-        if let Some(i) = &b.inflate {
-            (ramp, ease) = (i.ramp, i.ease);
-            pressure = (i.pressure_kpa.unwrap_or(0.0) * 1e3 * s) as f32;
-            if let Some((start, target)) = fills[k] {
-                growth = b.flatten.is_none().then_some(target / start);
-                let bulk = fill_bulk(&bodies[k], stiffness[k], target, notes[k].full_shape);
-                // The implicit solve takes the fill's bulk response whole: a fill as
-                // incompressible as the liquid it stands for.
-                let bulk = if implicit { IMPLICIT_BULK * bulk } else { bulk };
-                fill = Some((start, target, bulk));
-                // The schedule's volumes as fractions of the way from the first to the last.
-                let span = target - start;
-                steps = i
-                    .schedule
-                    .iter()
-                    .map(|&[t, ml]| {
-                        let v = ml * 1e-6 / s.powi(3);
-                        (t, if span.abs() > 0.0 { (v - start) / span } else { 1.0 })
-                    })
-                    .collect();
-            }
-        }
-        schedule_specs.push(BodySchedule {
-            keys,
-            pivot: Vec3::from_array(b.position.map(|v| v as f32)),
-            pressure,
-            growth,
-            fill,
-            steps,
-            ramp,
-            ease,
-            // On a curved wall the floor is the wall itself, raised by `floor` along its normal.
-            floor: match (bodies[k].wall.is_some(), b.floor) {
-                (true, f) => f.unwrap_or(0.0) as f32,
-                (false, f) => f.map_or(f32::MIN, |f| f as f32),
-            },
-            sink: b.sink as f32,
-            hold: if fill.is_some() && !implicit { hold } else { 0.0 },
-            gravity: if b.kind == BodyKind::Rigid { Vec3::ZERO } else { gravity(file) },
-        });
+    for k in 0..file.bodies.len() {
+        schedule_specs.push(body_schedule(file, k, (&bodies, &stiffness, &fills, &notes), (implicit, hold)));
     }
     let schedule = std::sync::Arc::new(move |step: u64| {
         let t = (step + 1) as f64 * f64::from(dt);
         schedule_specs.iter().map(|b| b.inputs(t, dt)).collect()
     });
-    // A vertex that moves a tenth of the scene in one step has blown up.
     // Each placed implant's pocket, closed around it (crate::pocket), where it touches its
     // tissue; its suction adds up at the pace a fill's does.
-    let pocket_hold = hold;
-    let mut pockets = Vec::new();
-    for (k, spec) in file.bodies.iter().enumerate() {
-        let Some(place) = &spec.place else { continue };
-        let t = place.body;
-        let touching = file.contacts.iter().any(|c| (c.a, c.b) == (k, t) || (c.a, c.b) == (t, k));
-        if let (true, Some(wall_faces)) = (touching, &notes[t].wall_faces) {
-            let tissue = &bodies[t];
-            let faces = wall_faces
-                .iter()
-                .map(|&f| tissue.surface.triangles[f as usize])
-                .filter(|f| f.iter().any(|&i| tissue.mode[i as usize] == Mode::Free))
-                .collect();
-            let young = file.bodies[t].material.young_kpa * 1e3;
-            let stiffness = (crate::pocket::SUCTION * young * s) as f32;
-            let volume = fills[k].map_or_else(|| bodies[k].enclosed_volume(), |(_, target)| target);
-            pockets.push(crate::pocket::Pocket {
-                tissue: t,
-                implant: k,
-                faces,
-                stiffness,
-                volume,
-                hold: pocket_hold,
-                held: 0.0,
-            });
-        }
-    }
+    let pockets =
+        (0..file.bodies.len()).filter_map(|k| pocket(file, k, (&bodies, &fills, &notes), hold)).collect();
+    // A vertex that moves a tenth of the scene in one step has blown up.
     let mut world = World::new(names, bodies, contacts, 0.1 * size / dt, schedule)?;
     world.pockets = pockets;
     if implicit {
