@@ -1060,6 +1060,442 @@ fn inline_key(upto: &str) -> String {
     stack.iter().filter(|k| !k.is_empty()).cloned().chain(leaf).collect::<Vec<_>>().join(".")
 }
 
+/// A body's `place`, as read, with where it stands in the text; `None` for a body not placed.
+type PlaceAt = Option<(Range<usize>, RawPlace)>;
+
+/// A scene file's text and the name it is read by: what an error names (file, line, key).
+#[derive(Clone, Copy)]
+struct Source<'a> {
+    file: &'a str,
+    text: &'a str,
+}
+
+/// Body `k` of a scene file (`b`, as read), checked: its geometry (meshes relative to `dir`),
+/// spacing, placement in space, material, held and driven vertices, motion, inflation,
+/// reference, landmarks; and its `place` under a landmark, if any, with where it stands in the
+/// text, for [`resolve_places`] once every body is read (`earlier`: the bodies before it).
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file, line and key of the first value that breaks a rule.
+fn body_spec(
+    src: Source<'_>,
+    dir: &Path,
+    units: Units,
+    (k, b): (usize, RawBody),
+    earlier: &[BodySpec],
+) -> Result<(BodySpec, PlaceAt), Error> {
+    let (file, text) = (src.file, src.text);
+    let err = |span: Range<usize>, message: String| at(file, text, span, None, message);
+    let key = |what: &str| format!("body[{k}].{what}");
+    let name_span = b.name.span();
+    let name = b.name.into_inner();
+    if name.is_empty() {
+        return Err(at(file, text, name_span, Some(&key("name")), "a body needs a name"));
+    }
+    if let Some(first) = earlier.iter().position(|o| o.name == name) {
+        return Err(at(
+            file,
+            text,
+            name_span,
+            Some(&key("name")),
+            format!("{name:?} is already the name of body[{first}]; names are unique"),
+        ));
+    }
+    let b_kind = b.kind;
+    let b_kind_is_soft = |k: BodyKind| k == BodyKind::Soft;
+    let geometry = match (b.mesh, b.shape) {
+        (Some(mesh), None) => Geometry::Mesh(dir.join(mesh.into_inner())),
+        (None, Some(shape)) => {
+            let span = shape.span();
+            let mut shape = shape.into_inner();
+            check_shape(&shape).map_err(|(k, m)| at(file, text, span.clone(), Some(&key(k)), m))?;
+            if let Shape::Between(b) = &mut shape {
+                if b_kind_is_soft(b_kind) {
+                    b.outer = dir.join(&b.outer);
+                    b.inner = dir.join(&b.inner);
+                } else {
+                    return Err(at(
+                        file,
+                        text,
+                        span,
+                        Some(&key("shape.between")),
+                        format!("`between` makes a soft body's tissue; {name:?} is {b_kind:?}"),
+                    ));
+                }
+            }
+            Geometry::Shape(shape)
+        }
+        (Some(mesh), Some(_)) => {
+            return Err(err(mesh.span(), format!("body {name:?} has both `mesh` and `shape`; give one")));
+        }
+        (None, None) => {
+            return Err(at(
+                file,
+                text,
+                name_span,
+                Some(&format!("body[{k}]")),
+                format!("body {name:?} needs `mesh` (a file) or `shape` (a built-in shape)"),
+            ));
+        }
+    };
+    let spacing = match b.spacing {
+        Some(s) if !(s.get_ref().is_finite() && *s.get_ref() > 0.0) => {
+            return Err(err(s.span(), format!("{} must be a positive length", s.get_ref())));
+        }
+        s => s.map(Spanned::into_inner),
+    };
+    let needs_spacing = match (&geometry, b.kind) {
+        (_, BodyKind::Soft) => true,
+        (Geometry::Shape(_), BodyKind::Shell | BodyKind::Rigid) => true,
+        (Geometry::Mesh(_), _) => false,
+    };
+    if needs_spacing && spacing.is_none() {
+        let what = if b.kind == BodyKind::Soft { "the lattice spacing" } else { "the surface edge length" };
+        return Err(at(
+            file,
+            text,
+            name_span,
+            Some(&key("spacing")),
+            format!("body {name:?} ({:?}) needs `spacing`, {what}", b.kind),
+        ));
+    }
+    let scale_span = b.scale.span();
+    let scale = b.scale.into_inner();
+    if !(scale.is_finite() && scale > 0.0) {
+        return Err(err(scale_span, format!("{scale} must be positive")));
+    }
+    // A body between two surfaces lies where they do, in the file's axes.
+    if matches!(geometry, Geometry::Shape(Shape::Between(_)))
+        && (b.position != [0.0; 3] || b.rotation != [0.0; 3] || scale != 1.0)
+    {
+        let moved = if b.position != [0.0; 3] {
+            "position"
+        } else if b.rotation != [0.0; 3] {
+            "rotation"
+        } else {
+            "scale"
+        };
+        return Err(at(
+            file,
+            text,
+            name_span,
+            Some(&key(moved)),
+            format!(
+                "body {name:?} lies between its surfaces, where they are: `{moved}` does not apply to `between` (move the surfaces and the box instead)"
+            ),
+        ));
+    }
+    if !b.position.iter().chain(&b.rotation).all(|v| v.is_finite()) {
+        return Err(at(
+            file,
+            text,
+            name_span,
+            Some(&key("position")),
+            "position and rotation must be finite",
+        ));
+    }
+    let material_span = b.material.span();
+    let material = b.material.into_inner();
+    check_material(&material).map_err(|(what, m)| {
+        at(file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
+    })?;
+    let rules = |list: Vec<Spanned<Fixed>>| -> Result<Vec<Fixed>, Error> {
+        let mut out = Vec::with_capacity(list.len());
+        for f in list {
+            let span = f.span();
+            let f = f.into_inner();
+            check_fixed(&f).map_err(|m| err(span.clone(), m))?;
+            out.push(f);
+        }
+        Ok(out)
+    };
+    let fixed = rules(b.fixed)?;
+    let driven = rules(b.driven)?;
+    let mut layers = Vec::with_capacity(b.layers.len());
+    for l in b.layers {
+        let span = l.span();
+        let l = l.into_inner();
+        if b.kind != BodyKind::Soft {
+            return Err(err(span, format!("only a soft body has layers; {name:?} is {:?}", b.kind)));
+        }
+        check_fixed(&l.region).map_err(|m| err(span.clone(), m))?;
+        if !(l.young_kpa.is_finite() && l.young_kpa > 0.0) {
+            return Err(err(span, format!("young_kpa = {} must be a positive modulus in kPa", l.young_kpa)));
+        }
+        layers.push(l);
+    }
+    if let Some(f) = b.floor
+        && !f.is_finite()
+    {
+        return Err(at(file, text, name_span, Some(&key("floor")), "must be finite"));
+    }
+    let motion_span = b.motion.span();
+    let motion = b.motion.into_inner();
+    let moves = b.kind == BodyKind::Rigid || (b.kind == BodyKind::Soft && !driven.is_empty());
+    if !motion.is_empty() && !moves {
+        return Err(err(
+            motion_span,
+            format!(
+                "only a rigid body, or a soft body with `driven` vertices, has `motion`; {name:?} is {:?}",
+                b.kind
+            ),
+        ));
+    }
+    if motion
+        .iter()
+        .any(|m| !(m.t.is_finite() && m.position.iter().chain(&m.rotation).all(|v| v.is_finite())))
+    {
+        return Err(err(motion_span, "keyframes must be finite".into()));
+    }
+    if motion.windows(2).any(|w| w[1].t <= w[0].t) {
+        return Err(err(motion_span, "keyframe times must increase".into()));
+    }
+    let inflate = match b.inflate {
+        None => None,
+        Some(i) => {
+            let span = i.span();
+            let i = i.into_inner();
+            if b.kind != BodyKind::Shell {
+                return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", b.kind)));
+            }
+            let mut i = i;
+            if let Some(&[_, last]) = i.schedule.last() {
+                if i.pressure_kpa.is_some() || i.volume_ml.is_some() {
+                    return Err(err(
+                        span,
+                        "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
+                    ));
+                }
+                let finite = i.schedule.iter().flatten().all(|v| v.is_finite());
+                let rising = i.schedule.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
+                let positive = i.schedule.iter().all(|[_, ml]| *ml > 0.0);
+                if !(finite && i.schedule[0][0] > 0.0 && rising && positive) {
+                    return Err(err(
+                        span,
+                        "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and positive volumes that do not decrease".into(),
+                    ));
+                }
+                i.volume_ml = Some(last);
+                i.ramp = 0.0;
+            }
+            if i.volume_ml.is_some() && !units.is_physical() {
+                return Err(err(
+                    span,
+                    "a scene in layer units has no millilitres: inflate it by `pressure_kpa`, or give the scene physical units (\"mm\", \"cm\" or \"m\")".into(),
+                ));
+            }
+            let amount = match (i.pressure_kpa, i.volume_ml) {
+                (Some(p), None) => p,
+                (None, Some(v)) => v,
+                _ => {
+                    return Err(err(
+                        span,
+                        "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
+                    ));
+                }
+            };
+            if !(amount.is_finite() && amount >= 0.0 && i.ramp.is_finite() && i.ramp >= 0.0) {
+                return Err(err(span, "the inflation and its ramp must be finite and not negative".into()));
+            }
+            Some(i)
+        }
+    };
+    let reference = match b.reference {
+        None => None,
+        Some(r) => {
+            let span = r.span();
+            let g = r.into_inner().gravity;
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(err(span, "reference.gravity must be finite, in m/s²".into()));
+            }
+            if b.kind != BodyKind::Soft {
+                return Err(err(
+                    span,
+                    format!(
+                        "only a soft body's shape is recovered from a loaded one; {name:?} is {:?}",
+                        b.kind
+                    ),
+                ));
+            }
+            Some(g)
+        }
+    };
+    let place = match b.place {
+        None => None,
+        Some(p) => {
+            let span = p.span();
+            let p = p.into_inner();
+            if b.kind != BodyKind::Shell {
+                return Err(err(
+                    span,
+                    format!("only a shell (an implant) is placed on a chest wall; {name:?} is {:?}", b.kind),
+                ));
+            }
+            if b.position != [0.0; 3] || b.rotation != [0.0; 3] {
+                return Err(err(
+                    span,
+                    format!(
+                        "body {name:?} is placed under a landmark: its `position` and `rotation` follow from the chest wall, give neither"
+                    ),
+                ));
+            }
+            if let Some(m) = p.margin
+                && !(m.is_finite() && m >= 0.0)
+            {
+                return Err(err(span, format!("place.margin = {m} must be 0 or more (file units)")));
+            }
+            Some((span, p))
+        }
+    };
+    let landmarks = match b.landmarks {
+        None => Vec::new(),
+        Some(l) => {
+            let span = l.span();
+            let l = l.into_inner();
+            if b.kind != BodyKind::Soft {
+                return Err(err(span, format!("only a soft body has landmarks; {name:?} is {:?}", b.kind)));
+            }
+            if let Some((n, _)) = l.iter().find(|(_, p)| !p.iter().all(|v| v.is_finite())) {
+                return Err(err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
+            }
+            l.into_iter().collect()
+        }
+    };
+    let spec = BodySpec {
+        place: None,
+        reference,
+        landmarks,
+        name,
+        kind: b.kind,
+        geometry,
+        spacing,
+        position: b.position,
+        rotation: b.rotation,
+        scale,
+        material,
+        fixed,
+        driven,
+        layers,
+        floor: b.floor,
+        motion,
+        inflate,
+        flatten: None,
+        sink: 0.0,
+    };
+    Ok((spec, place))
+}
+
+/// Each body's `place = { under = "body.landmark" }` (`places`, by body, with where each
+/// stands in the text) resolved against `bodies`: the body named has a chest wall and the
+/// landmark, and the margin defaults to the pocket's.
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file and line of a placement that names no such body or
+/// landmark, or a body without a chest wall.
+fn resolve_places(
+    src: Source<'_>,
+    units: Units,
+    bodies: &mut [BodySpec],
+    places: Vec<PlaceAt>,
+) -> Result<(), Error> {
+    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
+    for (k, place) in places.into_iter().enumerate() {
+        let Some((span, p)) = place else { continue };
+        let Some((body, landmark)) = p.under.split_once('.') else {
+            return Err(err(
+                span,
+                format!("place.under = {:?} must name a body and its landmark: \"breast.nipple\"", p.under),
+            ));
+        };
+        let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+        let Some(t) = bodies.iter().position(|b| b.name == body) else {
+            return Err(err(span, format!("place.under: no body is named {body:?} (the bodies: {names:?})")));
+        };
+        if !matches!(bodies[t].geometry, Geometry::Shape(Shape::Between(_))) {
+            return Err(err(
+                span,
+                format!(
+                    "place.under: body {body:?} has no chest wall: an implant is placed on a body with shape = {{ between = {{ outer, inner, min, max }} }}"
+                ),
+            ));
+        }
+        if !bodies[t].landmarks.iter().any(|(n, _)| n == landmark) {
+            let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
+            return Err(err(
+                span,
+                format!("place.under: body {body:?} has no landmark {landmark:?} (its landmarks: {marks:?})"),
+            ));
+        }
+        let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / units.metres());
+        bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin });
+    }
+    Ok(())
+}
+
+/// A `[[contact]]` of a scene file (`c`, as read), checked against its `bodies`: two
+/// different bodies by name, positive sizes, a voxel size that is a power of two, and no
+/// penalty's keys on the paper's constant response.
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file and line of the first value that breaks a rule.
+fn contact_spec(src: Source<'_>, bodies: &[BodySpec], c: RawContact) -> Result<ContactSpec, Error> {
+    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
+    let find = |s: &Spanned<String>| {
+        bodies.iter().position(|b| b.name == *s.get_ref()).ok_or_else(|| {
+            let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
+            err(s.span(), format!("no body is named {:?} (the bodies: {names:?})", s.get_ref()))
+        })
+    };
+    let (a, b) = (find(&c.a)?, find(&c.b)?);
+    if a == b {
+        return Err(err(c.b.span(), "a contact needs two different bodies".into()));
+    }
+    for (what, v) in [
+        ("radius", &c.radius),
+        ("voxel_size", &c.voxel_size),
+        ("magnitude", &c.magnitude),
+        ("stiffness", &c.stiffness),
+    ] {
+        if let Auto::Value(x) = v.get_ref()
+            && !(x.is_finite() && *x > 0.0)
+        {
+            return Err(err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
+        }
+    }
+    if let Auto::Value(v) = c.voxel_size.get_ref()
+        && frexp(*v).0 != 0.5
+    {
+        return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
+    }
+    if let Auto::Value(g) = c.gap.get_ref()
+        && !(g.is_finite() && *g >= 0.0)
+    {
+        return Err(err(c.gap.span(), format!("gap {g} must be \"auto\" or 0 or more")));
+    }
+    if c.response == ResponseSpec::Constant {
+        for (what, v) in [("stiffness", &c.stiffness), ("gap", &c.gap)] {
+            if matches!(v.get_ref(), Auto::Value(_)) {
+                return Err(err(
+                    v.span(),
+                    format!("{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"),
+                ));
+            }
+        }
+    }
+    Ok(ContactSpec {
+        a,
+        b,
+        direction: c.direction,
+        search: c.search,
+        radius: *c.radius.get_ref(),
+        voxel_size: *c.voxel_size.get_ref(),
+        magnitude: *c.magnitude.get_ref(),
+        response: c.response,
+        stiffness: *c.stiffness.get_ref(),
+        gap: *c.gap.get_ref(),
+    })
+}
+
 /// The file's error at `span`.
 pub(crate) fn at(
     file: &str,
@@ -1175,7 +1611,6 @@ impl SceneFile {
         let file = path.display().to_string();
         let raw: RawScene = toml::from_str(text).map_err(|e| toml_error(&file, text, &e))?;
         let dir = path.parent().unwrap_or(Path::new(""));
-        let err = |span: Range<usize>, message: String| at(&file, text, span, None, message);
 
         let mut time = raw.time;
         let time_err = |key: &str, message: String| {
@@ -1208,420 +1643,19 @@ impl SceneFile {
         let mut bodies: Vec<BodySpec> = Vec::with_capacity(raw.body.len());
         let mut places = Vec::with_capacity(bodies.capacity());
         for (k, b) in raw.body.into_iter().enumerate() {
-            let key = |what: &str| format!("body[{k}].{what}");
-            let name_span = b.name.span();
-            let name = b.name.into_inner();
-            if name.is_empty() {
-                return Err(at(&file, text, name_span, Some(&key("name")), "a body needs a name"));
-            }
-            if let Some(first) = bodies.iter().position(|o| o.name == name) {
-                return Err(at(
-                    &file,
-                    text,
-                    name_span,
-                    Some(&key("name")),
-                    format!("{name:?} is already the name of body[{first}]; names are unique"),
-                ));
-            }
-            let b_kind = b.kind;
-            let b_kind_is_soft = |k: BodyKind| k == BodyKind::Soft;
-            let geometry = match (b.mesh, b.shape) {
-                (Some(mesh), None) => Geometry::Mesh(dir.join(mesh.into_inner())),
-                (None, Some(shape)) => {
-                    let span = shape.span();
-                    let mut shape = shape.into_inner();
-                    check_shape(&shape).map_err(|(k, m)| at(&file, text, span.clone(), Some(&key(k)), m))?;
-                    if let Shape::Between(b) = &mut shape {
-                        if b_kind_is_soft(b_kind) {
-                            b.outer = dir.join(&b.outer);
-                            b.inner = dir.join(&b.inner);
-                        } else {
-                            return Err(at(
-                                &file,
-                                text,
-                                span,
-                                Some(&key("shape.between")),
-                                format!("`between` makes a soft body's tissue; {name:?} is {b_kind:?}"),
-                            ));
-                        }
-                    }
-                    Geometry::Shape(shape)
-                }
-                (Some(mesh), Some(_)) => {
-                    return Err(err(
-                        mesh.span(),
-                        format!("body {name:?} has both `mesh` and `shape`; give one"),
-                    ));
-                }
-                (None, None) => {
-                    return Err(at(
-                        &file,
-                        text,
-                        name_span,
-                        Some(&format!("body[{k}]")),
-                        format!("body {name:?} needs `mesh` (a file) or `shape` (a built-in shape)"),
-                    ));
-                }
-            };
-            let spacing = match b.spacing {
-                Some(s) if !(s.get_ref().is_finite() && *s.get_ref() > 0.0) => {
-                    return Err(err(s.span(), format!("{} must be a positive length", s.get_ref())));
-                }
-                s => s.map(Spanned::into_inner),
-            };
-            let needs_spacing = match (&geometry, b.kind) {
-                (_, BodyKind::Soft) => true,
-                (Geometry::Shape(_), BodyKind::Shell | BodyKind::Rigid) => true,
-                (Geometry::Mesh(_), _) => false,
-            };
-            if needs_spacing && spacing.is_none() {
-                let what =
-                    if b.kind == BodyKind::Soft { "the lattice spacing" } else { "the surface edge length" };
-                return Err(at(
-                    &file,
-                    text,
-                    name_span,
-                    Some(&key("spacing")),
-                    format!("body {name:?} ({:?}) needs `spacing`, {what}", b.kind),
-                ));
-            }
-            let scale_span = b.scale.span();
-            let scale = b.scale.into_inner();
-            if !(scale.is_finite() && scale > 0.0) {
-                return Err(err(scale_span, format!("{scale} must be positive")));
-            }
-            // A body between two surfaces lies where they do, in the file's axes.
-            if matches!(geometry, Geometry::Shape(Shape::Between(_)))
-                && (b.position != [0.0; 3] || b.rotation != [0.0; 3] || scale != 1.0)
-            {
-                let moved = if b.position != [0.0; 3] {
-                    "position"
-                } else if b.rotation != [0.0; 3] {
-                    "rotation"
-                } else {
-                    "scale"
-                };
-                return Err(at(
-                    &file,
-                    text,
-                    name_span,
-                    Some(&key(moved)),
-                    format!(
-                        "body {name:?} lies between its surfaces, where they are: `{moved}` does not apply to `between` (move the surfaces and the box instead)"
-                    ),
-                ));
-            }
-            if !b.position.iter().chain(&b.rotation).all(|v| v.is_finite()) {
-                return Err(at(
-                    &file,
-                    text,
-                    name_span,
-                    Some(&key("position")),
-                    "position and rotation must be finite",
-                ));
-            }
-            let material_span = b.material.span();
-            let material = b.material.into_inner();
-            check_material(&material).map_err(|(what, m)| {
-                at(&file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
-            })?;
-            let rules = |list: Vec<Spanned<Fixed>>| -> Result<Vec<Fixed>, Error> {
-                let mut out = Vec::with_capacity(list.len());
-                for f in list {
-                    let span = f.span();
-                    let f = f.into_inner();
-                    check_fixed(&f).map_err(|m| err(span.clone(), m))?;
-                    out.push(f);
-                }
-                Ok(out)
-            };
-            let fixed = rules(b.fixed)?;
-            let driven = rules(b.driven)?;
-            let mut layers = Vec::with_capacity(b.layers.len());
-            for l in b.layers {
-                let span = l.span();
-                let l = l.into_inner();
-                if b.kind != BodyKind::Soft {
-                    return Err(err(span, format!("only a soft body has layers; {name:?} is {:?}", b.kind)));
-                }
-                check_fixed(&l.region).map_err(|m| err(span.clone(), m))?;
-                if !(l.young_kpa.is_finite() && l.young_kpa > 0.0) {
-                    return Err(err(
-                        span,
-                        format!("young_kpa = {} must be a positive modulus in kPa", l.young_kpa),
-                    ));
-                }
-                layers.push(l);
-            }
-            if let Some(f) = b.floor
-                && !f.is_finite()
-            {
-                return Err(at(&file, text, name_span, Some(&key("floor")), "must be finite"));
-            }
-            let motion_span = b.motion.span();
-            let motion = b.motion.into_inner();
-            let moves = b.kind == BodyKind::Rigid || (b.kind == BodyKind::Soft && !driven.is_empty());
-            if !motion.is_empty() && !moves {
-                return Err(err(
-                    motion_span,
-                    format!(
-                        "only a rigid body, or a soft body with `driven` vertices, has `motion`; {name:?} is {:?}",
-                        b.kind
-                    ),
-                ));
-            }
-            if motion
-                .iter()
-                .any(|m| !(m.t.is_finite() && m.position.iter().chain(&m.rotation).all(|v| v.is_finite())))
-            {
-                return Err(err(motion_span, "keyframes must be finite".into()));
-            }
-            if motion.windows(2).any(|w| w[1].t <= w[0].t) {
-                return Err(err(motion_span, "keyframe times must increase".into()));
-            }
-            let inflate = match b.inflate {
-                None => None,
-                Some(i) => {
-                    let span = i.span();
-                    let i = i.into_inner();
-                    if b.kind != BodyKind::Shell {
-                        return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", b.kind)));
-                    }
-                    let mut i = i;
-                    if let Some(&[_, last]) = i.schedule.last() {
-                        if i.pressure_kpa.is_some() || i.volume_ml.is_some() {
-                            return Err(err(
-                                span,
-                                "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
-                            ));
-                        }
-                        let finite = i.schedule.iter().flatten().all(|v| v.is_finite());
-                        let rising = i.schedule.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
-                        let positive = i.schedule.iter().all(|[_, ml]| *ml > 0.0);
-                        if !(finite && i.schedule[0][0] > 0.0 && rising && positive) {
-                            return Err(err(
-                                span,
-                                "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and positive volumes that do not decrease".into(),
-                            ));
-                        }
-                        i.volume_ml = Some(last);
-                        i.ramp = 0.0;
-                    }
-                    if i.volume_ml.is_some() && !raw.units.is_physical() {
-                        return Err(err(
-                            span,
-                            "a scene in layer units has no millilitres: inflate it by `pressure_kpa`, or give the scene physical units (\"mm\", \"cm\" or \"m\")".into(),
-                        ));
-                    }
-                    let amount = match (i.pressure_kpa, i.volume_ml) {
-                        (Some(p), None) => p,
-                        (None, Some(v)) => v,
-                        _ => {
-                            return Err(err(
-                                span,
-                                "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
-                            ));
-                        }
-                    };
-                    if !(amount.is_finite() && amount >= 0.0 && i.ramp.is_finite() && i.ramp >= 0.0) {
-                        return Err(err(
-                            span,
-                            "the inflation and its ramp must be finite and not negative".into(),
-                        ));
-                    }
-                    Some(i)
-                }
-            };
-            let reference = match b.reference {
-                None => None,
-                Some(r) => {
-                    let span = r.span();
-                    let g = r.into_inner().gravity;
-                    if !g.iter().all(|v| v.is_finite()) {
-                        return Err(err(span, "reference.gravity must be finite, in m/s²".into()));
-                    }
-                    if b.kind != BodyKind::Soft {
-                        return Err(err(
-                            span,
-                            format!(
-                                "only a soft body's shape is recovered from a loaded one; {name:?} is {:?}",
-                                b.kind
-                            ),
-                        ));
-                    }
-                    Some(g)
-                }
-            };
-            let place = match b.place {
-                None => None,
-                Some(p) => {
-                    let span = p.span();
-                    let p = p.into_inner();
-                    if b.kind != BodyKind::Shell {
-                        return Err(err(
-                            span,
-                            format!(
-                                "only a shell (an implant) is placed on a chest wall; {name:?} is {:?}",
-                                b.kind
-                            ),
-                        ));
-                    }
-                    if b.position != [0.0; 3] || b.rotation != [0.0; 3] {
-                        return Err(err(
-                            span,
-                            format!(
-                                "body {name:?} is placed under a landmark: its `position` and `rotation` follow from the chest wall, give neither"
-                            ),
-                        ));
-                    }
-                    if let Some(m) = p.margin
-                        && !(m.is_finite() && m >= 0.0)
-                    {
-                        return Err(err(span, format!("place.margin = {m} must be 0 or more (file units)")));
-                    }
-                    Some((span, p))
-                }
-            };
-            let landmarks = match b.landmarks {
-                None => Vec::new(),
-                Some(l) => {
-                    let span = l.span();
-                    let l = l.into_inner();
-                    if b.kind != BodyKind::Soft {
-                        return Err(err(
-                            span,
-                            format!("only a soft body has landmarks; {name:?} is {:?}", b.kind),
-                        ));
-                    }
-                    if let Some((n, _)) = l.iter().find(|(_, p)| !p.iter().all(|v| v.is_finite())) {
-                        return Err(err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
-                    }
-                    l.into_iter().collect()
-                }
-            };
+            let (spec, place) = body_spec(Source { file: &file, text }, dir, raw.units, (k, b), &bodies)?;
+            bodies.push(spec);
             places.push(place);
-            bodies.push(BodySpec {
-                place: None,
-                reference,
-                landmarks,
-                name,
-                kind: b.kind,
-                geometry,
-                spacing,
-                position: b.position,
-                rotation: b.rotation,
-                scale,
-                material,
-                fixed,
-                driven,
-                layers,
-                floor: b.floor,
-                motion,
-                inflate,
-                flatten: None,
-                sink: 0.0,
-            });
         }
 
         // Placements name a body and its landmark: resolved once every body is read.
-        for (k, place) in places.into_iter().enumerate() {
-            let Some((span, p)) = place else { continue };
-            let Some((body, landmark)) = p.under.split_once('.') else {
-                return Err(err(
-                    span,
-                    format!(
-                        "place.under = {:?} must name a body and its landmark: \"breast.nipple\"",
-                        p.under
-                    ),
-                ));
-            };
-            let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
-            let Some(t) = bodies.iter().position(|b| b.name == body) else {
-                return Err(err(
-                    span,
-                    format!("place.under: no body is named {body:?} (the bodies: {names:?})"),
-                ));
-            };
-            if !matches!(bodies[t].geometry, Geometry::Shape(Shape::Between(_))) {
-                return Err(err(
-                    span,
-                    format!(
-                        "place.under: body {body:?} has no chest wall: an implant is placed on a body with shape = {{ between = {{ outer, inner, min, max }} }}"
-                    ),
-                ));
-            }
-            if !bodies[t].landmarks.iter().any(|(n, _)| n == landmark) {
-                let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
-                return Err(err(
-                    span,
-                    format!(
-                        "place.under: body {body:?} has no landmark {landmark:?} (its landmarks: {marks:?})"
-                    ),
-                ));
-            }
-            let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / raw.units.metres());
-            bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin });
-        }
+        resolve_places(Source { file: &file, text }, raw.units, &mut bodies, places)?;
 
-        let mut contacts = Vec::with_capacity(raw.contact.len());
-        for c in raw.contact {
-            let find = |s: &Spanned<String>| {
-                bodies.iter().position(|b| b.name == *s.get_ref()).ok_or_else(|| {
-                    let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
-                    err(s.span(), format!("no body is named {:?} (the bodies: {names:?})", s.get_ref()))
-                })
-            };
-            let (a, b) = (find(&c.a)?, find(&c.b)?);
-            if a == b {
-                return Err(err(c.b.span(), "a contact needs two different bodies".into()));
-            }
-            for (what, v) in [
-                ("radius", &c.radius),
-                ("voxel_size", &c.voxel_size),
-                ("magnitude", &c.magnitude),
-                ("stiffness", &c.stiffness),
-            ] {
-                if let Auto::Value(x) = v.get_ref()
-                    && !(x.is_finite() && *x > 0.0)
-                {
-                    return Err(err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
-                }
-            }
-            if let Auto::Value(v) = c.voxel_size.get_ref()
-                && frexp(*v).0 != 0.5
-            {
-                return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
-            }
-            if let Auto::Value(g) = c.gap.get_ref()
-                && !(g.is_finite() && *g >= 0.0)
-            {
-                return Err(err(c.gap.span(), format!("gap {g} must be \"auto\" or 0 or more")));
-            }
-            if c.response == ResponseSpec::Constant {
-                for (what, v) in [("stiffness", &c.stiffness), ("gap", &c.gap)] {
-                    if matches!(v.get_ref(), Auto::Value(_)) {
-                        return Err(err(
-                            v.span(),
-                            format!(
-                                "{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"
-                            ),
-                        ));
-                    }
-                }
-            }
-            contacts.push(ContactSpec {
-                a,
-                b,
-                direction: c.direction,
-                search: c.search,
-                radius: *c.radius.get_ref(),
-                voxel_size: *c.voxel_size.get_ref(),
-                magnitude: *c.magnitude.get_ref(),
-                response: c.response,
-                stiffness: *c.stiffness.get_ref(),
-                gap: *c.gap.get_ref(),
-            });
-        }
+        let contacts = raw
+            .contact
+            .into_iter()
+            .map(|c| contact_spec(Source { file: &file, text }, &bodies, c))
+            .collect::<Result<Vec<_>, Error>>()?;
         let world_span = raw.world.span();
         let world = raw.world.into_inner();
         if let Some(g) = world.gravity
