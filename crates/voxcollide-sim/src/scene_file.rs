@@ -1250,13 +1250,72 @@ fn body_spec(
     if motion.windows(2).any(|w| w[1].t <= w[0].t) {
         return Err(err(motion_span, "keyframe times must increase".into()));
     }
-    let inflate = match b.inflate {
+    let inflate = inflate_of(src, (&name, b.kind), units, b.inflate)?;
+    let reference = match b.reference {
+        None => None,
+        Some(r) => {
+            let span = r.span();
+            let g = r.into_inner().gravity;
+            if !g.iter().all(|v| v.is_finite()) {
+                return Err(err(span, "reference.gravity must be finite, in m/s²".into()));
+            }
+            if b.kind != BodyKind::Soft {
+                return Err(err(
+                    span,
+                    format!(
+                        "only a soft body's shape is recovered from a loaded one; {name:?} is {:?}",
+                        b.kind
+                    ),
+                ));
+            }
+            Some(g)
+        }
+    };
+    let place = place_of(src, (&name, b.kind), b.position != [0.0; 3] || b.rotation != [0.0; 3], b.place)?;
+    let landmarks = landmarks_of(src, (&name, b.kind), b.landmarks)?;
+    let spec = BodySpec {
+        place: None,
+        reference,
+        landmarks,
+        name,
+        kind: b.kind,
+        geometry,
+        spacing,
+        position: b.position,
+        rotation: b.rotation,
+        scale,
+        material,
+        fixed,
+        driven,
+        layers,
+        floor: b.floor,
+        motion,
+        inflate,
+        flatten: None,
+        sink: 0.0,
+    };
+    Ok((spec, place))
+}
+
+/// A body's `inflate` (`name`, of `kind`), checked: only a shell inflates, by a pressure, a
+/// volume (in physical `units`) or a schedule of volumes, one of them.
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file and line of the rule broken.
+fn inflate_of(
+    src: Source<'_>,
+    (name, kind): (&str, BodyKind),
+    units: Units,
+    inflate: Option<Spanned<Inflate>>,
+) -> Result<Option<Inflate>, Error> {
+    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
+    Ok(match inflate {
         None => None,
         Some(i) => {
             let span = i.span();
             let i = i.into_inner();
-            if b.kind != BodyKind::Shell {
-                return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", b.kind)));
+            if kind != BodyKind::Shell {
+                return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", kind)));
             }
             let mut i = i;
             if let Some(&[_, last]) = i.schedule.last() {
@@ -1299,39 +1358,34 @@ fn body_spec(
             }
             Some(i)
         }
-    };
-    let reference = match b.reference {
-        None => None,
-        Some(r) => {
-            let span = r.span();
-            let g = r.into_inner().gravity;
-            if !g.iter().all(|v| v.is_finite()) {
-                return Err(err(span, "reference.gravity must be finite, in m/s²".into()));
-            }
-            if b.kind != BodyKind::Soft {
-                return Err(err(
-                    span,
-                    format!(
-                        "only a soft body's shape is recovered from a loaded one; {name:?} is {:?}",
-                        b.kind
-                    ),
-                ));
-            }
-            Some(g)
-        }
-    };
-    let place = match b.place {
+    })
+}
+
+/// A body's `place` (`name`, of `kind`), checked where it can be before the other bodies are
+/// read ([`resolve_places`] does the rest): only a shell is placed, and with no position or
+/// rotation of its own (`positioned`: it has either).
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file and line of the rule broken.
+fn place_of(
+    src: Source<'_>,
+    (name, kind): (&str, BodyKind),
+    positioned: bool,
+    place: Option<Spanned<RawPlace>>,
+) -> Result<PlaceAt, Error> {
+    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
+    Ok(match place {
         None => None,
         Some(p) => {
             let span = p.span();
             let p = p.into_inner();
-            if b.kind != BodyKind::Shell {
+            if kind != BodyKind::Shell {
                 return Err(err(
                     span,
-                    format!("only a shell (an implant) is placed on a chest wall; {name:?} is {:?}", b.kind),
+                    format!("only a shell (an implant) is placed on a chest wall; {name:?} is {:?}", kind),
                 ));
             }
-            if b.position != [0.0; 3] || b.rotation != [0.0; 3] {
+            if positioned {
                 return Err(err(
                     span,
                     format!(
@@ -1346,43 +1400,34 @@ fn body_spec(
             }
             Some((span, p))
         }
-    };
-    let landmarks = match b.landmarks {
+    })
+}
+
+/// A body's `landmarks` (`name`, of `kind`), checked: only a soft body has them, each a
+/// finite point.
+///
+/// # Errors
+/// [`Error::SceneFile`] naming the file and line of the rule broken.
+fn landmarks_of(
+    src: Source<'_>,
+    (name, kind): (&str, BodyKind),
+    landmarks: Option<Spanned<std::collections::BTreeMap<String, [f64; 3]>>>,
+) -> Result<Vec<(String, [f64; 3])>, Error> {
+    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
+    Ok(match landmarks {
         None => Vec::new(),
         Some(l) => {
             let span = l.span();
             let l = l.into_inner();
-            if b.kind != BodyKind::Soft {
-                return Err(err(span, format!("only a soft body has landmarks; {name:?} is {:?}", b.kind)));
+            if kind != BodyKind::Soft {
+                return Err(err(span, format!("only a soft body has landmarks; {name:?} is {:?}", kind)));
             }
             if let Some((n, _)) = l.iter().find(|(_, p)| !p.iter().all(|v| v.is_finite())) {
                 return Err(err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
             }
             l.into_iter().collect()
         }
-    };
-    let spec = BodySpec {
-        place: None,
-        reference,
-        landmarks,
-        name,
-        kind: b.kind,
-        geometry,
-        spacing,
-        position: b.position,
-        rotation: b.rotation,
-        scale,
-        material,
-        fixed,
-        driven,
-        layers,
-        floor: b.floor,
-        motion,
-        inflate,
-        flatten: None,
-        sink: 0.0,
-    };
-    Ok((spec, place))
+    })
 }
 
 /// Each body's `place = { under = "body.landmark" }` (`places`, by body, with where each
