@@ -1070,6 +1070,13 @@ struct Source<'a> {
     text: &'a str,
 }
 
+impl Source<'_> {
+    /// The error of the text at `span`, with `message`.
+    fn err(self, span: Range<usize>, message: String) -> Error {
+        at(self.file, self.text, span, None, message)
+    }
+}
+
 /// Body `k` of a scene file (`b`, as read), checked: its geometry (meshes relative to `dir`),
 /// spacing, placement in space, material, held and driven vertices, motion, inflation,
 /// reference, landmarks; and its `place` under a landmark, if any, with where it stands in the
@@ -1085,7 +1092,7 @@ fn body_spec(
     earlier: &[BodySpec],
 ) -> Result<(BodySpec, PlaceAt), Error> {
     let (file, text) = (src.file, src.text);
-    let err = |span: Range<usize>, message: String| at(file, text, span, None, message);
+    let err = |span: Range<usize>, message: String| src.err(span, message);
     let key = |what: &str| format!("body[{k}].{what}");
     let name_span = b.name.span();
     let name = b.name.into_inner();
@@ -1308,28 +1315,26 @@ fn inflate_of(
     units: Units,
     inflate: Option<Spanned<Inflate>>,
 ) -> Result<Option<Inflate>, Error> {
-    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
     Ok(match inflate {
         None => None,
         Some(i) => {
             let span = i.span();
             let i = i.into_inner();
             if kind != BodyKind::Shell {
-                return Err(err(span, format!("only a shell inflates; {name:?} is {:?}", kind)));
+                return Err(src.err(span, format!("only a shell inflates; {name:?} is {:?}", kind)));
             }
             let mut i = i;
             if let Some(&[_, last]) = i.schedule.last() {
                 if i.pressure_kpa.is_some() || i.volume_ml.is_some() {
-                    return Err(err(
-                        span,
-                        "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
-                    ));
+                    return Err(
+                        src.err(span, "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into())
+                    );
                 }
                 let finite = i.schedule.iter().flatten().all(|v| v.is_finite());
                 let rising = i.schedule.windows(2).all(|w| w[1][0] > w[0][0] && w[1][1] >= w[0][1]);
                 let positive = i.schedule.iter().all(|[_, ml]| *ml > 0.0);
                 if !(finite && i.schedule[0][0] > 0.0 && rising && positive) {
-                    return Err(err(
+                    return Err(src.err(
                         span,
                         "a `schedule` is [[t, volume_ml], …] with finite times that increase from above 0 and positive volumes that do not decrease".into(),
                     ));
@@ -1338,7 +1343,7 @@ fn inflate_of(
                 i.ramp = 0.0;
             }
             if i.volume_ml.is_some() && !units.is_physical() {
-                return Err(err(
+                return Err(src.err(
                     span,
                     "a scene in layer units has no millilitres: inflate it by `pressure_kpa`, or give the scene physical units (\"mm\", \"cm\" or \"m\")".into(),
                 ));
@@ -1347,14 +1352,15 @@ fn inflate_of(
                 (Some(p), None) => p,
                 (None, Some(v)) => v,
                 _ => {
-                    return Err(err(
-                        span,
-                        "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into(),
-                    ));
+                    return Err(
+                        src.err(span, "give `pressure_kpa`, `volume_ml` or `schedule`, one of them".into())
+                    );
                 }
             };
             if !(amount.is_finite() && amount >= 0.0 && i.ramp.is_finite() && i.ramp >= 0.0) {
-                return Err(err(span, "the inflation and its ramp must be finite and not negative".into()));
+                return Err(
+                    src.err(span, "the inflation and its ramp must be finite and not negative".into())
+                );
             }
             Some(i)
         }
@@ -1373,20 +1379,19 @@ fn place_of(
     positioned: bool,
     place: Option<Spanned<RawPlace>>,
 ) -> Result<PlaceAt, Error> {
-    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
     Ok(match place {
         None => None,
         Some(p) => {
             let span = p.span();
             let p = p.into_inner();
             if kind != BodyKind::Shell {
-                return Err(err(
+                return Err(src.err(
                     span,
                     format!("only a shell (an implant) is placed on a chest wall; {name:?} is {:?}", kind),
                 ));
             }
             if positioned {
-                return Err(err(
+                return Err(src.err(
                     span,
                     format!(
                         "body {name:?} is placed under a landmark: its `position` and `rotation` follow from the chest wall, give neither"
@@ -1396,7 +1401,7 @@ fn place_of(
             if let Some(m) = p.margin
                 && !(m.is_finite() && m >= 0.0)
             {
-                return Err(err(span, format!("place.margin = {m} must be 0 or more (file units)")));
+                return Err(src.err(span, format!("place.margin = {m} must be 0 or more (file units)")));
             }
             Some((span, p))
         }
@@ -1413,17 +1418,16 @@ fn landmarks_of(
     (name, kind): (&str, BodyKind),
     landmarks: Option<Spanned<std::collections::BTreeMap<String, [f64; 3]>>>,
 ) -> Result<Vec<(String, [f64; 3])>, Error> {
-    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
     Ok(match landmarks {
         None => Vec::new(),
         Some(l) => {
             let span = l.span();
             let l = l.into_inner();
             if kind != BodyKind::Soft {
-                return Err(err(span, format!("only a soft body has landmarks; {name:?} is {:?}", kind)));
+                return Err(src.err(span, format!("only a soft body has landmarks; {name:?} is {:?}", kind)));
             }
             if let Some((n, _)) = l.iter().find(|(_, p)| !p.iter().all(|v| v.is_finite())) {
-                return Err(err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
+                return Err(src.err(span, format!("landmark {n:?} must be a finite point [x, y, z]")));
             }
             l.into_iter().collect()
         }
@@ -1443,21 +1447,22 @@ fn resolve_places(
     bodies: &mut [BodySpec],
     places: Vec<PlaceAt>,
 ) -> Result<(), Error> {
-    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
     for (k, place) in places.into_iter().enumerate() {
         let Some((span, p)) = place else { continue };
         let Some((body, landmark)) = p.under.split_once('.') else {
-            return Err(err(
+            return Err(src.err(
                 span,
                 format!("place.under = {:?} must name a body and its landmark: \"breast.nipple\"", p.under),
             ));
         };
         let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
         let Some(t) = bodies.iter().position(|b| b.name == body) else {
-            return Err(err(span, format!("place.under: no body is named {body:?} (the bodies: {names:?})")));
+            return Err(
+                src.err(span, format!("place.under: no body is named {body:?} (the bodies: {names:?})"))
+            );
         };
         if !matches!(bodies[t].geometry, Geometry::Shape(Shape::Between(_))) {
-            return Err(err(
+            return Err(src.err(
                 span,
                 format!(
                     "place.under: body {body:?} has no chest wall: an implant is placed on a body with shape = {{ between = {{ outer, inner, min, max }} }}"
@@ -1466,7 +1471,7 @@ fn resolve_places(
         }
         if !bodies[t].landmarks.iter().any(|(n, _)| n == landmark) {
             let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
-            return Err(err(
+            return Err(src.err(
                 span,
                 format!("place.under: body {body:?} has no landmark {landmark:?} (its landmarks: {marks:?})"),
             ));
@@ -1484,16 +1489,15 @@ fn resolve_places(
 /// # Errors
 /// [`Error::SceneFile`] naming the file and line of the first value that breaks a rule.
 fn contact_spec(src: Source<'_>, bodies: &[BodySpec], c: RawContact) -> Result<ContactSpec, Error> {
-    let err = |span: Range<usize>, message: String| at(src.file, src.text, span, None, message);
     let find = |s: &Spanned<String>| {
         bodies.iter().position(|b| b.name == *s.get_ref()).ok_or_else(|| {
             let names: Vec<&str> = bodies.iter().map(|b| b.name.as_str()).collect();
-            err(s.span(), format!("no body is named {:?} (the bodies: {names:?})", s.get_ref()))
+            src.err(s.span(), format!("no body is named {:?} (the bodies: {names:?})", s.get_ref()))
         })
     };
     let (a, b) = (find(&c.a)?, find(&c.b)?);
     if a == b {
-        return Err(err(c.b.span(), "a contact needs two different bodies".into()));
+        return Err(src.err(c.b.span(), "a contact needs two different bodies".into()));
     }
     for (what, v) in [
         ("radius", &c.radius),
@@ -1504,23 +1508,23 @@ fn contact_spec(src: Source<'_>, bodies: &[BodySpec], c: RawContact) -> Result<C
         if let Auto::Value(x) = v.get_ref()
             && !(x.is_finite() && *x > 0.0)
         {
-            return Err(err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
+            return Err(src.err(v.span(), format!("{what} {x} must be \"auto\" or positive")));
         }
     }
     if let Auto::Value(v) = c.voxel_size.get_ref()
         && frexp(*v).0 != 0.5
     {
-        return Err(err(c.voxel_size.span(), format!("{v} is not a power of two")));
+        return Err(src.err(c.voxel_size.span(), format!("{v} is not a power of two")));
     }
     if let Auto::Value(g) = c.gap.get_ref()
         && !(g.is_finite() && *g >= 0.0)
     {
-        return Err(err(c.gap.span(), format!("gap {g} must be \"auto\" or 0 or more")));
+        return Err(src.err(c.gap.span(), format!("gap {g} must be \"auto\" or 0 or more")));
     }
     if c.response == ResponseSpec::Constant {
         for (what, v) in [("stiffness", &c.stiffness), ("gap", &c.gap)] {
             if matches!(v.get_ref(), Auto::Value(_)) {
-                return Err(err(
+                return Err(src.err(
                     v.span(),
                     format!("{what} is a penalty's; response = \"constant\" pushes with the magnitude alone"),
                 ));

@@ -609,11 +609,16 @@ impl Live {
         self.behind = behind && !self.paused;
         self.behind_frames += u64::from(self.behind);
         self.steps_total = steps_total;
-        if let Some(latest) = self.stepper.take_latest() {
-            self.steps = latest.steps;
-            self.time = latest.time;
-            self.shown = Some(latest);
-        }
+        // A state not seen before is measured once; frames drawn from it again reuse its figures.
+        let fresh = match self.stepper.take_latest() {
+            Some(latest) => {
+                self.steps = latest.steps;
+                self.time = latest.time;
+                self.shown = Some(latest);
+                true
+            }
+            None => false,
+        };
         let shown = if self.broken.is_some() { None } else { self.shown.take() };
         let since = now.duration_since(self.stepped_since.0).as_secs_f64();
         if since >= 0.5 {
@@ -629,7 +634,9 @@ impl Live {
         let drawing = Instant::now();
         match shown {
             Some(snapshot) => {
-                self.measure(&snapshot.world, &snapshot.reports);
+                if fresh || self.frames == 0 {
+                    self.measure(&snapshot.world, &snapshot.reports);
+                }
                 if self.frames == 0 {
                     self.locate_instruments(&snapshot.world);
                 }
