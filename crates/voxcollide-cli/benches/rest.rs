@@ -5,10 +5,14 @@
 //!   from a closed surface (`voxcollide run benches/rest/press.toml`);
 //! - `compare`: three implants (200, 300 and 400 mL on a 140 mm base, 500 kPa shells) under a
 //!   30 mm layer of 3 kPa tissue at a 6 mm spacing, each filled and settled
-//!   (`voxcollide compare benches/rest/compare.toml --candidates benches/rest/candidates.toml`).
+//!   (`voxcollide compare benches/rest/compare.toml --candidates benches/rest/candidates.toml`);
+//! - `bunny` and `bunny-nh`: a 1.5 cm ball driven 2.5 cm into the Stanford bunny (3,019
+//!   vertices), as springs and as Neo-Hookean tetrahedra at ν = 0.49, under the implicit
+//!   integrator (issue 42: nearly incompressible tissue within 3× the springs' time); the
+//!   table is followed by their ratio.
 //!
 //! ```text
-//! cargo bench -p voxcollide-cli --bench rest -- [--runs N] [--only press|compare] [--explicit-compare]
+//! cargo bench -p voxcollide-cli --bench rest -- [--runs N] [--only press|compare|bunny] [--explicit-compare]
 //! ```
 //!
 //! Each case runs `--runs` times (default 3) through the built `voxcollide` binary with
@@ -62,17 +66,27 @@ fn main() {
         if integrator == "implicit" || explicit_compare {
             cases.push(Case { name: "compare", scene: "compare.toml", compare: true, integrator });
         }
+        if integrator == "implicit" {
+            cases.push(Case { name: "bunny", scene: "bunny.toml", compare: false, integrator });
+            cases.push(Case { name: "bunny-nh", scene: "bunny-neo-hookean.toml", compare: false, integrator });
+        }
     }
-    cases.retain(|c| only.as_deref().is_none_or(|o| o == c.name));
+    cases.retain(|c| only.as_deref().is_none_or(|o| c.name == o || c.name.strip_prefix(o) == Some("-nh")));
     let work = std::env::temp_dir().join(format!("voxcollide-rest-{}", std::process::id()));
     println!("time to rest, {runs} runs a case, CPU backend, {threads} threads\n");
     println!("| case | integrator | median s | range s | steps | at rest | held |");
     println!("| --- | --- | ---: | ---: | ---: | --- | --- |");
+    let mut bunny = [None, None];
     for case in &cases {
         let outcomes: Vec<Outcome> =
             (0..runs).map(|k| run(&here, &work.join(format!("{}-{k}", case.name)), case)).collect();
         let mut seconds: Vec<f64> = outcomes.iter().map(|o| o.seconds).collect();
         seconds.sort_by(f64::total_cmp);
+        match case.name {
+            "bunny" => bunny[0] = Some(seconds[seconds.len() / 2]),
+            "bunny-nh" => bunny[1] = Some(seconds[seconds.len() / 2]),
+            _ => {}
+        }
         let last = &outcomes[outcomes.len() - 1];
         println!(
             "| {} | {} | {:.2} | {:.2}–{:.2} | {} | {} | {} |",
@@ -86,6 +100,9 @@ fn main() {
             if outcomes.iter().all(|o| o.held) { "yes" } else { "NO" },
         );
     }
+    if let [Some(springs), Some(elements)] = bunny {
+        println!("\nbunny: Neo-Hookean at ν = 0.49 over springs, medians: {:.2}× (goal ≤ 3×)", elements / springs);
+    }
     let _ = std::fs::remove_dir_all(&work);
 }
 
@@ -95,9 +112,11 @@ fn run(here: &Path, dir: &Path, case: &Case) -> Outcome {
     std::fs::create_dir_all(dir).expect("a scratch folder");
     let text = std::fs::read_to_string(here.join(case.scene)).expect("the bench's scene");
     let scene = dir.join(case.scene);
+    let bunny = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/bunny.obj");
     std::fs::write(
         &scene,
-        text.replace("integrator = \"implicit\"", &format!("integrator = \"{}\"", case.integrator)),
+        text.replace("integrator = \"implicit\"", &format!("integrator = \"{}\"", case.integrator))
+            .replace("\"BUNNY\"", &format!("{:?}", bunny.display().to_string())),
     )
     .expect("the scene written");
     let out = dir.join("out");
