@@ -68,7 +68,12 @@ fn main() {
         }
         if integrator == "implicit" {
             cases.push(Case { name: "bunny", scene: "bunny.toml", compare: false, integrator });
-            cases.push(Case { name: "bunny-nh", scene: "bunny-neo-hookean.toml", compare: false, integrator });
+            cases.push(Case {
+                name: "bunny-nh",
+                scene: "bunny-neo-hookean.toml",
+                compare: false,
+                integrator,
+            });
         }
     }
     cases.retain(|c| only.as_deref().is_none_or(|o| c.name == o || c.name.strip_prefix(o) == Some("-nh")));
@@ -101,7 +106,10 @@ fn main() {
         );
     }
     if let [Some(springs), Some(elements)] = bunny {
-        println!("\nbunny: Neo-Hookean at ν = 0.49 over springs, medians: {:.2}× (goal ≤ 3×)", elements / springs);
+        println!(
+            "\nbunny: Neo-Hookean at ν = 0.49 over springs, medians: {:.2}× (goal ≤ 3×)",
+            elements / springs
+        );
     }
     let _ = std::fs::remove_dir_all(&work);
 }

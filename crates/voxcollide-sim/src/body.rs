@@ -113,8 +113,8 @@ pub struct MassSpring {
     /// at rest. What moved is measured from here ([`start`](Self::start)).
     pub started: Option<Vec<Vec3>>,
     /// A curved chest wall as its floor (docs/design.md §15): its free vertices are kept in
-    /// front of it, raised by [`StepInputs::floor`] along its normal. `None`: the floor is the
-    /// plane `z = floor`.
+    /// front of it, raised by [`StepInputs::floor`] along its normal, with the step's
+    /// [`StepInputs::wall_friction`]. `None`: the floor is the plane `z = floor`.
     pub wall: Option<std::sync::Arc<crate::wall::Wall>>,
 }
 
@@ -206,6 +206,12 @@ pub struct StepInputs {
     /// each free vertex is pulled by its share of the body's mass ([`MassSpring::mass`]) times
     /// it. Zero for none (the paper's scenes).
     pub gravity: Vec3,
+    /// Coulomb's coefficient of friction on the body's curved wall ([`MassSpring::wall`]; 0:
+    /// it slides freely): a vertex pressed onto the wall holds where the force along the wall
+    /// is at most this times the force into it, and one that lands on it loses that times its
+    /// speed into it of its speed along it. A placed implant's `place.friction` once its fill
+    /// is done (while it fills, its base spreads on the wall freely).
+    pub wall_friction: f32,
 }
 
 impl StepInputs {
@@ -224,6 +230,7 @@ impl StepInputs {
             fill_hold: 0.0,
             floor: f32::MIN,
             gravity: Vec3::ZERO,
+            wall_friction: 0.0,
         }
     }
 
@@ -257,6 +264,7 @@ impl StepInputs {
             } else {
                 self.gravity.lerp(to.gravity, t)
             },
+            wall_friction: to.wall_friction,
         }
     }
 }
@@ -536,13 +544,13 @@ impl MassSpring {
     pub fn integrate(&mut self, inputs: &StepInputs, f: &[Vec3]) {
         use rayon::prelude::*;
         let (mode, rest_pos, inv_mass) = (&self.mode, &self.rest_pos, &self.inv_mass);
-        let wall = self.wall.as_deref();
+        let (wall, friction) = (self.wall.as_deref(), inputs.wall_friction);
         self.pos.par_iter_mut().zip(self.vel.par_iter_mut()).enumerate().with_min_len(PAR_CHUNK).for_each(
             |(i, (pos, vel))| match mode[i] {
                 Mode::Free => {
                     *vel += inputs.dt * (f[i] * inv_mass[i]);
                     *pos += inputs.dt * *vel;
-                    onto_floor(pos, vel, inputs.floor, wall);
+                    onto_floor(pos, vel, inputs.floor, wall, friction);
                 }
                 held => move_held(held, inputs, rest_pos[i], pos, vel, inputs.dt),
             },

@@ -115,7 +115,7 @@ impl Landmark {
 /// (less its `sink`), centred across: each of its points `(x, y, z)` goes to the wall's frame
 /// at `(x, y)` across, `z` in front of the wall there ([`Wall`](crate::wall::Wall)), so its base
 /// lies on the curved wall. Both it and the tissue rest on the wall (their free vertices are
-/// kept in front of it). The tissue's vertices held on the wall within the base's radius and
+/// kept in front of it); the shell with `place.friction`, the tissue sliding freely. The tissue's vertices held on the wall within the base's radius and
 /// `place.margin` are let go: the pocket. Returns how many.
 fn place_on_wall(
     file: &SceneFile,
@@ -760,6 +760,9 @@ struct BodySchedule {
     hold: f32,
     /// Gravity, in file units per second squared (zero for none, and for a rigid body).
     gravity: Vec3,
+    /// A placed implant's friction on the chest wall (0 for any other body), from the end of
+    /// its ramp ([`StepInputs::wall_friction`]).
+    friction: f32,
 }
 
 impl BodySchedule {
@@ -815,6 +818,8 @@ impl BodySchedule {
             fill_hold: if ramped >= 1.0 { self.hold } else { 0.0 },
             floor: if self.sink > 0.0 { self.floor - self.sink * (1.0 - ramped) } else { self.floor },
             gravity: self.gravity,
+            // Filling, the base spreads on the wall; once in place, it grips it.
+            wall_friction: if ramped >= 1.0 { self.friction } else { 0.0 },
         }
     }
 }
@@ -966,6 +971,7 @@ fn body_schedule(
         sink: b.sink as f32,
         hold: if fill.is_some() && !implicit { hold } else { 0.0 },
         gravity: if b.kind == BodyKind::Rigid { Vec3::ZERO } else { gravity(file) },
+        friction: b.place.as_ref().map_or(0.0, |p| p.friction as f32),
     }
 }
 
@@ -1205,10 +1211,11 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             let released = place_on_wall(file, k, place, &mut bodies, &notes)?;
             let tissue = &file.bodies[place.body].name;
             notes[k].remarks.push(format!(
-                "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {}",
+                "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {}; friction on the wall {}",
                 place.landmark,
                 place.margin,
-                file.units.symbol()
+                file.units.symbol(),
+                place.friction
             ));
         }
     }

@@ -350,6 +350,7 @@ impl SceneSchedule {
             fill_bulk: 0.0,
             fill_hold: 0.0,
             floor: f32::MIN,
+            wall_friction: 0.0,
         };
         let foreign = match self.kind {
             Kind::Cylinder => {

@@ -691,12 +691,13 @@ struct RawBody {
     place: Option<Spanned<RawPlace>>,
 }
 
-/// `place = { under = "body.landmark", margin }`, as written.
+/// `place = { under = "body.landmark", margin, friction }`, as written.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawPlace {
     under: String,
     margin: Option<f64>,
+    friction: Option<f64>,
 }
 
 /// Where a shell is placed on a patient (`place = { under = "breast.nipple" }`,
@@ -712,7 +713,19 @@ pub struct Placement {
     /// [`POCKET_MARGIN_MM`]): the tissue's vertices held on the wall within the base's radius
     /// and this margin are let go.
     pub margin: f64,
+    /// Coulomb's coefficient of friction between the implant and the chest wall (`friction`,
+    /// default [`SMOOTH_SHELL_FRICTION`]): once the implant has filled, a vertex pressed onto
+    /// the wall stays where it is while the force along the wall is at most this times the
+    /// force into it.
+    pub friction: f64,
 }
+
+/// The implant's friction on the chest wall when a placement gives none: a smooth silicone
+/// shell's, 0.46 ± 0.11, measured sliding on the same shell (Atkins, Chau, Rosas et al. 2023,
+/// "Silicone implant surface roughness, friction, and wear", Surf. Topogr.: Metrol. Prop. 11,
+/// 014010; microtextured 1.20, macrotextured 2.82). Nobody we found measured it against the
+/// pectoral fascia; docs/patient.md says what it does to a plan.
+pub const SMOOTH_SHELL_FRICTION: f64 = 0.46;
 
 /// The pocket's margin past an implant's base when a placement gives none, in millimetres: a
 /// pocket dissected a centimetre wider than the implant, as surgeons describe it (enough for
@@ -1403,6 +1416,14 @@ fn place_of(
             {
                 return Err(src.err(span, format!("place.margin = {m} must be 0 or more (file units)")));
             }
+            if let Some(m) = p.friction
+                && !(m.is_finite() && m >= 0.0)
+            {
+                return Err(src.err(
+                    span,
+                    format!("place.friction = {m} must be 0 (the implant slides freely) or more (Coulomb's coefficient)"),
+                ));
+            }
             Some((span, p))
         }
     })
@@ -1477,7 +1498,8 @@ fn resolve_places(
             ));
         }
         let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / units.metres());
-        bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin });
+        let friction = p.friction.unwrap_or(SMOOTH_SHELL_FRICTION);
+        bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin, friction });
     }
     Ok(())
 }

@@ -213,8 +213,9 @@ impl Wall {
     }
 
     /// Puts a point behind the wall raised by `offset` onto it, along the normal, and takes
-    /// away its speed into the wall.
-    pub fn push_out(&self, pos: &mut Vec3, vel: &mut Vec3, offset: f32) {
+    /// away its speed into the wall, and with `friction` (Coulomb's coefficient) that times
+    /// the speed taken of its speed along the wall (an impulse within the friction cone).
+    pub fn push_out(&self, pos: &mut Vec3, vel: &mut Vec3, offset: f32, friction: f32) {
         if let Some(a) = self.above(*pos, offset)
             && a < 0.0
         {
@@ -222,6 +223,10 @@ impl Wall {
             let into = vel.dot(self.normal);
             if into < 0.0 {
                 *vel -= into * self.normal;
+                let along = vel.length();
+                if friction > 0.0 && along > 0.0 {
+                    *vel *= (along + friction * into).max(0.0) / along;
+                }
             }
         }
     }
@@ -268,9 +273,17 @@ mod tests {
         // A point behind it is pushed out along the normal and loses its speed into it.
         let mut p = wall.point(Vec3::new(40.0, 0.0, -10.0));
         let mut vel = Vec3::new(1.0, 0.0, -3.0);
-        wall.push_out(&mut p, &mut vel, 0.0);
+        wall.push_out(&mut p, &mut vel, 0.0, 0.0);
         assert!(wall.above(p, 0.0).unwrap().abs() < 1e-3);
         assert!(vel.dot(wall.normal) >= 0.0 && (vel.x - 1.0).abs() < 1e-6);
+        // With friction it also loses that times the speed taken of its speed along the wall
+        // (Coulomb's impulse), down to none.
+        for (friction, along) in [(0.2f32, 0.4f32), (0.5, 0.0)] {
+            let mut p = wall.point(Vec3::new(0.0, 0.0, -10.0));
+            let mut vel = Vec3::new(1.0, 0.0, -3.0);
+            wall.push_out(&mut p, &mut vel, 0.0, friction);
+            assert!(vel.distance(Vec3::new(along, 0.0, 0.0)) < 1e-5, "{friction}: {vel}");
+        }
         // Raised by an offset, it holds that far in front.
         assert!(wall.holds(wall.point(Vec3::new(0.0, 0.0, 1.0)), 2.0));
         assert!(!wall.holds(wall.point(Vec3::new(0.0, 0.0, 1.0)), 0.0));

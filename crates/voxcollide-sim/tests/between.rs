@@ -301,6 +301,8 @@ fn a_bad_placement_is_named_by_key() {
         ("place = { under = \"chest.nipple\" }", "", "no body is named \"chest\""),
         ("place = { under = \"breast.navel\" }", "", "no landmark \"navel\""),
         ("place = { under = \"breast.nipple\", margin = -1 }", "", "0 or more"),
+        ("place = { under = \"breast.nipple\", friction = -0.5 }", "", "Coulomb's coefficient"),
+        ("place = { under = \"breast.nipple\", friction = nan }", "", "place.friction = NaN"),
         ("place = { under = \"breast.nipple\", side = 1 }", "", "unknown field"),
         ("place = { under = \"breast.nipple\" }", "position = [0, 0, 5]", "give neither"),
     ] {
@@ -381,6 +383,20 @@ fn the_gpu_world_refuses_a_curved_wall_by_name() {
     assert!(e.contains("curved chest wall") && e.contains("--backend cpu"), "{e}");
 }
 
+/// A breast on a chest curved like a barrel across her (radius 150 mm), written to `dir`, and
+/// `filling`'s scene on it standing, settling, its implant placed with `place`.
+fn on_a_barrel_standing(dir: &std::path::Path, place: &str) -> String {
+    let chest = |y: f64| 150.0 - (150.0f64 * 150.0 - y * y).sqrt();
+    let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
+    write_stl(&dir.join("skin.stl"), &height_sheet(120.0, 48, |x, y| skin(x, y) - chest(y)));
+    write_stl(&dir.join("wall.stl"), &height_sheet(120.0, 48, |_, y| -chest(y)));
+    filling(dir)
+        .replace("place = { under = \"breast.nipple\" }", place)
+        .replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true")
+        .replace("units = \"mm\"", "units = \"mm\"\n[world]\ngravity = [0, -9.81, 0]\nup = \"y\"")
+        .replace("min = [-90.0, -90.0, -10.0]", "min = [-90.0, -90.0, -40.0]")
+}
+
 #[test]
 fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
     use voxcollide::glam::Vec3;
@@ -392,15 +408,7 @@ fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
     // its grid's cell (`Wall::rests`; docs/patient.md, "Planning on a patient"), it slides on,
     // and a step takes about two.
     let dir = folder("curved");
-    let chest = |y: f64| 150.0 - (150.0f64 * 150.0 - y * y).sqrt();
-    let skin = breast_skin(15.0, 40.0, 60.0, 0.0);
-    write_stl(&dir.join("skin.stl"), &height_sheet(120.0, 48, |x, y| skin(x, y) - chest(y)));
-    write_stl(&dir.join("wall.stl"), &height_sheet(120.0, 48, |_, y| -chest(y)));
-    let text = filling(&dir);
-    let text = text
-        .replace("integrator = \"implicit\"", "integrator = \"implicit\"\nsettle = true")
-        .replace("units = \"mm\"", "units = \"mm\"\n[world]\ngravity = [0, -9.81, 0]\nup = \"y\"")
-        .replace("min = [-90.0, -90.0, -10.0]", "min = [-90.0, -90.0, -40.0]");
+    let text = on_a_barrel_standing(&dir, "place = { under = \"breast.nipple\" }");
     let built = deflated(&dir, &text);
     let centre = |b: &voxcollide_sim::MassSpring| b.pos.iter().copied().sum::<Vec3>() / b.len() as f32;
     let start = centre(&built.world.bodies[1]);
@@ -428,6 +436,45 @@ fn on_a_curved_wall_standing_the_wall_does_not_cut_the_steps_short() {
     );
     let mean = parts[100..].iter().sum::<u32>() as f32 / 100.0;
     assert!(mean <= 3.0, "a step took {mean} parts: {:?}", &parts[100..]);
+}
+
+#[test]
+fn standing_the_implant_grips_the_sloping_chest_wall_as_its_friction_says() {
+    // A chest curved like a barrel across her (radius 150 mm), standing: the implant's weight
+    // lies along the wall, and the fill presses its base into it. Sliding freely (friction 0),
+    // the base walks down the wall; at a smooth shell's friction (0.46, the default) the
+    // vertices pressed onto the wall stay where they are while the force along it is within
+    // the friction's cone (docs/patient.md, "The implant grips the wall"). It grips once it
+    // is filled; over the next 120 steps its base moved 1.47 mm sliding freely and 0.05 mm
+    // gripping.
+    let dir = folder("grip");
+    let walk = |friction: &str| {
+        let text = on_a_barrel_standing(&dir, &format!("place = {{ under = \"breast.nipple\"{friction} }}"));
+        let built = deflated(&dir, &text);
+        let mut world = voxcollide_sim::CpuWorld::new(built.world).unwrap();
+        // Filled (its ramp is 0.3 s), then 120 steps on: its base spreads freely while it fills.
+        while world.time < 0.3 {
+            world.step().unwrap();
+        }
+        let start = world.world.bodies[1].pos.clone();
+        for _ in 0..120 {
+            world.step().unwrap();
+        }
+        // The base: the implant's vertices on the wall at the end; how far they went.
+        let implant = &world.world.bodies[1];
+        let wall = implant.wall.as_ref().unwrap();
+        let base: Vec<usize> = (0..implant.len())
+            .filter(|&i| wall.above(implant.pos[i], 0.0).is_some_and(|a| a < 1.0))
+            .collect();
+        assert!(base.len() > 20, "{} vertices on the wall", base.len());
+        base.iter().map(|&i| start[i].distance(implant.pos[i])).sum::<f32>() / base.len() as f32
+    };
+    let (free, gripped) = (walk(", friction = 0"), walk(""));
+    eprintln!("filled, the base moved {free} mm sliding freely, {gripped} mm gripping");
+    assert!(
+        free > 0.3 && gripped < 0.1 * free,
+        "gripping, the base moved {gripped} mm; sliding freely {free} mm"
+    );
 }
 
 #[test]

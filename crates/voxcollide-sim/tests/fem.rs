@@ -59,6 +59,7 @@ fn stretch_under(w: u32, strain: f32, nu: Option<f64>, implicit: Option<u64>) ->
             fill_hold: 0.0,
             floor: f32::MIN,
             gravity: Vec3::ZERO,
+            wall_friction: 0.0,
         }]
     });
     let mut world = World::new(vec!["bar".into()], vec![body], Vec::new(), 1e6, schedule).unwrap();

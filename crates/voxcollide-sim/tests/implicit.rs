@@ -35,6 +35,7 @@ fn plucked(dt: f32, integrator: Integrator) -> World {
             fill_hold: 0.0,
             floor: f32::MIN,
             gravity: Vec3::ZERO,
+            wall_friction: 0.0,
         }]
     });
     World::new(vec!["block".into()], vec![body], Vec::new(), 1e6, schedule)

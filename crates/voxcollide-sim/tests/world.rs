@@ -58,6 +58,7 @@ fn world() -> World {
             fill_hold: 0.0,
             floor: f32::MIN,
             gravity: Vec3::ZERO,
+            wall_friction: 0.0,
         };
         let ramp = (step as f32 / 100.0).min(1.0);
         let inflating = StepInputs { pressure: 6.0 * ramp, floor: -1.9, ..still };

@@ -473,10 +473,16 @@ impl MassSpring {
             g += w.length();
             external += w.length();
         }
-        // A vertex held up by the floor is at rest whatever pushes it down.
+        // A vertex held up by the floor is at rest whatever pushes it down, and its wall's
+        // friction takes up to its coefficient times that push off the force along the wall.
         let n = self.floor_normal();
-        if f.dot(n) < 0.0 && self.on_floor(self.pos[i], inputs.floor) {
-            f -= f.dot(n) * n;
+        let into = f.dot(n);
+        if into < 0.0 && self.on_floor(self.pos[i], inputs.floor) {
+            f -= into * n;
+            let along = f.length();
+            if inputs.wall_friction > 0.0 && along > 0.0 {
+                f *= (along + inputs.wall_friction * into).max(0.0) / along;
+            }
         }
         (f, g, external)
     }
@@ -593,6 +599,10 @@ struct Joint<'a> {
     /// normal is held at 0 within the solve (the solve's `Δv` is filtered, Baraff and Witkin
     /// 1998), not only projected after it.
     on_floor: Vec<Vec<u32>>,
+    /// Per body: those of `on_floor` that its wall's friction holds where they are (the force
+    /// along the wall within [`StepInputs::wall_friction`] times the force into it): their
+    /// whole velocity is held at 0 within the solve.
+    gripped: Vec<Vec<u32>>,
     /// Per body: its floor's normal ([`MassSpring::floor_normal`]).
     normals: Vec<Vec3>,
     /// The loads of rank one across bodies.
@@ -603,10 +613,15 @@ struct Joint<'a> {
 impl Joint<'_> {
     /// Zeroes the rows along the floor's normal of the vertices resting on the floor.
     fn filter(&self, u: &mut [Vec<Vec3>]) {
-        for ((u, held), n) in u.iter_mut().zip(&self.on_floor).zip(&self.normals) {
+        for (((u, held), gripped), n) in
+            u.iter_mut().zip(&self.on_floor).zip(&self.gripped).zip(&self.normals)
+        {
             for &i in held {
                 let u = &mut u[i as usize];
                 *u -= u.dot(*n) * *n;
+            }
+            for &i in gripped {
+                u[i as usize] = Vec3::ZERO;
             }
         }
     }
@@ -682,8 +697,11 @@ pub fn integrate_implicit_together(
             }
         }
     }
-    // The vertices resting on their floor and pushed into it: still vertically, in the solve.
+    // The vertices resting on their floor and pushed into it: still vertically, in the solve;
+    // and of those, the ones its friction grips (Coulomb: the force along the wall within the
+    // friction's cone about the force into it), still altogether.
     let mut on_floor: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
+    let mut gripped: Vec<Vec<u32>> = Vec::with_capacity(bodies.len());
     let normals: Vec<Vec3> = bodies.iter().map(MassSpring::floor_normal).collect();
     for ((body, s), n) in bodies.iter_mut().zip(steps).zip(&normals) {
         let held: Vec<u32> = (0..body.len())
@@ -698,7 +716,21 @@ pub fn integrate_implicit_together(
             let v = &mut body.vel[i as usize];
             *v -= v.dot(*n) * *n;
         }
+        let mu = s.inputs.wall_friction;
+        let grips: Vec<u32> = held
+            .iter()
+            .copied()
+            .filter(|&i| {
+                let f = s.forces[i as usize];
+                let into = f.dot(*n);
+                mu > 0.0 && (f - into * *n).length() <= -mu * into
+            })
+            .collect();
+        for &i in &grips {
+            body.vel[i as usize] = Vec3::ZERO;
+        }
         on_floor.push(held);
+        gripped.push(grips);
     }
     let systems: Vec<System> =
         bodies.iter().zip(steps).zip(&extra).map(|((b, s), e)| b.system(s.inputs, s.contact_k, e)).collect();
@@ -723,8 +755,19 @@ pub fn integrate_implicit_together(
         .collect();
     let vel: Vec<Vec<Vec3>> = bodies.iter().map(|b| b.vel.clone()).collect();
     let active = couplings.iter().map(Coupling::touching).collect();
-    let mut joint =
-        Joint { bodies: &*bodies, systems, couplings, active, damping, free, on_floor, normals, rank_one, h };
+    let mut joint = Joint {
+        bodies: &*bodies,
+        systems,
+        couplings,
+        active,
+        damping,
+        free,
+        on_floor,
+        gripped,
+        normals,
+        rank_one,
+        h,
+    };
     let zeros = || -> Vec<Vec<Vec3>> { bodies.iter().map(|b| vec![Vec3::ZERO; b.len()]).collect() };
     let any_held = prescribed.iter().flatten().any(|p| *p != Vec3::ZERO);
     // b = h·(f − C_c·v_rel + h·K·v) − A·Δv_prescribed, on the free vertices, over the couplings
@@ -848,7 +891,7 @@ pub fn integrate_implicit_together(
                         return h * v.length();
                     }
                     let (mut p, mut w) = (body.pos[i] + h * *v, *v);
-                    onto_floor(&mut p, &mut w, step.inputs.floor, wall);
+                    onto_floor(&mut p, &mut w, step.inputs.floor, wall, step.inputs.wall_friction);
                     p.distance(body.pos[i]).max(h * w.length())
                 })
                 .reduce(|| 0.0f32, f32::max)
@@ -865,7 +908,7 @@ pub fn integrate_implicit_together(
     for (k, body) in bodies.iter_mut().enumerate() {
         let (inputs, step, new_vel) = (steps[k].inputs, &steps[k], &new_vel[k]);
         let MassSpring { mode, rest_pos, pos, vel, wall, .. } = body;
-        let wall = wall.as_deref();
+        let (wall, friction) = (wall.as_deref(), inputs.wall_friction);
         // Each vertex on its own, on every core.
         (pos.par_iter_mut(), vel.par_iter_mut(), mode.par_iter(), rest_pos.par_iter())
             .into_par_iter()
@@ -886,7 +929,7 @@ pub fn integrate_implicit_together(
                             *vel -= away * n;
                         }
                     }
-                    onto_floor(pos, vel, inputs.floor, wall);
+                    onto_floor(pos, vel, inputs.floor, wall, friction);
                 }
                 held => move_held(*held, inputs, *rest, pos, vel, h),
             });

@@ -96,10 +96,17 @@ pub(crate) fn move_held(
 
 /// A free vertex that ended its step below its floor (the chest wall) is put on it, moving up
 /// at most, under either integrator: the plane `z = floor`, or `wall` raised by `floor` along
-/// its normal ([`MassSpring::wall`](crate::MassSpring)).
-pub(crate) fn onto_floor(pos: &mut Vec3, vel: &mut Vec3, floor: f32, wall: Option<&crate::wall::Wall>) {
+/// its normal ([`MassSpring::wall`](crate::MassSpring)), its speed along the wall slowed by
+/// `friction` ([`Wall::push_out`](crate::wall::Wall::push_out)).
+pub(crate) fn onto_floor(
+    pos: &mut Vec3,
+    vel: &mut Vec3,
+    floor: f32,
+    wall: Option<&crate::wall::Wall>,
+    friction: f32,
+) {
     if let Some(w) = wall {
-        w.push_out(pos, vel, floor);
+        w.push_out(pos, vel, floor, friction);
     } else if pos.z < floor {
         pos.z = floor;
         vel.z = vel.z.max(0.0);
