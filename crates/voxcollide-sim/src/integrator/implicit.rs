@@ -611,7 +611,8 @@ struct Joint<'a> {
 }
 
 impl Joint<'_> {
-    /// Zeroes the rows along the floor's normal of the vertices resting on the floor.
+    /// Zeroes the rows along the floor's normal of the vertices resting on the floor, and the
+    /// whole rows of those its friction grips.
     fn filter(&self, u: &mut [Vec<Vec3>]) {
         for (((u, held), gripped), n) in
             u.iter_mut().zip(&self.on_floor).zip(&self.gripped).zip(&self.normals)
