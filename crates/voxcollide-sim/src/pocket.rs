@@ -12,8 +12,8 @@
 //! on the wall (the wall does not move). What it holds beyond the implant's volume is drawn
 //! shut by a suction on those faces and on the implant, as a fluid's pressure would be: `K ·
 //! void / V` now, plus what that has added up to over the steps (`hold` of it each step, as a
-//! fill holds its volume; at most the tissue's modulus, [`HELD_AT_MOST`]), never a push (an
-//! implant pressed into the tissue is the contact's work). `K` is ten times the tissue's Young's modulus; fifty times closed the space on a flat
+//! fill holds its volume), never a push (an implant pressed into the tissue is the contact's
+//! work). `K` is ten times the tissue's Young's modulus; fifty times closed the space on a flat
 //! wall but blew the patient up, when the implicit solve did not see the suction coming. It
 //! acts with the contacts' forces, on the CPU backend, and the implicit solve takes its
 //! stiffness, `(K/V)·w·wᵀ` over both bodies ([`Pocket::linearised`]): the one-candidate plan of
@@ -34,15 +34,6 @@ use crate::integrator::implicit::RankOne;
 /// of the implant's volume draws at a tenth of the modulus.
 pub const SUCTION: f64 = 10.0;
 
-/// The most the suction adds up to over the steps, in multiples of the tissue's Young's
-/// modulus. The wedge where the implant's rim meets the wall is finer than a lattice fills, so
-/// a little space stays open however hard it draws, and the sum grew without bound: at a 6 mm
-/// spacing it settled near twice the modulus, pressed the tissue onto the implant past what
-/// the contact holds, and one or two of six candidates on the patient ended 4.2 to 4.6 mm deep
-/// against a resting bound of 3.8 mm (said, and not a result). Held at the modulus, all six
-/// held, the space left beside each 1.8 to 3.0 % of its implant (docs/patient.md).
-pub const HELD_AT_MOST: f64 = 1.0;
-
 /// A pocket between a tissue's faces let go from its chest wall and the wall, holding an
 /// implant.
 #[derive(Clone, Debug, PartialEq)]
@@ -62,8 +53,7 @@ pub struct Pocket {
     pub volume: f64,
     /// The share of `K · void / V` added to the suction each step.
     pub hold: f32,
-    /// The suction added up over the steps (pressure units), at most [`HELD_AT_MOST`] times
-    /// the tissue's modulus.
+    /// The suction added up over the steps (pressure units).
     pub held: f32,
 }
 
@@ -121,8 +111,7 @@ impl Pocket {
     /// outward. Returns the suction it applied.
     pub fn add_forces(&mut self, bodies: &[MassSpring], forces: &mut [Vec<Vec3>]) -> f32 {
         let drawn = self.drawn(bodies);
-        let most = HELD_AT_MOST as f32 * self.stiffness / SUCTION as f32;
-        self.held = (self.held + self.hold * drawn).clamp(0.0, most);
+        self.held = (self.held + self.hold * drawn).max(0.0);
         let p = (drawn + self.held).max(0.0);
         if p > 0.0 {
             self.each_share(bodies, p, &mut |k, i, share| forces[k][i] += share);

@@ -717,14 +717,19 @@ pub fn integrate_implicit_together(
             let v = &mut body.vel[i as usize];
             *v -= v.dot(*n) * *n;
         }
+        // Coulomb over the step: it sticks where the friction's impulse, `h·μ` times the push
+        // into the wall, can stop both its momentum along the wall and the step's force along
+        // it. One still sliding faster slides on (gripped at once, a 1.5 kPa breast blew up
+        // at the step its implant's base stopped dead).
         let mu = s.inputs.wall_friction;
         let grips: Vec<u32> = held
             .iter()
             .copied()
             .filter(|&i| {
-                let f = s.forces[i as usize];
+                let (f, v) = (s.forces[i as usize], body.vel[i as usize]);
                 let into = f.dot(*n);
-                mu > 0.0 && (f - into * *n).length() <= -mu * into
+                let along = body.mass[i as usize] * v.length() + h * (f - into * *n).length();
+                mu > 0.0 && along <= -h * mu * into
             })
             .collect();
         for &i in &grips {
