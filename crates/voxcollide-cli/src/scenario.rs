@@ -298,6 +298,7 @@ pub fn run(
         worst_depth: worst.map(|f| f.max_penetration),
         failure,
         checks: summary.frames.len() as u32,
+        uncovered: 0,
     }];
     summary.held = worst.is_none();
     let path = config.out.join("summary.json");

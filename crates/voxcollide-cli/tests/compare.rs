@@ -631,6 +631,7 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
     };
     let summary = voxcollide_cli::scene_run::run_file(&config, &mut |_, _| {}, &mut |_| {}).unwrap();
     assert!(summary.held && summary.settled, "{:?}", summary.not_a_result);
+    assert_eq!(summary.contacts[0].uncovered, 0, "the implant stays under her tissue");
     let breast = &summary.bodies[0];
     let implant = summary.bodies[1].volume_ml.unwrap();
     let gain = breast.volume_ml_end.unwrap() - breast.volume_ml.unwrap();

@@ -546,3 +546,35 @@ fn summary_json_says_what_each_body_is_made_of() {
     assert_eq!((m["model"].as_str(), m["poisson_honoured"].as_bool()), (Some("springs"), Some(false)), "{m}");
     assert!(m.get("tetrahedra").is_none(), "{m}");
 }
+
+/// A placed implant that comes through its tissue is caught though no vertex went deep: on the
+/// MakeHuman patient (`scenes/patient-plan.toml`) at a 10 mm spacing, her tissue medial to the
+/// breast is 16 mm over the wall, under two cells; a 300 mL implant of 115 mm base, placed so
+/// that its medial edge reaches that thin layer, lifts it and passes through it, each vertex
+/// less than 4 mm inside at any check (the contact's bound is 16 mm). No tissue covers those
+/// vertices along the wall's normal: the contact did not hold, and the run says so.
+#[test]
+fn an_implant_through_her_thin_medial_tissue_is_caught_and_said() {
+    let d = dir("through");
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/");
+    let scene = std::fs::read_to_string(format!("{scenes}patient-plan.toml"))
+        .unwrap()
+        .replace("\"makehuman/", &format!("\"{scenes}makehuman/"))
+        .replace("spacing = 7\n", "spacing = 10\n")
+        .replace("volume_ml = 250, base_mm = 110", "volume_ml = 300, base_mm = 115")
+        .replace("inflate = { volume_ml = 250", "inflate = { volume_ml = 300");
+    assert_eq!(scene.matches("300").count(), 2, "{scene}");
+    assert!(scene.contains("spacing = 10\n"), "{scene}");
+    let (stdout, stderr, s) = run(&d, &scene);
+    let c = contact(&s);
+    assert_eq!(c["held"], false, "{c}");
+    assert!(c["uncovered"].as_u64().unwrap() > 0, "{c}");
+    assert!(c["max_penetration"].as_f64().unwrap() < c["bound"].as_f64().unwrap(), "no vertex deep: {c}");
+    assert!(c["failure"].as_str().unwrap().contains("shows through her skin"), "{c}");
+    let said = format!("{stdout}\n{stderr}");
+    assert!(
+        said.lines().any(|l| l.contains("warning: contact implant – breast did not hold")
+            && l.contains("came through breast")),
+        "{said}"
+    );
+}

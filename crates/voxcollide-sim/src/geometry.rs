@@ -470,6 +470,40 @@ impl<'a> ClosedSurface<'a> {
         best.sqrt() as f32
     }
 
+    /// Whether the ray from `p` along `d` (not necessarily unit) meets a triangle of the
+    /// surface, on a triangle's edge included; false for a non-finite `p` or `d`, or a zero
+    /// `d`. Skips every node whose box the ray misses (slabs).
+    #[must_use]
+    pub fn ray_hits(&self, p: Vec3, d: Vec3) -> bool {
+        let Some(root) = self.root else { return false };
+        if !p.is_finite() || !d.is_finite() || d == Vec3::ZERO {
+            return false;
+        }
+        let (p, d) = (p.as_dvec3(), d.as_dvec3());
+        let inv = d.recip();
+        let mut stack = [0u32; 64];
+        stack[0] = root;
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &self.nodes[stack[len] as usize];
+            if !ray_meets_box(node, p, inv) {
+                continue;
+            }
+            if node.left == NONE {
+                let tris = &self.triangles[node.start as usize..node.end as usize];
+                if tris.iter().any(|t| line_crossing(p, d, [t.a, t.b, t.c], 1e-9).is_some_and(|s| s >= 0.0)) {
+                    return true;
+                }
+            } else {
+                stack[len] = node.left;
+                stack[len + 1] = node.right;
+                len += 2;
+            }
+        }
+        false
+    }
+
     /// Whether `p` is outside `node`'s box by more than the margin, so that its fan may stand in
     /// for its triangles.
     fn outside_box(&self, node: &Node, p: DVec3) -> bool {
@@ -504,6 +538,17 @@ fn half_solid_angle(t: &Triangle, p: DVec3) -> f64 {
 fn box_distance2(node: &Node, p: DVec3) -> f64 {
     let d = (node.lo - p).max(p - node.hi).max(DVec3::ZERO);
     d.dot(d)
+}
+
+/// Whether the ray `p + t·d`, `t ≥ 0` (`inv` = `1 / d` componentwise, infinite along an axis
+/// it does not move on), meets `node`'s box, its faces included (slabs; NaN comparisons of a
+/// ray along a face count as meeting).
+fn ray_meets_box(node: &Node, p: DVec3, inv: DVec3) -> bool {
+    let (a, b) = ((node.lo - p) * inv, (node.hi - p) * inv);
+    let (near, far) = (a.min(b), a.max(b));
+    let enter = near.max_element().max(0.0);
+    let leave = far.min_element();
+    !(enter > leave)
 }
 
 /// `n / d` for a denominator that is mathematically positive but may round to 0 on a

@@ -748,3 +748,47 @@ fn the_first_of_equally_deep_points_is_the_deepest_across_chunks() {
     assert_eq!((p.count, p.deepest), (2, Some(300)));
     assert_eq!(PenetrationWatch::default().penetration(&s, &points), p);
 }
+
+/// A ray meets a surface where the brute force over every triangle says so: on a 2,000-triangle
+/// sphere from random points inside and outside it in random directions, and at the corners
+/// (along a cube's edge, through its corner, from its face, a zero or non-finite direction).
+#[test]
+fn rays_meet_the_surface_where_every_triangle_asked_says_so() {
+    let (positions, mesh) = sphere_2k();
+    let s = ClosedSurface::new(&positions, &mesh).unwrap();
+    let brute = |p: Vec3, d: Vec3| {
+        mesh.triangles.iter().any(|t| {
+            let [a, b, c] = t.map(|i| positions[i as usize].as_dvec3());
+            voxcollide_sim::geometry::line_crossing(p.as_dvec3(), d.as_dvec3(), [a, b, c], 1e-9)
+                .is_some_and(|t| t >= 0.0)
+        })
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let (mut met, mut missed) = (0, 0);
+    for _ in 0..2000 {
+        let p = random_point(&mut rng, -2.0, 2.0);
+        let d = random_point(&mut rng, -1.0, 1.0);
+        let hit = s.ray_hits(p, d);
+        assert_eq!(hit, brute(p, d), "{p} along {d}");
+        if hit {
+            met += 1
+        } else {
+            missed += 1
+        }
+        // From inside, every ray leaves through the surface.
+        if s.contains(p) {
+            assert!(hit, "{p} along {d} from inside");
+        }
+    }
+    assert!(met > 200 && missed > 200, "{met} met, {missed} missed");
+    let (cp, cm) = cube();
+    let c = ClosedSurface::new(&cp, &cm).unwrap();
+    assert!(c.ray_hits(Vec3::new(1.0, 1.0, -3.0), Vec3::Z), "along an edge");
+    assert!(c.ray_hits(Vec3::splat(3.0), Vec3::splat(-1.0)), "through a corner");
+    assert!(c.ray_hits(Vec3::new(0.2, 0.3, 1.0), Vec3::Z), "from its face, outward");
+    assert!(!c.ray_hits(Vec3::new(0.0, 0.0, 1.5), Vec3::Z), "away from it");
+    assert!(!c.ray_hits(Vec3::new(1.01, 0.0, -3.0), Vec3::Z), "beside it");
+    assert!(!c.ray_hits(Vec3::ZERO, Vec3::ZERO), "no direction");
+    assert!(!c.ray_hits(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::Z), "NaN");
+    assert!(!c.ray_hits(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0)), "infinite");
+}

@@ -5,11 +5,12 @@
 use glam::Vec3;
 
 use super::frames::shown_surface;
-use super::summary::FileSummary;
+use super::summary::{ContactSummary, FileSummary};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
 use voxcollide_sim::World;
 use voxcollide_sim::geometry::{ClosedSurface, Hierarchy, PenetrationWatch};
+use voxcollide_sim::wall::Wall;
 
 /// The contacts' checks against their bounds (docs/design.md §11), over a run.
 pub(super) struct ContactChecks {
@@ -50,11 +51,16 @@ impl ContactChecks {
         note: &mut dyn FnMut(&str),
     ) -> Result<(), Error> {
         for (c, pair) in world.contacts.iter().enumerate() {
-            let (b_in_a, a_in_b) =
+            let Depths { b_in_a, a_in_b, uncovered } =
                 contact_depths(world, pair, &mut self.hierarchies[c], &mut self.watches[c])?;
             let depth = b_in_a.max_depth.max(a_in_b);
             self.last[c] = depth;
             let s = &mut summary.contacts[c];
+            if let Some((placed, tissue, n)) = uncovered
+                && n > 0
+            {
+                through(s, placed, &tissue, n, step, frame, note);
+            }
             if at_frame {
                 s.max_penetration = s.max_penetration.max(b_in_a.max_depth);
                 s.penetrating_fraction = s.penetrating_fraction.max(b_in_a.fraction);
@@ -143,19 +149,68 @@ impl ContactChecks {
     }
 }
 
+/// A placed implant through its tissue (docs/design.md §11, §15): its vertices that no tissue
+/// covers any more, said at once; the contact did not hold, whatever its depths.
+fn through(
+    s: &mut ContactSummary,
+    placed: usize,
+    tissue: &str,
+    n: usize,
+    step: u64,
+    frame: u32,
+    note: &mut dyn FnMut(&str),
+) {
+    let first = s.uncovered == 0;
+    s.uncovered = s.uncovered.max(n);
+    s.held = false;
+    let name = if placed == 0 { &s.a } else { &s.b };
+    let said = if step == 0 {
+        format!(
+            "{n} of {name}'s vertices lie in front of {tissue}'s skin before the first step, no tissue covering them along the chest wall's normal: the scene places it outside her"
+        )
+    } else {
+        format!(
+            "{n} of {name}'s vertices came through {tissue} at step {step} (frame {frame}): no tissue covers them along the chest wall's normal, the implant shows through her skin"
+        )
+    };
+    if first {
+        s.worst_step.get_or_insert(step);
+        s.worst_frame.get_or_insert(frame);
+        note(&format!(
+            "warning: contact {} – {} did not hold: {said}; this run's numbers are not a result",
+            s.a, s.b
+        ));
+        s.failure = Some(said);
+    }
+}
+
+/// What one check of a contact found ([`contact_depths`]).
+struct Depths {
+    /// `b`'s vertices inside `a`'s closed surface.
+    b_in_a: voxcollide_sim::geometry::Penetration,
+    /// The deepest of `a`'s shown vertices inside `b`.
+    a_in_b: f32,
+    /// Where one of the two is placed on the other's chest wall (docs/design.md §15): which
+    /// (0 for `a`, 1 for `b`), the other's name, and how many of its vertices no tissue covers
+    /// ([`uncovered`]).
+    uncovered: Option<(usize, String, usize)>,
+}
+
 /// How deep contact `pair`'s bodies are inside each other: `b`'s vertices inside `a`'s closed
 /// (shown) surface (the summary's penetration), and the deepest of `a`'s shown vertices inside
 /// `b`'s. Both sides, since the voxel model pushes only `b`'s vertices out of `a`: `a`'s could
-/// pass between them.
+/// pass between them. Where one is a placed implant, also how many of its vertices the
+/// other's tissue no longer covers.
 fn contact_depths(
     world: &World,
     pair: &voxcollide_sim::ContactPair,
     hierarchies: &mut [Option<Hierarchy>; 2],
     watches: &mut [PenetrationWatch; 2],
-) -> Result<(voxcollide_sim::geometry::Penetration, f32), Error> {
+) -> Result<Depths, Error> {
     let surface_of = |k: usize| shown_surface(&world.bodies[k]);
     let (a_pos, a_mesh) = surface_of(pair.a);
     let (b_pos, b_mesh) = surface_of(pair.b);
+    let (wall_a, wall_b) = (world.bodies[pair.a].wall.as_deref(), world.bodies[pair.b].wall.as_deref());
     let [ha, hb] = hierarchies;
     let [wa, wb] = watches;
     // The two ways at once, each on every core.
@@ -163,17 +218,37 @@ fn contact_depths(
         || -> Result<_, Error> {
             let surface = surface_kept(&a_pos, a_mesh, ha.take())?;
             let depth = wa.penetration(&surface, &world.bodies[pair.b].pos);
+            let open = wall_b.map(|w| uncovered(&surface, &world.bodies[pair.b].pos, w));
             *ha = Some(surface.into_hierarchy());
-            Ok(depth)
+            Ok((depth, open))
         },
         || -> Result<_, Error> {
             let surface = surface_kept(&b_pos, b_mesh, hb.take())?;
             let depth = wb.penetration(&surface, &a_pos).max_depth;
+            let open = wall_a.map(|w| uncovered(&surface, &a_pos, w));
             *hb = Some(surface.into_hierarchy());
-            Ok(depth)
+            Ok((depth, open))
         },
     );
-    Ok((b_in_a?, a_in_b?))
+    let ((b_in_a, open_b), (a_in_b, open_a)) = (b_in_a?, a_in_b?);
+    let name = |k: usize| world.names.get(k).cloned().unwrap_or_default();
+    let uncovered = match (open_a, open_b) {
+        (Some(n), _) => Some((0, name(pair.b), n)),
+        (None, Some(n)) => Some((1, name(pair.a), n)),
+        (None, None) => None,
+    };
+    Ok(Depths { b_in_a, a_in_b, uncovered })
+}
+
+/// How many of a placed implant's vertices `points` its tissue's closed surface `tissue` does
+/// not cover: the ray from the vertex out along the chest wall's normal meets none of the
+/// tissue's triangles, nor do two rays tilted a fifth of the way from it (a ray along a
+/// lattice's edge may slip between its triangles). In the pocket an implant lies between the
+/// wall and the tissue, so each such ray meets the tissue's face over the pocket; one that
+/// meets nothing starts in front of her skin: the implant has come through the tissue.
+fn uncovered(tissue: &ClosedSurface<'_>, points: &[Vec3], wall: &Wall) -> usize {
+    let rays = [wall.normal, wall.normal + 0.2 * wall.u, wall.normal - 0.2 * wall.v];
+    points.iter().filter(|&&p| !rays.iter().any(|&d| tissue.ray_hits(p, d))).count()
 }
 
 /// The closed surface of `mesh` at `positions` on the hierarchy kept from the last check, or

@@ -132,6 +132,10 @@ pub struct ContactSummary {
     pub failure: Option<String>,
     /// Checks of the penetration made over the run.
     pub checks: u32,
+    /// Where one body is an implant placed on the other's chest wall (docs/design.md §15):
+    /// the most of its vertices that, at one check, no tissue covered along the wall's normal
+    /// (it had come through her skin; the contact did not hold). 0 elsewhere.
+    pub uncovered: usize,
 }
 
 /// What a scene-file run did, as written to `summary.json`.
