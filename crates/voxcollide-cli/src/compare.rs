@@ -59,6 +59,12 @@ pub struct CompareConfig {
 pub struct CandidateResult {
     /// The candidate's name.
     pub name: String,
+    /// Who makes it, where the catalogue says.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub manufacturer: Option<String>,
+    /// Its product line, where the catalogue says.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub line: Option<String>,
     /// The volume the compared shell encloses at the end, in mL.
     pub volume_ml: f64,
     /// How far the tissue's outer surface rose at its highest point (scene units).
@@ -695,6 +701,8 @@ fn run_candidate(
     };
     let mut result = CandidateResult {
         name: c.name.clone(),
+        manufacturer: c.manufacturer.clone(),
+        line: c.line.clone(),
         target_volume_ml: volume,
         folder: folder.clone(),
         ..CandidateResult::default()
@@ -1426,6 +1434,10 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
     let mut figures = String::new();
     for c in &comparison.candidates {
         figures += &format!("<section><h3>{}</h3>\n", escape(&c.name));
+        let made: Vec<&str> = [&c.manufacturer, &c.line].into_iter().flatten().map(String::as_str).collect();
+        if !made.is_empty() {
+            figures += &format!("<p class=\"made\">{}</p>\n", escape(&made.join(", ")));
+        }
         if !c.held {
             figures += &format!(
                 "<p class=\"failed\"><strong>FAILED — not a result:</strong> {}. Its pictures show where the run went wrong.</p>\n",

@@ -9,6 +9,12 @@
 //! [[candidate]]
 //! name = "my shell"
 //! mesh = "shell.stl"          # a closed surface, resolved against the catalogue's folder
+//!
+//! [[candidate]]
+//! name = "Mentor MemoryGel Moderate Plus 300 cc"
+//! manufacturer = "Mentor"     # optional: who makes it and its product line, as reported
+//! line = "MemoryGel Moderate Plus"
+//! shape = { implant = { volume_ml = 300, base_mm = 120, projection_mm = 36, style = "round" } }
 //! ```
 
 use std::path::{Path, PathBuf};
@@ -30,6 +36,8 @@ struct RawCatalogue {
 #[serde(deny_unknown_fields)]
 struct RawCandidate {
     name: Spanned<String>,
+    manufacturer: Option<Spanned<String>>,
+    line: Option<Spanned<String>>,
     shape: Option<Spanned<Shape>>,
     mesh: Option<Spanned<String>>,
 }
@@ -40,6 +48,10 @@ struct RawCandidate {
 pub struct Candidate {
     /// Its unique name.
     pub name: String,
+    /// Who makes it, where the catalogue says (`manufacturer = "Mentor"`).
+    pub manufacturer: Option<String>,
+    /// Its product line, where the catalogue says (`line = "MemoryGel Moderate Plus"`).
+    pub line: Option<String>,
     /// Its shape or mesh.
     pub geometry: Geometry,
 }
@@ -134,7 +146,19 @@ impl Catalogue {
                     ));
                 }
             };
-            let candidate = Candidate { name, geometry };
+            let label = |v: Option<Spanned<String>>, what: &str| match v {
+                Some(v) if v.get_ref().trim().is_empty() => Err(at(
+                    &file,
+                    text,
+                    v.span(),
+                    Some(&key(what)),
+                    format!("candidate {name:?} has an empty `{what}`: name it or leave the key out"),
+                )),
+                v => Ok(v.map(Spanned::into_inner)),
+            };
+            let manufacturer = label(c.manufacturer, "manufacturer")?;
+            let line = label(c.line, "line")?;
+            let candidate = Candidate { name, manufacturer, line, geometry };
             if let Some(first) =
                 candidates.iter().position(|o| o.name == candidate.name || o.folder() == candidate.folder())
             {
@@ -181,6 +205,8 @@ shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
 
 [[candidate]]
 name = "teardrop 250"
+manufacturer = "Acme"
+line = "Teardrop Tall"
 shape = { implant = { volume_ml = 250, base_mm = 110, projection_mm = 38, style = "anatomical" } }
 
 [[candidate]]
@@ -199,6 +225,11 @@ mesh = "shell.stl"
                 style: ImplantStyle::Anatomical
             })
         );
+        assert_eq!(
+            (c.candidates[1].manufacturer.as_deref(), c.candidates[1].line.as_deref()),
+            (Some("Acme"), Some("Teardrop Tall"))
+        );
+        assert_eq!((c.candidates[0].manufacturer.as_deref(), c.candidates[0].line.as_deref()), (None, None));
         assert_eq!(c.candidates[2].geometry, Geometry::Mesh(PathBuf::from("dir/shell.stl")));
         assert_eq!(c.candidates[2].folder(), "own___shell");
     }
@@ -227,10 +258,61 @@ mesh = "shell.stl"
         assert_eq!((line, key.as_str()), (4, "candidate[0].mesh"));
         let (line, key, _) = error("[[candidate]]\nname = \"a\"\nshape = { sphere = 3 }\ncolour = 1\n");
         assert_eq!((line, key.as_str()), (4, "candidate[0].colour"));
+        let (line, key, _) =
+            error("[[candidate]]\nname = \"a\"\nmanufacturer = \" \"\nshape = { sphere = 3 }\n");
+        assert_eq!((line, key.as_str()), (3, "candidate[0].manufacturer"));
+        let (line, key, _) = error("[[candidate]]\nname = \"a\"\nshape = { sphere = 3 }\nline = \"\"\n");
+        assert_eq!((line, key.as_str()), (4, "candidate[0].line"));
         let (_, key, _) = error("# nothing\n");
         assert_eq!(key, "candidate");
         let (line, _, _) = error("[[candidate]]\nname = 3\n");
         assert_eq!(line, 2);
+    }
+
+    /// The shipped product line (`scenes/catalogues/mentor-memorygel-round.toml`) reads whole:
+    /// every size an implant its base and projection can hold, each profile wider and more
+    /// projecting as it holds more, its sizes as the catalogue prints them.
+    #[test]
+    fn the_shipped_product_line_reads_whole_and_in_order() {
+        let path =
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/catalogues/mentor-memorygel-round.toml");
+        let c = Catalogue::read(path).unwrap();
+        assert_eq!(c.candidates.len(), 25 + 25 + 22 + 20);
+        let mut lines: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+        for k in &c.candidates {
+            assert_eq!(k.manufacturer.as_deref(), Some("Mentor"), "{}", k.name);
+            let Geometry::Shape(Shape::Implant { volume_ml, base_mm, projection_mm, style }) = k.geometry
+            else {
+                panic!("{}: {:?}", k.name, k.geometry)
+            };
+            assert_eq!(style, ImplantStyle::Round, "{}", k.name);
+            let line = k.line.clone().unwrap();
+            match lines.last_mut() {
+                Some((l, sizes)) if *l == line => sizes.push((volume_ml, base_mm, projection_mm)),
+                _ => lines.push((line, vec![(volume_ml, base_mm, projection_mm)])),
+            }
+        }
+        assert_eq!(lines.len(), 4, "{:?}", lines.iter().map(|l| &l.0).collect::<Vec<_>>());
+        for (line, sizes) in &lines {
+            for w in sizes.windows(2) {
+                let ((v0, b0, p0), (v1, b1, p1)) = (w[0], w[1]);
+                assert!(v1 > v0 && b1 > b0 && p1 >= p0, "{line}: {:?} then {:?}", w[0], w[1]);
+            }
+        }
+        // At about 350 cc the profiles narrow and project more, as their names say.
+        let at350: Vec<(f64, f64)> = lines
+            .iter()
+            .map(|(_, s)| {
+                s.iter().find(|&&(v, ..)| (340.0..=360.0).contains(&v)).map(|&(_, b, p)| (b, p)).unwrap()
+            })
+            .collect();
+        assert_eq!(at350, [(134.0, 32.0), (125.0, 39.0), (117.0, 48.0), (101.0, 52.0)]);
+        // The patient's six are sizes of it, as it lists them.
+        let six = Catalogue::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/patient-implants.toml")).unwrap();
+        assert_eq!(six.candidates.len(), 6);
+        for k in &six.candidates {
+            assert!(c.candidates.contains(k), "{} is not in the product line as listed", k.name);
+        }
     }
 
     #[test]
