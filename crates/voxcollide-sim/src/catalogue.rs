@@ -308,7 +308,8 @@ mesh = "shell.stl"
             .collect();
         assert_eq!(at350, [(134.0, 32.0), (125.0, 39.0), (117.0, 48.0), (101.0, 52.0)]);
         // The patient's six are sizes of it, as it lists them.
-        let six = Catalogue::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/patient-implants.toml")).unwrap();
+        let six = Catalogue::read(concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/patient-implants.toml"))
+            .unwrap();
         assert_eq!(six.candidates.len(), 6);
         for k in &six.candidates {
             assert!(c.candidates.contains(k), "{} is not in the product line as listed", k.name);

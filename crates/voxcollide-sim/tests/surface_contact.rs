@@ -532,3 +532,37 @@ fn a_lattice_made_from_a_surface_meets_a_contact_at_that_surface_and_its_cells_c
     assert!((weight - 1.0).abs() < 1e-5, "{weight}");
     assert!(voxcollide_sim::contact::entries(&push.from).all(|(v, _)| (v as usize) < dome.len()));
 }
+
+/// A probe driven down through a plate one cell thick is pushed back out of its top face, the
+/// way it came in, all the way through, though past the plate's middle its nearest face is the
+/// bottom one: a fresh contact, which has not seen it come in, pushes it on out of the bottom.
+/// (A filling implant came through a patient's thin tissue over her sternum so.)
+#[test]
+fn a_probe_past_the_middle_of_a_thin_plate_is_pushed_out_the_way_it_came_in() {
+    let plate = box_lattice(UVec3::new(5, 5, 2), 6.0, Vec3::ZERO, 10.0, material(), |_| Mode::Free).unwrap();
+    let penalty = SurfacePenalty { stiffness: K, gap: 0.0, reach: 5.0, margin: 0.0 };
+    let at = |z: f32| ball(Vec3::new(11.0, 10.0, z), 0.5);
+    let mut contact = SurfaceContact::new(penalty, &plate, &at(7.0)).unwrap();
+    let mut out = SurfaceForces::default();
+    let (mut past_middle, mut z) = (0, 7.0);
+    while z > 1.5 {
+        let probe = at(z);
+        contact.step(&plate, &probe, &mut out);
+        let (k, bottom) = probe.pos.iter().enumerate().min_by(|a, b| a.1.z.total_cmp(&b.1.z)).unwrap();
+        if bottom.z < 6.0 {
+            let f = out.force_b[k];
+            assert!(f.z > 0.0 && f.x.abs() + f.y.abs() < 1e-3 * f.z, "at {}: pushed {f}", bottom.z);
+            // As deep as it is under the top face.
+            assert!((f.z - K * (6.0 - bottom.z)).abs() < 1e-3 * f.z, "at {}: {f}", bottom.z);
+            if bottom.z < 3.0 {
+                past_middle += 1;
+                let mut fresh = SurfaceContact::new(penalty, &plate, &probe).unwrap();
+                let mut seen = SurfaceForces::default();
+                fresh.step(&plate, &probe, &mut seen);
+                assert!(seen.force_b[k].z < 0.0, "a fresh contact at {}: {}", bottom.z, seen.force_b[k]);
+            }
+        }
+        z -= 0.25;
+    }
+    assert!(past_middle >= 4, "{past_middle}");
+}
