@@ -548,11 +548,11 @@ fn summary_json_says_what_each_body_is_made_of() {
 }
 
 /// A placed implant that comes through its tissue is caught though no vertex went deep: on the
-/// MakeHuman patient (`scenes/patient-plan.toml`) at a 10 mm spacing, her tissue medial to the
-/// breast is 16 mm over the wall, under two cells; a 300 mL implant of 115 mm base, placed so
-/// that its medial edge reaches that thin layer, lifts it and passes through it, each vertex
-/// less than 4 mm inside at any check (the contact's bound is 16 mm). No tissue covers those
-/// vertices along the wall's normal: the contact did not hold, and the run says so.
+/// MakeHuman patient (`scenes/patient-plan.toml`) at a 10 mm spacing, her tissue about the
+/// breast is 16 mm over the wall, under two cells; a 300 mL implant of 115 mm base reaches
+/// that thin layer, and filling, its rim comes out through it, no vertex ever 4 mm inside (the
+/// contact's bound is 16 mm). No tissue covers it along the wall's normal: the contact did not
+/// hold, and the run says so.
 #[test]
 fn an_implant_through_her_thin_medial_tissue_is_caught_and_said() {
     let d = dir("through");
@@ -575,6 +575,11 @@ fn an_implant_through_her_thin_medial_tissue_is_caught_and_said() {
     assert!(
         said.lines().any(|l| l.contains("warning: contact implant – breast did not hold")
             && l.contains("came through breast")),
+        "{said}"
+    );
+    // The build said beforehand that her tissue over the rim is thin for this spacing.
+    assert!(
+        said.lines().any(|l| l.contains("warning: \"breast\" is") && l.contains("thick over the implant's rim")),
         "{said}"
     );
 }

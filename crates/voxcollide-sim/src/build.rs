@@ -116,14 +116,15 @@ impl Landmark {
 /// at `(x, y)` across, `z` in front of the wall there ([`Wall`](crate::wall::Wall)), so its base
 /// lies on the curved wall. Both it and the tissue rest on the wall (their free vertices are
 /// kept in front of it); the shell with `place.friction`, the tissue sliding freely. The tissue's vertices held on the wall within the base's radius and
-/// `place.margin` are let go: the pocket. Returns how many.
+/// `place.margin` are let go: the pocket. Returns how many, and the thinnest her tissue is
+/// over the base's rim ([`thinnest_over_rim`]).
 fn place_on_wall(
     file: &SceneFile,
     k: usize,
     place: &crate::scene_file::Placement,
     bodies: &mut [MassSpring],
     notes: &[BodyNote],
-) -> Result<usize, Error> {
+) -> Result<(usize, Option<(f32, Vec3)>), Error> {
     let t = place.body;
     let Geometry::Shape(Shape::Between(between)) = &file.bodies[t].geometry else {
         return Err(file.body_error(k, "place.under", "the body it names has no chest wall"));
@@ -166,6 +167,8 @@ fn place_on_wall(
             )));
         }
     }
+    let skin = read_sheet(&between.outer)?;
+    let thinnest = thinnest_over_rim(&wall, radius, &skin);
     let drape = |p: Vec3| {
         let (x, y) = (p.x - centre.x, p.y - centre.y);
         wall.point(Vec3::new(x, y, p.z - lo.z - sink + wall.height(x, y).unwrap_or(0.0)))
@@ -198,7 +201,29 @@ fn place_on_wall(
     let wall = std::sync::Arc::new(wall);
     bodies[k].wall = Some(wall.clone());
     bodies[t].wall = Some(wall);
-    Ok(released)
+    Ok((released, thinnest))
+}
+
+/// How thick her tissue is over the rim of a base of `radius` on `wall`, at its thinnest: from
+/// the wall out along its normal to her `skin`, at 64 points around the rim; and where. `None`
+/// where no ray from the rim meets the skin.
+fn thinnest_over_rim(wall: &crate::wall::Wall, radius: f32, skin: &Surface) -> Option<(f32, Vec3)> {
+    let corners: Vec<[DVec3; 3]> =
+        skin.mesh.triangles.iter().map(|t| t.map(|i| skin.positions[i as usize].as_dvec3())).collect();
+    let n = wall.normal.as_dvec3();
+    (0..64)
+        .filter_map(|a| {
+            let turn = std::f32::consts::TAU * a as f32 / 64.0;
+            let (x, y) = (radius * turn.cos(), radius * turn.sin());
+            let rim = wall.point(Vec3::new(x, y, wall.height(x, y)?));
+            let o = rim.as_dvec3();
+            let t = corners
+                .iter()
+                .filter_map(|&c| crate::geometry::line_crossing(o, n, c, 0.0).filter(|t| *t >= 0.0))
+                .fold(f64::INFINITY, f64::min);
+            t.is_finite().then_some((t as f32, rim))
+        })
+        .min_by(|a, b| a.0.total_cmp(&b.0))
 }
 
 /// A world built from a scene file, with its run length.
@@ -1208,15 +1233,28 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // Shells placed on a patient's chest wall under a landmark (docs/design.md §15).
     for k in 0..file.bodies.len() {
         if let Some(place) = &file.bodies[k].place {
-            let released = place_on_wall(file, k, place, &mut bodies, &notes)?;
+            let (released, thinnest) = place_on_wall(file, k, place, &mut bodies, &notes)?;
             let tissue = &file.bodies[place.body].name;
+            let u = file.units.symbol();
             notes[k].remarks.push(format!(
-                "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {}; friction on the wall {}",
-                place.landmark,
-                place.margin,
-                file.units.symbol(),
-                place.friction
+                "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {u}; friction on the wall {}",
+                place.landmark, place.margin, place.friction
             ));
+            // Tissue under one and a half cells thick over the rim: a lattice that coarse may
+            // not hold the implant under it (docs/patient.md; a rule of thumb from the MakeHuman
+            // patient, where 12 mm held at 7 mm and not at 10).
+            let h = file.bodies[place.body].spacing.unwrap_or(1.0) as f32;
+            if let Some((thick, at)) = thinnest
+                && thick < 1.5 * h
+            {
+                notes[k].remarks.push(format!(
+                    "warning: {tissue:?} is {thick:.1} {u} thick over the implant's rim at [{:.1}, {:.1}, {:.1}], under one and a half of its cells ({h} {u}): a lattice that coarse may let the implant come through it, which the run checks and says; a spacing of {:.1} {u} or finer holds more",
+                    at.x,
+                    at.y,
+                    at.z,
+                    thick / 1.5
+                ));
+            }
         }
     }
     // Per shell filled to a volume: the volume it encloses at first and its target, in cubic

@@ -57,7 +57,8 @@ fn the_shipped_files_are_the_paper_scenes_to_the_bit() {
     }
 }
 
-/// Every shipped scene file reads and builds, and every catalogue (`*implants.toml`) reads;
+/// Every shipped scene file reads and builds, and every catalogue (`*implants.toml`, and the
+/// product lines in `scenes/catalogues/`) reads;
 /// the patient and posture scenes recover their unloaded shapes to a hundredth of a spacing.
 #[test]
 fn every_shipped_scene_builds() {
@@ -82,4 +83,19 @@ fn every_shipped_scene_builds() {
         built += 1;
     }
     assert!(built >= 8, "{built} scenes");
+    // The product lines in scenes/catalogues/ read whole.
+    let mut lines = 0;
+    for entry in std::fs::read_dir(dir.join("catalogues")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let c = voxcollide_sim::catalogue::Catalogue::read(&path).unwrap_or_else(|e| panic!("{e}"));
+            assert!(
+                c.candidates.iter().all(|k| k.manufacturer.is_some() && k.line.is_some()),
+                "{}",
+                path.display()
+            );
+            lines += 1;
+        }
+    }
+    assert!(lines >= 1, "{lines} product lines");
 }

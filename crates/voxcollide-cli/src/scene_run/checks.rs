@@ -263,3 +263,46 @@ fn surface_kept<'a>(
         _ => ClosedSurface::new(positions, mesh),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use voxcollide_sim::mesh::TriangleMesh;
+
+    /// The closed box `[lo, hi]`, its triangles counter-clockwise from outside.
+    fn cuboid(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, TriangleMesh) {
+        let positions = (0..8)
+            .map(|i| {
+                Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                )
+            })
+            .collect();
+        let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
+        let triangles = quads.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
+        (positions, TriangleMesh { triangles })
+    }
+
+    /// Over a flat wall at z = 0 a slab of tissue lifted off it from z = 5 to 15 (its pocket
+    /// below): points in the pocket, in the tissue, and on its lattice's edges are covered;
+    /// points in front of its skin, or beside it past its box, are not.
+    #[test]
+    fn an_implants_vertex_in_front_of_her_skin_is_uncovered_and_one_in_the_pocket_is_not() {
+        let floor = [
+            [Vec3::new(-100.0, -100.0, 0.0), Vec3::new(100.0, -100.0, 0.0), Vec3::new(100.0, 100.0, 0.0)],
+            [Vec3::new(-100.0, -100.0, 0.0), Vec3::new(100.0, 100.0, 0.0), Vec3::new(-100.0, 100.0, 0.0)],
+        ];
+        let wall = Wall::sample(&floor, Vec3::new(0.0, 0.0, 1.0), 20.0, 30.0, 5.0, Vec3::Y).unwrap();
+        assert!((wall.normal - Vec3::Z).length() < 1e-6, "{}", wall.normal);
+        let (pos, mesh) = cuboid(Vec3::new(-50.0, -50.0, 5.0), Vec3::new(50.0, 50.0, 15.0));
+        let tissue = ClosedSurface::new(&pos, &mesh).unwrap();
+        let covered =
+            [Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, -20.0, 8.0), Vec3::new(50.0, 0.0, 2.0), Vec3::ZERO];
+        assert_eq!(uncovered(&tissue, &covered, &wall), 0);
+        let through = [Vec3::new(0.0, 0.0, 16.0), Vec3::new(-30.0, 40.0, 15.5), Vec3::new(70.0, 0.0, 2.0)];
+        assert_eq!(uncovered(&tissue, &through, &wall), 3);
+        assert_eq!(uncovered(&tissue, &[covered[0], through[0], covered[1]], &wall), 1);
+    }
+}
