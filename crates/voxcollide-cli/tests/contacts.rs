@@ -579,7 +579,8 @@ fn an_implant_through_her_thin_medial_tissue_is_caught_and_said() {
     );
     // The build said beforehand that her tissue over the rim is thin for this spacing.
     assert!(
-        said.lines().any(|l| l.contains("warning: \"breast\" is") && l.contains("thick over the implant's rim")),
+        said.lines()
+            .any(|l| l.contains("warning: \"breast\" is") && l.contains("thick over the implant's rim")),
         "{said}"
     );
 }
