@@ -278,7 +278,9 @@ mesh = "shell.stl"
             concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/catalogues/mentor-memorygel-round.toml");
         let c = Catalogue::read(path).unwrap();
         assert_eq!(c.candidates.len(), 25 + 25 + 22 + 20);
-        let mut lines: Vec<(String, Vec<(f64, f64, f64)>)> = Vec::new();
+        // Per line, its sizes: (volume, base, projection).
+        type Sizes = Vec<(f64, f64, f64)>;
+        let mut lines: Vec<(String, Sizes)> = Vec::new();
         for k in &c.candidates {
             assert_eq!(k.manufacturer.as_deref(), Some("Mentor"), "{}", k.name);
             let Geometry::Shape(Shape::Implant { volume_ml, base_mm, projection_mm, style }) = k.geometry

@@ -548,7 +548,8 @@ fn ray_meets_box(node: &Node, p: DVec3, inv: DVec3) -> bool {
     let (near, far) = (a.min(b), a.max(b));
     let enter = near.max_element().max(0.0);
     let leave = far.min_element();
-    !(enter > leave)
+    // (`min_element`/`max_element` skip a NaN: a ray along a face is judged by the others.)
+    enter <= leave
 }
 
 /// `n / d` for a denominator that is mathematically positive but may round to 0 on a

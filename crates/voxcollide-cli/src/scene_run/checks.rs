@@ -267,23 +267,9 @@ fn surface_kept<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use voxcollide_sim::mesh::TriangleMesh;
-
-    /// The closed box `[lo, hi]`, its triangles counter-clockwise from outside.
-    fn cuboid(lo: Vec3, hi: Vec3) -> (Vec<Vec3>, TriangleMesh) {
-        let positions = (0..8)
-            .map(|i| {
-                Vec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                )
-            })
-            .collect();
-        let quads = [[0, 4, 6, 2], [1, 3, 7, 5], [0, 1, 5, 4], [2, 6, 7, 3], [0, 2, 3, 1], [4, 5, 7, 6]];
-        let triangles = quads.iter().flat_map(|&[a, b, c, d]| [[a, b, c], [a, c, d]]).collect();
-        (positions, TriangleMesh { triangles })
-    }
+    use glam::UVec3;
+    use voxcollide_sim::bodies::box_lattice;
+    use voxcollide_sim::{Material, Mode};
 
     /// Over a flat wall at z = 0 a slab of tissue lifted off it from z = 5 to 15 (its pocket
     /// below): points in the pocket, in the tissue, and on its lattice's edges are covered;
@@ -296,8 +282,13 @@ mod tests {
         ];
         let wall = Wall::sample(&floor, Vec3::new(0.0, 0.0, 1.0), 20.0, 30.0, 5.0, Vec3::Y).unwrap();
         assert!((wall.normal - Vec3::Z).length() < 1e-6, "{}", wall.normal);
-        let (pos, mesh) = cuboid(Vec3::new(-50.0, -50.0, 5.0), Vec3::new(50.0, 50.0, 15.0));
-        let tissue = ClosedSurface::new(&pos, &mesh).unwrap();
+        let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
+        let slab =
+            box_lattice(UVec3::new(11, 11, 2), 10.0, Vec3::new(-50.0, -50.0, 5.0), 1.0, material, |_| {
+                Mode::Free
+            })
+            .unwrap();
+        let tissue = ClosedSurface::new(&slab.pos, &slab.surface).unwrap();
         let covered =
             [Vec3::new(0.0, 0.0, 2.0), Vec3::new(10.0, -20.0, 8.0), Vec3::new(50.0, 0.0, 2.0), Vec3::ZERO];
         assert_eq!(uncovered(&tissue, &covered, &wall), 0);
