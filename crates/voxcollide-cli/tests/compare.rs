@@ -700,3 +700,32 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
     let e = compare(&config(Some(20.0)), &mut |_| {}, &mut |_| {}).unwrap_err().to_string();
     assert!(e.contains("medial") && e.contains("lateral"), "{e}");
 }
+
+/// The shipped patient's base width, between her `medial` and `lateral` landmarks, chooses
+/// from the shipped product line the sizes whose base is at most hers and at most 20 mm
+/// narrower, every profile among them (`compare --fit-base`; no candidate is run here).
+#[test]
+fn her_base_width_chooses_from_the_real_product_line() {
+    let scenes = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/");
+    let scene = voxcollide_sim::scene_file::SceneFile::read(format!("{scenes}patient-plan.toml")).unwrap();
+    let (width, between) = voxcollide_cli::compare::base_width(&scene, &[0]).unwrap();
+    assert!((width - 123.2).abs() < 0.5, "{width} mm ({between})");
+    let line =
+        voxcollide_sim::catalogue::Catalogue::read(format!("{scenes}catalogues/mentor-memorygel-round.toml"))
+            .unwrap();
+    let chosen = voxcollide_cli::compare::fitting(&line.candidates, width, 20.0);
+    assert_eq!(chosen.len(), 24, "{:?}", chosen.iter().map(|c| &c.name).collect::<Vec<_>>());
+    for c in &chosen {
+        let voxcollide_sim::scene_file::Geometry::Shape(voxcollide_sim::scene_file::Shape::Implant {
+            base_mm,
+            ..
+        }) = c.geometry
+        else {
+            panic!("{c:?}")
+        };
+        assert!(base_mm <= width && base_mm >= width - 20.0, "{}: {base_mm} mm", c.name);
+    }
+    for profile in ["Moderate Classic", "Moderate Plus", "High Profile", "Ultra High Profile"] {
+        assert!(chosen.iter().any(|c| c.line.as_deref().is_some_and(|l| l.ends_with(profile))), "{profile}");
+    }
+}
