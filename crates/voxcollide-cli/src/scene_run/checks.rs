@@ -56,10 +56,10 @@ impl ContactChecks {
             let depth = b_in_a.max_depth.max(a_in_b);
             self.last[c] = depth;
             let s = &mut summary.contacts[c];
-            if let Some((placed, tissue, n)) = uncovered
+            if let Some((placed, n)) = uncovered
                 && n > 0
             {
-                through(s, placed, &tissue, n, step, frame, note);
+                through(s, placed, n, step, frame, note);
             }
             if at_frame {
                 s.max_penetration = s.max_penetration.max(b_in_a.max_depth);
@@ -154,7 +154,6 @@ impl ContactChecks {
 fn through(
     s: &mut ContactSummary,
     placed: usize,
-    tissue: &str,
     n: usize,
     step: u64,
     frame: u32,
@@ -163,7 +162,7 @@ fn through(
     let first = s.uncovered == 0;
     s.uncovered = s.uncovered.max(n);
     s.held = false;
-    let name = if placed == 0 { &s.a } else { &s.b };
+    let (name, tissue) = if placed == 0 { (&s.a, &s.b) } else { (&s.b, &s.a) };
     let said = if step == 0 {
         format!(
             "{n} of {name}'s vertices lie in front of {tissue}'s skin before the first step, no tissue covering them along the chest wall's normal: the scene places it outside her"
@@ -191,9 +190,8 @@ struct Depths {
     /// The deepest of `a`'s shown vertices inside `b`.
     a_in_b: f32,
     /// Where one of the two is placed on the other's chest wall (docs/design.md §15): which
-    /// (0 for `a`, 1 for `b`), the other's name, and how many of its vertices no tissue covers
-    /// ([`uncovered`]).
-    uncovered: Option<(usize, String, usize)>,
+    /// (0 for `a`, 1 for `b`), and how many of its vertices no tissue covers ([`uncovered`]).
+    uncovered: Option<(usize, usize)>,
 }
 
 /// How deep contact `pair`'s bodies are inside each other: `b`'s vertices inside `a`'s closed
@@ -231,10 +229,9 @@ fn contact_depths(
         },
     );
     let ((b_in_a, open_b), (a_in_b, open_a)) = (b_in_a?, a_in_b?);
-    let name = |k: usize| world.names.get(k).cloned().unwrap_or_default();
     let uncovered = match (open_a, open_b) {
-        (Some(n), _) => Some((0, name(pair.b), n)),
-        (None, Some(n)) => Some((1, name(pair.a), n)),
+        (Some(n), _) => Some((0, n)),
+        (None, Some(n)) => Some((1, n)),
         (None, None) => None,
     };
     Ok(Depths { b_in_a, a_in_b, uncovered })

@@ -667,14 +667,11 @@ impl SurfaceContact {
                 })
                 .unzip();
             side.inside = confirm(&mut hits, &side.probes, &side.inside, &side.moved, probing, partner, &p);
-            side.entry = hits
-                .iter()
-                .zip(&side.inside)
-                .map(|(h, &inside)| match h {
-                    Some(h) if inside => h.normal,
-                    _ => Vec3::ZERO,
-                })
-                .collect();
+            side.entry.clear();
+            side.entry.extend(hits.iter().zip(&side.inside).map(|(h, &inside)| match h {
+                Some(h) if inside => h.normal,
+                _ => Vec3::ZERO,
+            }));
             let (f_probe, k_probe, f_partner, k_partner) = if s == 0 {
                 (&mut out.force_b, &mut out.stiffness_b, &mut out.force_a, &mut out.stiffness_a)
             } else {
