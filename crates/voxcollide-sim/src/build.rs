@@ -116,26 +116,30 @@ impl Landmark {
 /// at `(x, y)` across, `z` in front of the wall there ([`Wall`](crate::wall::Wall)), so its base
 /// lies on the curved wall. Both it and the tissue rest on the wall (their free vertices are
 /// kept in front of it); the shell with `place.friction`, the tissue sliding freely. The tissue's vertices held on the wall within the base's radius and
-/// `place.margin` are let go: the pocket. Returns how many, and the thinnest her tissue is
-/// over the base's rim ([`thinnest_over_rim`]).
+/// `place.margin` are let go: the pocket. Where `place.within` names borders, the base moves
+/// across the wall until its rim keeps within them ([`Wall::within`](crate::wall::Wall::within)).
 fn place_on_wall(
     file: &SceneFile,
     k: usize,
     place: &crate::scene_file::Placement,
     bodies: &mut [MassSpring],
     notes: &[BodyNote],
-) -> Result<(usize, Option<(f32, Vec3)>), Error> {
+) -> Result<Placed, Error> {
     let t = place.body;
     let Geometry::Shape(Shape::Between(between)) = &file.bodies[t].geometry else {
         return Err(file.body_error(k, "place.under", "the body it names has no chest wall"));
     };
     let key_error = |m: String| file.body_error(k, "place.under", m);
-    let mark = notes[t]
-        .landmarks
-        .iter()
-        .find(|l| l.name == place.landmark)
-        .map(|l| l.at(&bodies[t].pos))
-        .ok_or_else(|| key_error(format!("no landmark {:?}", place.landmark)))?;
+    let landmark = |name: &str| {
+        notes[t]
+            .landmarks
+            .iter()
+            .find(|l| l.name == name)
+            .map(|l| l.at(&bodies[t].pos))
+            .ok_or_else(|| key_error(format!("no landmark {name:?}")))
+    };
+    let mark = landmark(&place.landmark)?;
+    let borders = place.within.iter().map(|n| landmark(n)).collect::<Result<Vec<_>, _>>()?;
     let inner = read_sheet(&between.inner)?;
     let triangles: Vec<[Vec3; 3]> =
         inner.mesh.triangles.iter().map(|tri| tri.map(|i| inner.positions[i as usize])).collect();
@@ -152,8 +156,29 @@ fn place_on_wall(
     let mut up = Vec3::ZERO;
     up[file.world.up.index()] = 1.0;
     let cell = (0.5 * h).min(radius / 8.0).max(f32::MIN_POSITIVE);
-    let wall = crate::wall::Wall::sample(&triangles, mark, radius, radius + margin + h, cell, up)
-        .map_err(|e| key_error(format!("the implant does not fit on the chest wall: {e}")))?;
+    let sample = |near: Vec3| {
+        crate::wall::Wall::sample(&triangles, near, radius, radius + margin + h, cell, up)
+            .map_err(|e| key_error(format!("the implant does not fit on the chest wall: {e}")))
+    };
+    let mut wall = sample(mark)?;
+    // Within her borders: where the base under the landmark would reach past one, it moves
+    // across the wall, away from it, and the wall is sampled again there (its frame turns with
+    // the wall, so a few rounds settle it).
+    let under = wall.origin;
+    let mut overreach = 0.0;
+    for _ in 0..4 {
+        let (shift, over) = wall.within(radius, mark, &borders);
+        overreach = over;
+        if shift.length() <= 1e-3 * h {
+            break;
+        }
+        // On the wall where the line along its normal across the move meets it (a hundredth
+        // of a cell in front, so that its closest point is there and the normal's side is
+        // known).
+        let height = wall.height(shift.x, shift.y).unwrap_or(0.0);
+        wall = sample(wall.point(shift.extend(height + 1e-2 * h)))?;
+    }
+    let moved = wall.origin - under;
     // The base must stand inside the tissue's box.
     let (bmin, bmax) =
         (Vec3::from_array(between.min.map(|v| v as f32)), Vec3::from_array(between.max.map(|v| v as f32)));
@@ -201,7 +226,19 @@ fn place_on_wall(
     let wall = std::sync::Arc::new(wall);
     bodies[k].wall = Some(wall.clone());
     bodies[t].wall = Some(wall);
-    Ok((released, thinnest))
+    Ok(Placed { released, thinnest, moved, overreach })
+}
+
+/// What placing a shell on a chest wall did ([`place_on_wall`]).
+struct Placed {
+    /// The tissue's vertices held on the wall that the pocket let go.
+    released: usize,
+    /// The thinnest her tissue is over the base's rim, and where ([`thinnest_over_rim`]).
+    thinnest: Option<(f32, Vec3)>,
+    /// How far the base's centre moved from under the landmark to keep within the borders.
+    moved: Vec3,
+    /// How far the base still reaches past a border where they leave it too little room.
+    overreach: f32,
 }
 
 /// How thick her tissue is over the rim of a base of `radius` on `wall`, at its thinnest: from
@@ -1233,13 +1270,31 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // Shells placed on a patient's chest wall under a landmark (docs/design.md §15).
     for k in 0..file.bodies.len() {
         if let Some(place) = &file.bodies[k].place {
-            let (released, thinnest) = place_on_wall(file, k, place, &mut bodies, &notes)?;
+            let Placed { released, thinnest, moved, overreach } =
+                place_on_wall(file, k, place, &mut bodies, &notes)?;
             let tissue = &file.bodies[place.body].name;
             let u = file.units.symbol();
             notes[k].remarks.push(format!(
                 "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {u}; friction on the wall {}",
                 place.landmark, place.margin, place.friction
             ));
+            if moved.length() > 0.0 {
+                notes[k].remarks.push(format!(
+                    "its base moved {:.1} {u} across the wall, by [{:.1}, {:.1}, {:.1}], from under {:?} to keep its rim within {:?}",
+                    moved.length(),
+                    moved.x,
+                    moved.y,
+                    moved.z,
+                    place.landmark,
+                    place.within
+                ));
+            }
+            if overreach > 0.0 {
+                notes[k].remarks.push(format!(
+                    "warning: its base is too wide for {tissue:?}'s borders {:?}: centred between them, it still reaches {overreach:.1} {u} past one; a narrower base fits her",
+                    place.within
+                ));
+            }
             // Tissue under one and a half cells thick over the rim: a lattice that coarse may
             // not hold the implant under it (docs/patient.md; a rule of thumb from the MakeHuman
             // patient, where 12 mm held at 7 mm and not at 10).

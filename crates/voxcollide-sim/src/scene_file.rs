@@ -691,11 +691,12 @@ struct RawBody {
     place: Option<Spanned<RawPlace>>,
 }
 
-/// `place = { under = "body.landmark", margin, friction }`, as written.
+/// `place = { under = "body.landmark", within, margin, friction }`, as written.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawPlace {
     under: String,
+    within: Option<Vec<String>>,
     margin: Option<f64>,
     friction: Option<f64>,
 }
@@ -709,6 +710,11 @@ pub struct Placement {
     pub body: usize,
     /// The landmark of that body it stands under.
     pub landmark: String,
+    /// Landmarks of that body that its base's rim stays within (`within`, for example her
+    /// breast's `medial` and `lateral` borders): where the base under `landmark` would reach
+    /// past one, it moves across the wall, away from it, until its rim stands at the border
+    /// (docs/patient.md, "Where the base stands").
+    pub within: Vec<String>,
     /// How far past the base's rim the pocket is dissected (file units; `margin`, default
     /// [`POCKET_MARGIN_MM`]): the tissue's vertices held on the wall within the base's radius
     /// and this margin are let go.
@@ -1490,16 +1496,48 @@ fn resolve_places(
                 ),
             ));
         }
-        if !bodies[t].landmarks.iter().any(|(n, _)| n == landmark) {
-            let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
+        let marks: Vec<&str> = bodies[t].landmarks.iter().map(|(n, _)| n.as_str()).collect();
+        if !marks.contains(&landmark) {
             return Err(src.err(
                 span,
                 format!("place.under: body {body:?} has no landmark {landmark:?} (its landmarks: {marks:?})"),
             ));
         }
+        let mut within = Vec::new();
+        for border in p.within.iter().flatten() {
+            let mark = match border.split_once('.') {
+                Some((b, m)) if b == body => m,
+                _ => {
+                    return Err(src.err(
+                        span,
+                        format!(
+                            "place.within: {border:?} must name a landmark of {body:?}, the body it stands on: \"{body}.medial\""
+                        ),
+                    ));
+                }
+            };
+            if !marks.contains(&mark) {
+                return Err(src.err(
+                    span,
+                    format!(
+                        "place.within: body {body:?} has no landmark {mark:?} (its landmarks: {marks:?})"
+                    ),
+                ));
+            }
+            if mark == landmark {
+                return Err(src.err(
+                    span,
+                    format!(
+                        "place.within: {border:?} is the landmark the implant stands under, not a border"
+                    ),
+                ));
+            }
+            within.push(mark.to_string());
+        }
         let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / units.metres());
         let friction = p.friction.unwrap_or(SMOOTH_SHELL_FRICTION);
-        bodies[k].place = Some(Placement { body: t, landmark: landmark.to_string(), margin, friction });
+        bodies[k].place =
+            Some(Placement { body: t, landmark: landmark.to_string(), within, margin, friction });
     }
     Ok(())
 }

@@ -186,6 +186,66 @@ impl Wall {
         h.is_finite().then_some(h)
     }
 
+    /// Where across the wall (`(x, y)` local) a base of `radius` centred at the origin would
+    /// stand to keep its rim within each of `borders` (points, for example her breast's medial
+    /// and lateral borders on the skin), seen from `from` (the landmark it stands under). All
+    /// are seen along the normal on the plane across, and each border bounds the base by the
+    /// line through it square to its direction from `from`. A border that leaves the base room
+    /// asks nothing, so the answer is the origin where all do. Returns a least move that keeps
+    /// within them all, and where they leave less room than the base needs, how much the base
+    /// overreaches at most (`0` where it fits); then the move shares that overreach between
+    /// them, the least it can at the most overreached (centred between two across each other).
+    #[must_use]
+    pub fn within(&self, radius: f32, from: Vec3, borders: &[Vec3]) -> (glam::Vec2, f32) {
+        let from = self.local(from).truncate();
+        // Each border as a half-plane: s · d ≤ b · d − radius.
+        let planes: Vec<(glam::Vec2, f32)> = borders
+            .iter()
+            .filter_map(|p| {
+                let b = self.local(*p).truncate();
+                let d = (b - from).try_normalize()?;
+                Some((d, b.dot(d) - radius))
+            })
+            .collect();
+        let over = |s: glam::Vec2| planes.iter().map(|(d, c)| s.dot(*d) - c).fold(0.0f32, f32::max);
+        // Into the half-planes each loosened by `slack`, from the origin: Cimmino's
+        // projections, averaged (each step moves along the borders' directions only, so
+        // nothing moves the base along a line no border asks about).
+        let into = |slack: f32| {
+            let mut s = glam::Vec2::ZERO;
+            for _ in 0..400 {
+                let step: glam::Vec2 =
+                    planes.iter().map(|(d, c)| (s.dot(*d) - c - slack).max(0.0) * *d).sum();
+                s -= step / planes.len() as f32;
+                if step.length() <= 1e-6 * radius {
+                    break;
+                }
+            }
+            s
+        };
+        if planes.is_empty() {
+            return (glam::Vec2::ZERO, 0.0);
+        }
+        let tolerance = 1e-3 * radius;
+        let s = into(0.0);
+        if over(s) <= tolerance {
+            return (s, 0.0);
+        }
+        // Too little room: the least overreach that leaves some, by bisection (the origin
+        // overreaches by `over(0)`, so that much always does).
+        let (mut lo, mut hi) = (0.0f32, over(glam::Vec2::ZERO));
+        while hi - lo > 1e-4 * radius {
+            let mid = 0.5 * (lo + hi);
+            if over(into(mid)) <= mid + tolerance {
+                hi = mid;
+            } else {
+                lo = mid;
+            }
+        }
+        let s = into(hi);
+        (s, over(s))
+    }
+
     /// How far `p` lies in front of the wall raised by `offset` along the normal (negative:
     /// behind it); `None` where the wall is not sampled.
     #[must_use]
@@ -293,6 +353,30 @@ mod tests {
         assert!(!wall.rests(on(40.0, 2.0 * RESTING * 2.5), 0.0));
         // Off the grid it holds nothing.
         assert_eq!(wall.height(500.0, 0.0), None);
+    }
+
+    #[test]
+    fn a_base_keeps_within_the_borders_it_is_given() {
+        let tris = barrel(150.0);
+        let wall = Wall::sample(&tris, Vec3::new(0.0, 0.0, 200.0), 50.0, 70.0, 2.5, Vec3::Y).unwrap();
+        // On the skin 40 in front of the wall, straight out from it.
+        let skin = |x: f32, y: f32| wall.point(Vec3::new(x, y, 40.0));
+        // None given, or one farther than the radius: it stays.
+        assert_eq!(wall.within(50.0, skin(0.0, 0.0), &[]), (glam::Vec2::ZERO, 0.0));
+        assert_eq!(wall.within(50.0, skin(0.0, 0.0), &[skin(-60.0, 0.0)]).0, glam::Vec2::ZERO);
+        // A border 30 to one side moves it 20 the other way, and its rim stands at the border.
+        let (s, over) = wall.within(50.0, skin(0.0, 0.0), &[skin(-30.0, 0.0)]);
+        assert!(s.distance(glam::Vec2::new(20.0, 0.0)) < 1e-3 && over == 0.0, "{s} {over}");
+        // Two across each other with room between: it moves only as far as the nearer asks.
+        let (s, over) = wall.within(50.0, skin(0.0, 0.0), &[skin(-30.0, 0.0), skin(80.0, 0.0)]);
+        assert!(s.distance(glam::Vec2::new(20.0, 0.0)) < 1e-3 && over == 0.0, "{s} {over}");
+        // Borders 80 apart cannot hold a base 100 wide: it is centred between them and
+        // overreaches each by 10.
+        let (s, over) = wall.within(50.0, skin(0.0, 0.0), &[skin(-30.0, 0.0), skin(50.0, 0.0)]);
+        assert!(s.distance(glam::Vec2::new(10.0, 0.0)) < 1e-2 && (over - 10.0).abs() < 1e-2, "{s} {over}");
+        // Across two sides at once (medial and below): it moves away from both.
+        let (s, over) = wall.within(50.0, skin(0.0, 0.0), &[skin(-30.0, 0.0), skin(0.0, -40.0)]);
+        assert!(s.distance(glam::Vec2::new(20.0, 10.0)) < 1e-2 && over == 0.0, "{s} {over}");
     }
 
     #[test]

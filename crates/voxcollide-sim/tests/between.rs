@@ -289,6 +289,50 @@ fn an_implant_is_placed_flat_on_a_flat_wall_and_its_pocket_let_go() {
 }
 
 #[test]
+fn a_base_that_would_reach_past_her_border_moves_across_the_wall_away_from_it() {
+    let dir = folder("within");
+    write_breast(&dir, 120.0);
+    let with = |marks: &str, within: &str| {
+        let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], marks)
+            + &format!(
+                "[[body]]\nname = \"implant\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = 200, base_mm = 100, profile = \"moderate\" }} }}\nspacing = 6\nplace = {{ under = \"breast.nipple\", within = {within} }}\n"
+            );
+        read(&dir, &text).unwrap()
+    };
+    // Her medial border 30 mm from the nipple: the base (radius 50) moves 20 mm the other way,
+    // and the pocket with it; the note says so.
+    let built = with("landmarks = { nipple = [0, 0, 55], medial = [-30, 0, 35] }", "[\"breast.medial\"]");
+    let wall = built.world.bodies[1].wall.as_ref().unwrap();
+    assert!(wall.origin.distance(voxcollide::glam::Vec3::new(20.0, 0.0, 0.0)) < 0.05, "{:?}", wall.origin);
+    let (lo, hi) =
+        built.world.bodies[1].pos.iter().fold((f32::MAX, f32::MIN), |(l, h), p| (l.min(p.x), h.max(p.x)));
+    assert!((lo + 30.0).abs() < 0.5 && (hi - 70.0).abs() < 0.5, "the base spans {lo} .. {hi}");
+    let tissue = &built.world.bodies[0];
+    for (p, m) in tissue.rest_pos.iter().zip(&tissue.mode) {
+        if p.z < 1.0 && (p.x < -41.0 || p.x > 81.0) && p.x.abs() < 89.0 && p.y.abs() < 89.0 {
+            assert_eq!(*m, Mode::Pinned, "{p} past the pocket was let go");
+        }
+    }
+    let said = built.notes[1].remarks.join("\n");
+    assert!(said.contains("moved 20.0 mm") && said.contains("[\"medial\"]"), "{said}");
+    // A border the base does not reach asks nothing.
+    let built = with("landmarks = { nipple = [0, 0, 55], medial = [-60, 0, 15] }", "[\"breast.medial\"]");
+    assert!(built.world.bodies[1].wall.as_ref().unwrap().origin.length() < 1e-3);
+    assert!(!built.notes[1].remarks.join("\n").contains("moved"));
+    // Borders 80 mm apart cannot hold a base 100 mm wide: centred between them, with a warning.
+    let built = with(
+        "landmarks = { nipple = [0, 0, 55], medial = [-30, 0, 35], lateral = [50, 0, 17.68] }",
+        "[\"breast.medial\", \"breast.lateral\"]",
+    );
+    let origin = built.world.bodies[1].wall.as_ref().unwrap().origin;
+    // (Her landmarks lie on the lattice's face, within a few tenths of a millimetre of those.)
+    let said = built.notes[1].remarks.join("\n");
+    assert!(origin.distance(voxcollide::glam::Vec3::new(10.0, 0.0, 0.0)) < 0.3, "{origin:?} {said}");
+    let past: f32 = said.split(" mm past").next().unwrap().rsplit(' ').next().unwrap().parse().unwrap();
+    assert!(said.contains("warning: its base is too wide") && (past - 10.0).abs() < 0.3, "{said}");
+}
+
+#[test]
 fn a_bad_placement_is_named_by_key() {
     let dir = folder("bad-place");
     write_breast(&dir, 120.0);
@@ -305,6 +349,19 @@ fn a_bad_placement_is_named_by_key() {
         ("place = { under = \"breast.nipple\", friction = nan }", "", "place.friction = NaN"),
         ("place = { under = \"breast.nipple\", side = 1 }", "", "unknown field"),
         ("place = { under = \"breast.nipple\" }", "position = [0, 0, 5]", "give neither"),
+        (
+            "place = { under = \"breast.nipple\", within = [\"medial\"] }",
+            "",
+            "must name a landmark of \"breast\"",
+        ),
+        (
+            "place = { under = \"breast.nipple\", within = [\"slab.top\"] }",
+            "",
+            "must name a landmark of \"breast\"",
+        ),
+        ("place = { under = \"breast.nipple\", within = [\"breast.medial\"] }", "", "no landmark \"medial\""),
+        ("place = { under = \"breast.nipple\", within = [\"breast.nipple\"] }", "", "not a border"),
+        ("place = { under = \"breast.nipple\", within = \"breast.nipple\" }", "", "invalid type"),
     ] {
         let e = error(placed(&dir, place, extra));
         assert!(

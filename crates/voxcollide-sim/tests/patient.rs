@@ -232,3 +232,33 @@ fn a_makehuman_breast_standing_sags_under_its_own_weight() {
     assert!(after.y < before.y - 1.0, "standing, the nipple did not come down: {before} → {after}");
     assert!(after.is_finite());
 }
+
+/// The shipped plan (`scenes/patient-plan.toml`) keeps its implant's base within her breast's
+/// `medial` and `lateral` borders (`place.within`): under her nipple alone, her leaning chest
+/// wall puts the base's centre 17 mm medial of the nipple and its rim past her midline (x = 0),
+/// over her sternum where her tissue is thin; within her borders it moves laterally, off it.
+#[test]
+fn the_shipped_plan_keeps_her_implant_off_her_sternum() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    let text = std::fs::read_to_string(scenes.join("patient-plan.toml")).unwrap();
+    let within = ", within = [\"breast.medial\", \"breast.lateral\"]";
+    assert!(text.contains(within), "the shipped plan keeps within her borders");
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("patient-within");
+    std::fs::create_dir_all(&dir).unwrap();
+    let place = |text: &str| {
+        let text = text.replace("\"makehuman/", &format!("\"{}/makehuman/", scenes.display()));
+        let path = dir.join("plan.toml");
+        std::fs::write(&path, text).unwrap();
+        let built = build_world(&SceneFile::read(&path).unwrap()).unwrap();
+        let shell = &built.world.bodies[1];
+        let medial_most = shell.pos.iter().map(|p| p.x).fold(f32::MAX, f32::min);
+        (medial_most, built.notes[1].remarks.join("\n"))
+    };
+    let (alone, said) = place(&text.replace(within, ""));
+    assert!(alone < 0.0, "under the nipple alone its rim reaches {alone} mm, past her midline: {said}");
+    assert!(!said.contains("moved"), "{said}");
+    let (kept, said) = place(&text);
+    eprintln!("the base's medial rim: {alone:.1} mm under the nipple alone, {kept:.1} mm within her borders");
+    assert!(kept > 5.0 && kept > alone + 15.0, "within her borders its rim is at {kept} mm: {said}");
+    assert!(said.contains("its base moved") && !said.contains("too wide"), "{said}");
+}
