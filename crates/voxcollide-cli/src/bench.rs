@@ -1,5 +1,6 @@
 //! `voxcollide bench`: every backend on docs/design.md §7's workloads — `lattice(N)` (x fastest),
-//! `z_fastest(N)`, `shuffled(N)`, `paper(N)` and `paper_shuffled(N)` — each against a
+//! `z_fastest(N)`, `shuffled(N)`, `paper(N)`, `paper_shuffled(N)` and `moving(N)` (lattice's
+//! bodies stepped 20 times in a row, B moving; its figure the mean step) — each against a
 //! baseline that answers its own question, as medians of repeated steps:
 //! - `Search::Neighbours` (lattice, z_fastest, shuffled): a k-d tree (`kiddo`: build over A,
 //!   then each B vertex's nearest A vertex within the radius, on the same threads);
@@ -24,12 +25,12 @@ use voxcollide::error::Error;
 use voxcollide::gpu::{GpuCollision, GpuContext};
 use voxcollide::parallel::ParallelCpuCollision;
 use voxcollide::params::Search;
-use voxcollide::workload::{Workload, lattice, paper, shuffled, z_fastest};
+use voxcollide::workload::{Workload, lattice, moving, paper, shuffled, z_fastest};
 
 /// One measured case.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct BenchRow {
-    /// `lattice`, `z_fastest`, `shuffled`, `paper` or `paper_shuffled`.
+    /// `lattice`, `z_fastest`, `shuffled`, `paper`, `paper_shuffled` or `moving`.
     pub workload: String,
     /// The size asked for (vertices per body, about).
     pub size: usize,
@@ -40,7 +41,7 @@ pub struct BenchRow {
     /// not use by default (`voxcollide::gpu::sorts_b_by_default`): `gpu_resident_b_as_given`
     /// (B's sort skipped) or `gpu_resident_b_sorted`.
     pub backend: String,
-    /// Median milliseconds per step.
+    /// Median milliseconds per step (`moving`: of the mean step over its 20 in a row).
     pub median_ms: f64,
     /// Vertices of both bodies per second at the median.
     pub vertices_per_second: f64,
@@ -250,6 +251,10 @@ fn interleaved(samples: usize, contenders: Vec<Contender>) -> Result<Vec<Measure
 /// accumulators, the reports and the GPU upload's scratch.
 const BYTES_PER_VERTEX: u64 = 320;
 
+/// What `moving(N)` holds per vertex of each body beyond that: B at each of its 20 steps, on
+/// the host twice (for the backends and the k-d tree) and once on the device.
+const MOVING_BYTES_PER_VERTEX: u64 = 20 * (12 + 12 + 16);
+
 /// Refuses a size beyond a body's vertex limit or beyond this machine's available memory, before
 /// anything is allocated.
 fn check_size(size: usize) -> Result<(), Error> {
@@ -257,7 +262,7 @@ fn check_size(size: usize) -> Result<(), Error> {
     if size > voxcollide::cpu::MAX_VERTICES {
         return Err(invalid(format!("a body has at most {} vertices", voxcollide::cpu::MAX_VERTICES)));
     }
-    let needed = (size as u64).saturating_mul(BYTES_PER_VERTEX);
+    let needed = (size as u64).saturating_mul(BYTES_PER_VERTEX + MOVING_BYTES_PER_VERTEX);
     if let Some(available) = available_memory()
         && needed > available
     {
@@ -302,11 +307,12 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
     let mut rows = Vec::new();
     for &size in &config.sizes {
         for (name, make) in WORKLOADS {
-            let w = make(size, voxcollide::workload::DEFAULT_SEED)?;
+            let Stepped { w, steps } = make(size, voxcollide::workload::DEFAULT_SEED)?;
             let n = w.a.len();
             let mut passes = Vec::new();
             let a: Vec<[f32; 3]> = w.a.iter().map(|p| p.to_array()).collect();
-            let b: Vec<[f32; 3]> = w.b.iter().map(|p| p.to_array()).collect();
+            let bs: Vec<Vec<[f32; 3]>> =
+                steps.iter().map(|b| b.iter().map(|p| p.to_array()).collect()).collect();
             // The GPU's two ways share one backend (the resident step's report is read back
             // after the timing).
             let gpu = match &ctx {
@@ -324,52 +330,76 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     },
                 )
             };
-            let resident =
-                gpu.as_ref().map(|(_, ctx)| (upload(ctx.device(), &w.a), upload(ctx.device(), &w.b)));
+            let resident = gpu.as_ref().map(|(_, ctx)| {
+                (
+                    upload(ctx.device(), &w.a),
+                    steps.iter().map(|b| upload(ctx.device(), b)).collect::<Vec<_>>(),
+                )
+            });
             // Every backend of the workload, as one step each; timed in turns below.
             let mut contenders: Vec<Contender> = Vec::new();
             let baseline = match w.params.search {
                 // The same answer as the workload: nearest A within the radius.
+                // (Each contender takes every step of the workload in a row, once a turn, and
+                // returns the last step's count.)
                 Search::Neighbours { radius } => {
-                    let (a, b) = (&a, &b);
+                    let (a, bs) = (&a, &bs);
                     contenders.push(Contender::new("kdtree_kiddo", "cpu", threads, move || {
-                        let tree =
-                            ImmutableKdTree::<f32, 3>::new_from_slice(a).map_err(|e| Error::Invalid {
-                                what: "k-d tree",
-                                value: format!("{e:?}"),
-                                rule: "kiddo could not build it".into(),
-                            })?;
-                        let nearest = tree.query_batch(b).nearest_one::<SquaredEuclidean<f32>>().execute();
-                        Ok(nearest.iter().filter(|r| r.distance < radius * radius).count())
+                        let mut found = 0;
+                        for b in bs {
+                            let tree =
+                                ImmutableKdTree::<f32, 3>::new_from_slice(a).map_err(|e| Error::Invalid {
+                                    what: "k-d tree",
+                                    value: format!("{e:?}"),
+                                    rule: "kiddo could not build it".into(),
+                                })?;
+                            let nearest =
+                                tree.query_batch(b).nearest_one::<SquaredEuclidean<f32>>().execute();
+                            found = nearest.iter().filter(|r| r.distance < radius * radius).count();
+                        }
+                        Ok(found)
                     }));
                     "kdtree_kiddo"
                 }
                 // The same answer as the workload: nearest A in B's own voxel.
                 Search::Voxel => {
-                    let w = &w;
-                    contenders
-                        .push(Contender::new("voxel_hashmap", "cpu", threads, move || Ok(voxel_hashmap(w))));
+                    let (w, steps) = (&w, &steps);
+                    contenders.push(Contender::new("voxel_hashmap", "cpu", threads, move || {
+                        let mut found = 0;
+                        for b in steps {
+                            found = voxel_hashmap(w, b);
+                        }
+                        Ok(found)
+                    }));
                     "voxel_hashmap"
                 }
             };
+            let (wr, steps) = (&w, &steps);
             if config.reference {
                 let mut cpu = CpuCollision::new(w.grid, w.params)?;
-                let w = &w;
                 contenders.push(Contender::new("cpu_reference", "cpu", 1, move || {
-                    Ok(cpu.step(&w.a, &w.b)?.colliding_b.len())
+                    let mut found = 0;
+                    for b in steps {
+                        found = cpu.step(&wr.a, b)?.colliding_b.len();
+                    }
+                    Ok(found)
                 }));
             }
             let mut par = ParallelCpuCollision::new(w.grid, w.params)?;
             let mut report = Default::default();
-            let wr = &w;
             contenders.push(Contender::new("parallel_cpu", "cpu", threads, move || {
-                par.step_into(&wr.a, &wr.b, &mut report)?;
+                for b in steps {
+                    par.step_into(&wr.a, b, &mut report)?;
+                }
                 Ok(report.colliding_b.len())
             }));
-            if let (Some((gpu, ctx)), Some((ba, bb))) = (&gpu, &resident) {
-                let w = &w;
+            if let (Some((gpu, ctx)), Some((ba, bbs))) = (&gpu, &resident) {
                 contenders.push(Contender::new("gpu_step", &ctx.adapter_name(), 0, move || {
-                    Ok(gpu.borrow_mut().step(&w.a, &w.b)?.colliding_b.len())
+                    let mut found = 0;
+                    for b in steps {
+                        found = gpu.borrow_mut().step(&wr.a, b)?.colliding_b.len();
+                    }
+                    Ok(found)
                 }));
                 let nb = w.b.len() as u32;
                 // The resident step as it runs on this adapter, and in the other order: B sorted
@@ -379,26 +409,35 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                 for (backend, sort_b) in [("gpu_resident", default), (other, !default)] {
                     contenders.push(Contender::new(backend, &ctx.adapter_name(), 0, move || {
                         let (device, queue) = (ctx.device(), ctx.queue());
-                        let mut encoder = device.create_command_encoder(&Default::default());
-                        let mut gpu = gpu.borrow_mut();
-                        gpu.set_sort_b(sort_b);
-                        let recorded = gpu.record(&mut encoder, ba, n as u32, bb, nb);
-                        gpu.set_sort_b(default);
-                        recorded?;
-                        queue.submit([encoder.finish()]);
-                        device
-                            .poll(wgpu::PollType::wait_indefinitely())
-                            .map_err(|e| Error::Gpu { message: format!("waiting for the device: {e}") })?;
+                        // One step a submission, each waited for, as an app steps.
+                        for bb in bbs {
+                            let mut encoder = device.create_command_encoder(&Default::default());
+                            let mut gpu = gpu.borrow_mut();
+                            gpu.set_sort_b(sort_b);
+                            let recorded = gpu.record(&mut encoder, ba, n as u32, bb, nb);
+                            gpu.set_sort_b(default);
+                            recorded?;
+                            queue.submit([encoder.finish()]);
+                            device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| Error::Gpu {
+                                message: format!("waiting for the device: {e}"),
+                            })?;
+                        }
                         Ok(0)
                     }));
                 }
             }
             let mut measured = interleaved(config.samples, contenders)?;
+            // The mean step of a turn's steps in a row.
+            for m in &mut measured {
+                m.samples.iter_mut().for_each(|ms| *ms /= steps.len() as f64);
+            }
             if let Some((gpu, ctx)) = &gpu {
                 let gpu = &mut *gpu.borrow_mut();
                 // The resident steps' own contacts: one more step in each order, read back after
                 // the timing.
-                if let Some((ba, bb)) = &resident {
+                if let Some((ba, bbs)) = &resident
+                    && let Some(bb) = bbs.last()
+                {
                     let default = voxcollide::gpu::sorts_b_by_default(ctx);
                     for m in measured.iter_mut().filter(|m| m.backend.starts_with("gpu_resident")) {
                         gpu.set_sort_b(if m.backend == "gpu_resident" { default } else { !default });
@@ -410,7 +449,8 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
                     gpu.set_sort_b(default);
                 }
                 // Per pass, in steps of their own: profiling splits the step into timed passes.
-                if let (true, Some((ba, bb))) = (config.passes, &resident)
+                if let (true, Some((ba, bbs))) = (config.passes, &resident)
+                    && let Some(bb) = bbs.last()
                     && gpu.set_profiling(true).is_ok()
                 {
                     let (device, queue) = (ctx.device(), ctx.queue());
@@ -472,15 +512,34 @@ pub fn run(config: &BenchConfig, note: &mut dyn FnMut(&BenchRow)) -> Result<Vec<
 }
 
 /// A workload's constructor: `(vertices per body, seed)`.
-pub type MakeWorkload = fn(usize, u64) -> Result<Workload, Error>;
+pub type MakeWorkload = fn(usize, u64) -> Result<Stepped, Error>;
 
-/// The workloads, by name: docs/design.md §7's in three orders, and the paper's rule in two.
-pub const WORKLOADS: [(&str, MakeWorkload); 5] = [
-    ("lattice", lattice),
-    ("z_fastest", z_fastest),
-    ("shuffled", shuffled),
-    ("paper", paper),
-    ("paper_shuffled", paper_shuffled),
+/// A workload as it is stepped: its bodies, grid and params, and B at each step it takes in a
+/// row (one for the still workloads, twenty for `moving(N)`).
+#[derive(Clone, Debug)]
+pub struct Stepped {
+    /// The bodies, grid and params (B as at the first step).
+    pub w: Workload,
+    /// B at each step, in order.
+    pub steps: Vec<Vec<glam::Vec3>>,
+}
+
+impl Stepped {
+    fn still(w: Workload) -> Stepped {
+        let steps = vec![w.b.clone()];
+        Stepped { w, steps }
+    }
+}
+
+/// The workloads, by name: docs/design.md §7's in three orders, the paper's rule in two, and
+/// lattice's bodies moving.
+pub const WORKLOADS: [(&str, MakeWorkload); 6] = [
+    ("lattice", |n, seed| Ok(Stepped::still(lattice(n, seed)?))),
+    ("z_fastest", |n, seed| Ok(Stepped::still(z_fastest(n, seed)?))),
+    ("shuffled", |n, seed| Ok(Stepped::still(shuffled(n, seed)?))),
+    ("paper", |n, seed| Ok(Stepped::still(paper(n, seed)?))),
+    ("paper_shuffled", |n, seed| Ok(Stepped::still(paper_shuffled(n, seed)?))),
+    ("moving", moving_steps),
 ];
 
 /// `paper(N)`'s rule on `shuffled(N)`'s order.
@@ -490,11 +549,19 @@ fn paper_shuffled(n: usize, seed: u64) -> Result<Workload, Error> {
     Ok(w)
 }
 
+/// `moving(N)`: lattice's bodies, B at each of its [`MOVING_STEPS`](voxcollide::workload::MOVING_STEPS).
+fn moving_steps(n: usize, seed: u64) -> Result<Stepped, Error> {
+    let m = moving(n, seed)?;
+    let steps = (0..voxcollide::workload::MOVING_STEPS).map(|k| m.b_at(k)).collect();
+    Ok(Stepped { w: m.start, steps })
+}
+
 /// The paper workloads' baseline: a hash map from voxel to A's vertices, built over A, then per
 /// B vertex (in parallel) the nearest A vertex of its own voxel, ties to the lower index — what
-/// `Search::Voxel` asks. Returns the B vertices that found one.
+/// `Search::Voxel` asks, for B at `b` (`w.b`, or a moving workload's B at a step). Returns the
+/// B vertices that found one.
 #[must_use]
-pub fn voxel_hashmap(w: &Workload) -> usize {
+pub fn voxel_hashmap(w: &Workload, b: &[glam::Vec3]) -> usize {
     use rayon::prelude::*;
     use std::collections::HashMap;
     let grid = &w.grid;
@@ -504,7 +571,7 @@ pub fn voxel_hashmap(w: &Workload) -> usize {
             voxels.entry(v).or_default().push(i as u32);
         }
     }
-    w.b.par_iter()
+    b.par_iter()
         .filter_map(|p| {
             let list = voxels.get(&grid.voxel_of(*p)?)?;
             let nearest = list

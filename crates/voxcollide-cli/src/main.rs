@@ -22,7 +22,7 @@ struct Cli {
 enum Command {
     /// Run one of the paper's scenarios: pictures (PNG), ParaView files (VTK) and summary.json.
     Run(RunArgs),
-    /// Time every backend on docs/design.md §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
+    /// Time every backend on docs/design.md §7's workloads (lattice, z_fastest, shuffled, paper, paper_shuffled, and moving: lattice's bodies stepped 20 times in a row, B moving, its figure the mean step), each against a baseline that answers its question (kiddo k-d tree, voxel hash map), with each figure's distance to the memory-bandwidth floor.
     Bench(BenchArgs),
     /// Choose an implant: run a scene once per candidate of a catalogue (docs/design.md §9), the named
     /// shell replaced by each and filled to its volume, then settled; write report.html,

@@ -111,6 +111,42 @@ pub fn z_fastest(n: usize, seed: u64) -> Result<Workload, Error> {
     Ok(w)
 }
 
+/// **moving(N)**: the bodies of [`lattice`] stepped [`MOVING_STEPS`] times in a row, A still and
+/// B moving by [`MOVING_STEP`] (a twentieth of the spacing along x) from each step to the next.
+/// The figure is the mean step; a backend may keep state from step to step (an order, a sort)
+/// as long as every step's report equals the reference's for that step's positions. Step `k`'s
+/// B is [`Moving::b_at`]`(k)`: the lattice's B at step 0, moved `k` times.
+///
+/// # Errors
+/// As [`lattice`].
+pub fn moving(n: usize, seed: u64) -> Result<Moving, Error> {
+    Ok(Moving { start: lattice(n, seed)? })
+}
+
+/// Steps in a row of [`moving`].
+pub const MOVING_STEPS: usize = 20;
+
+/// How far B moves from each step of [`moving`] to the next: a twentieth of the spacing, along x.
+pub const MOVING_STEP: Vec3 = Vec3::new(0.05, 0.0, 0.0);
+
+/// The bodies of [`moving`]: its first step's, and B at each later one.
+#[derive(Clone, Debug)]
+pub struct Moving {
+    /// Step 0: [`lattice`]'s bodies, grid and params (the grid stays the one built over A).
+    pub start: Workload,
+}
+
+impl Moving {
+    /// B at step `k` (0 to [`MOVING_STEPS`]` − 1`): the lattice's B moved `k` times by
+    /// [`MOVING_STEP`], each coordinate computed once from the start (`b + k·step`, so that
+    /// no rounding accumulates and any backend is handed the same bits).
+    #[must_use]
+    pub fn b_at(&self, k: usize) -> Vec<Vec3> {
+        let shift = MOVING_STEP * k as f32;
+        self.start.b.iter().map(|p| *p + shift).collect()
+    }
+}
+
 /// The workloads' random numbers: SplitMix64 (Steele, Lea and Flood, 2014), a 64-bit state
 /// stepped by the golden-ratio increment and scrambled. Small and the same on every platform,
 /// so a workload is a pure function of its seed; it is not for anything that needs

@@ -100,6 +100,24 @@ fn the_benchmark_workloads_match_the_cpu() {
 }
 
 #[test]
+fn the_moving_workload_matches_the_cpu_at_every_step() {
+    // docs/design.md §7's moving(N): one GPU backend stepped 20 times in a row, B moving; every
+    // step's report equals the CPU's for that step's positions.
+    let Some(ctx) = gpu() else { return };
+    let m = workload::moving(40_000, 22).unwrap();
+    let w = &m.start;
+    let mut cpu = ParallelCpuCollision::new(w.grid, w.params).unwrap();
+    let mut backend = GpuCollision::new(&ctx, w.grid, w.params).unwrap();
+    for k in 0..workload::MOVING_STEPS {
+        let b = m.b_at(k);
+        let expected = cpu.step(&w.a, &b).unwrap();
+        let got = backend.step(&w.a, &b).unwrap();
+        assert!(expected.colliding_b.len() > 20_000, "step {k}");
+        compare(&format!("moving step {k}"), &expected, &got, 0.0);
+    }
+}
+
+#[test]
 fn profiling_times_every_pass_and_changes_no_result() {
     let Some(ctx) = gpu() else { return };
     let w = workload::lattice(50_000, 4).unwrap();

@@ -77,6 +77,30 @@ fn parallel_follows_the_reference_on_the_workloads() {
 }
 
 #[test]
+fn parallel_follows_the_reference_step_by_step_on_the_moving_workload() {
+    // docs/design.md §7's moving(N): one backend stepped 20 times in a row, B moving a
+    // twentieth of the spacing each step; every step's report is the reference's for that
+    // step's positions, whatever the backend keeps from step to step.
+    let m = workload::moving(30_000, 21).unwrap();
+    let w = &m.start;
+    let mut reference = CpuCollision::new(w.grid, w.params).unwrap();
+    let mut parallel = ParallelCpuCollision::new(w.grid, w.params).unwrap();
+    let mut report = ContactReport::default();
+    let mut counts = Vec::new();
+    for k in 0..workload::MOVING_STEPS {
+        let b = m.b_at(k);
+        assert_eq!(b[7], w.b[7] + workload::MOVING_STEP * k as f32);
+        let expected = reference.step(&w.a, &b).unwrap();
+        parallel.step_into(&w.a, &b, &mut report).unwrap();
+        assert!(expected == report, "step {k}");
+        counts.push(expected.colliding_b.len());
+    }
+    // The contacts change as B moves (a third of a voxel's worth of B leaves A's reach).
+    assert!(counts.iter().all(|c| *c > 20_000), "{counts:?}");
+    assert!(counts.first() != counts.last(), "{counts:?}");
+}
+
+#[test]
 fn parallel_errors_match_the_reference() {
     let grid =
         VoxelGrid::new(voxcollide::glam::Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
