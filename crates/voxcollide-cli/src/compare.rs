@@ -143,6 +143,10 @@ pub struct CandidateResult {
     /// (the `between` body's `volume_ml_end` minus its `volume_ml` at the start).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_gain_ml: Option<f64>,
+    /// On a patient: where the candidate's base stood on her chest wall, and how far it moved
+    /// from under the landmark to keep within her borders (`place.within`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placed: Option<crate::scene_run::PlacedSummary>,
     /// The metrics at each frame of the run.
     pub history: Vec<Sample>,
 }
@@ -739,6 +743,7 @@ fn run_candidate(
         },
     )?;
     result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
+    result.placed.clone_from(&summary.bodies[body].placed);
     result.landmarks.clone_from(&summary.landmarks);
     result.landmark_distances = distances(&result.landmarks);
     result.volume_gain_ml = tissue
@@ -1371,7 +1376,11 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
                 .iter()
                 .flat_map(|c| c.landmarks.iter().map(|l| (l.body.clone(), l.name.clone()))),
         );
+        let placed = comparison.candidates.iter().any(|c| c.placed.is_some());
         patient += "<h2>On the patient</h2>\n<table id=\"patient\">\n<thead><tr><th>candidate</th><th>volume added (mL)</th><th>added / implant</th>";
+        if placed {
+            patient += &format!("<th>base moved from under the landmark ({u})</th>");
+        }
         for (body, name) in &marks {
             patient += &format!(
                 "<th>{}.{} moved ({u})</th><th>{}.{} at the end ({u})</th>",
@@ -1391,6 +1400,17 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
                 }
                 _ => patient += "<td>–</td><td>–</td>",
             }
+            if placed {
+                patient += &match &c.placed {
+                    Some(p) if p.overreach > 0.0 => format!(
+                        "<td>{:.1}, <strong>too wide for her borders by {:.1}</strong></td>",
+                        Vec3::from_array(p.moved).length(),
+                        p.overreach
+                    ),
+                    Some(p) => format!("<td>{:.1}</td>", Vec3::from_array(p.moved).length()),
+                    None => "<td>–</td>".into(),
+                };
+            }
             for (body, name) in &marks {
                 match c.landmarks.iter().find(|l| &l.body == body && &l.name == name) {
                     Some(l) => {
@@ -1405,7 +1425,11 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             }
             patient += "</tr>\n";
         }
-        patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.</p>\n";
+        patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.";
+        if placed {
+            patient += " Base moved: how far each base's centre stood across her chest wall from under the landmark it was placed under, to keep its rim within the borders the scene names (<code>place.within</code>); 0 where it stands under the landmark.";
+        }
+        patient += "</p>\n";
         let pairs = first_seen(
             comparison
                 .candidates

@@ -615,6 +615,11 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
     assert!(json.contains("\"volume_gain_ml\"") && json.contains("\"landmarks\""), "{json}");
     let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
     assert!(html.contains("On the patient") && html.contains("breast.fold – breast.nipple"), "report");
+    // Where its base stood: on her flat wall under the nipple, not moved (no borders named).
+    let p = r.placed.as_ref().expect("where the base stood");
+    assert!(p.centre.iter().all(|v| v.abs() < 1e-3) && p.normal == [0.0, 0.0, 1.0], "{p:?}");
+    assert_eq!((p.moved, p.overreach), ([0.0; 3], 0.0));
+    assert!(json.contains("\"placed\"") && html.contains("base moved from under the landmark"), "report");
     // `voxcollide run` starts the placed implant deflated too, and fills it under her tissue.
     let own = placed
         .replace(
@@ -632,6 +637,7 @@ landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
     let summary = voxcollide_cli::scene_run::run_file(&config, &mut |_, _| {}, &mut |_| {}).unwrap();
     assert!(summary.held && summary.settled, "{:?}", summary.not_a_result);
     assert_eq!(summary.contacts[0].uncovered, 0, "the implant stays under her tissue");
+    assert!(summary.bodies[1].placed.is_some() && summary.bodies[0].placed.is_none());
     let breast = &summary.bodies[0];
     let implant = summary.bodies[1].volume_ml.unwrap();
     let gain = breast.volume_ml_end.unwrap() - breast.volume_ml.unwrap();

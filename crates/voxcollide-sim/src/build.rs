@@ -70,6 +70,22 @@ pub struct BodyNote {
     /// For a body between a skin and a chest wall: its surface triangles on the wall
     /// ([`crate::between::volume_between`]).
     pub wall_faces: Option<Vec<u32>>,
+    /// For a shell placed on a chest wall (docs/design.md §15): where its base stands.
+    pub placed: Option<PlacedNote>,
+}
+
+/// Where a shell placed on a chest wall stands (docs/design.md §15), in file units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacedNote {
+    /// Its base's centre, on the wall.
+    pub centre: Vec3,
+    /// The wall's outward normal there, along which the implant's apex points (unit).
+    pub normal: Vec3,
+    /// How far the centre moved from under its landmark to keep the base within the borders
+    /// `place.within` names (zero without them, or where the base fits).
+    pub moved: Vec3,
+    /// Where the borders leave the base too little room, how far it still reaches past one.
+    pub overreach: f32,
 }
 
 impl BodyNote {
@@ -85,6 +101,7 @@ impl BodyNote {
             reference: None,
             landmarks: Vec::new(),
             wall_faces: None,
+            placed: None,
         }
     }
 }
@@ -223,10 +240,11 @@ fn place_on_wall(
             released += 1;
         }
     }
+    let note = PlacedNote { centre: wall.origin, normal: wall.normal, moved, overreach };
     let wall = std::sync::Arc::new(wall);
     bodies[k].wall = Some(wall.clone());
     bodies[t].wall = Some(wall);
-    Ok(Placed { released, thinnest, moved, overreach })
+    Ok(Placed { released, thinnest, note })
 }
 
 /// What placing a shell on a chest wall did ([`place_on_wall`]).
@@ -235,10 +253,8 @@ struct Placed {
     released: usize,
     /// The thinnest her tissue is over the base's rim, and where ([`thinnest_over_rim`]).
     thinnest: Option<(f32, Vec3)>,
-    /// How far the base's centre moved from under the landmark to keep within the borders.
-    moved: Vec3,
-    /// How far the base still reaches past a border where they leave it too little room.
-    overreach: f32,
+    /// Where the base stands, and how far it moved to keep within the borders.
+    note: PlacedNote,
 }
 
 /// How thick her tissue is over the rim of a base of `radius` on `wall`, at its thinnest: from
@@ -1270,8 +1286,9 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // Shells placed on a patient's chest wall under a landmark (docs/design.md §15).
     for k in 0..file.bodies.len() {
         if let Some(place) = &file.bodies[k].place {
-            let Placed { released, thinnest, moved, overreach } =
-                place_on_wall(file, k, place, &mut bodies, &notes)?;
+            let Placed { released, thinnest, note } = place_on_wall(file, k, place, &mut bodies, &notes)?;
+            let PlacedNote { moved, overreach, .. } = note;
+            notes[k].placed = Some(note);
             let tissue = &file.bodies[place.body].name;
             let u = file.units.symbol();
             notes[k].remarks.push(format!(

@@ -35,7 +35,8 @@ pub(crate) use frames::{contact_forces, meshes, shown_and_moved, shown_surface};
 pub(crate) use rest::mean_spring;
 pub use rest::{RESIDUAL_TOLERANCE, REST_TOLERANCE, SETTLE_ACCELERATION, settling_window};
 pub use summary::{
-    BodySummary, ContactSummary, FileSummary, LandmarkSummary, MaterialSummary, ReferenceSummary,
+    BodySummary, ContactSummary, FileSummary, LandmarkSummary, MaterialSummary, PlacedSummary,
+    ReferenceSummary,
 };
 
 /// Where to run and what to write.

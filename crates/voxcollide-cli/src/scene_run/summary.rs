@@ -50,6 +50,26 @@ pub struct BodySummary {
     /// §13): how well its unloaded shape was recovered.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub reference: Option<ReferenceSummary>,
+    /// For a shell placed on a chest wall (docs/design.md §15): where its base stands.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub placed: Option<PlacedSummary>,
+}
+
+/// Where a shell placed on a chest wall stands, in `summary.json` and `compare.json` (file
+/// units).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct PlacedSummary {
+    /// Its base's centre, on the wall.
+    pub centre: [f32; 3],
+    /// The wall's outward normal there, along which its apex points.
+    pub normal: [f32; 3],
+    /// How far the centre moved from under its landmark to keep the base within the borders
+    /// `place.within` names (`[0, 0, 0]` where it stands under the landmark).
+    pub moved: [f32; 3],
+    /// Where the borders leave the base too little room, how far it still reaches past one
+    /// (0 where it fits).
+    pub overreach: f32,
 }
 
 /// A landmark in `summary.json` and `compare.json` (docs/design.md §14).
@@ -271,6 +291,12 @@ pub(super) fn start(
                     iterations: r.iterations,
                     spacing: r.spacing,
                     valid: r.is_valid(),
+                }),
+                placed: n.placed.map(|p| PlacedSummary {
+                    centre: p.centre.to_array(),
+                    normal: p.normal.to_array(),
+                    moved: p.moved.to_array(),
+                    overreach: p.overreach,
                 }),
                 ..BodySummary::default()
             })
