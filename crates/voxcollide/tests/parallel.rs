@@ -101,6 +101,43 @@ fn parallel_follows_the_reference_step_by_step_on_the_moving_workload() {
 }
 
 #[test]
+fn a_kept_order_of_a_still_body_is_let_go_the_moment_it_moves() {
+    // A still A keeps the order it was sorted in; one vertex moved (by a third of the spacing,
+    // or by one unit in the last place), a sign of zero flipped, a vertex more or a grid that
+    // follows A sorts it again.
+    // Every step's report equals the reference's, stepped the same way.
+    let m = workload::moving(20_000, 23).unwrap();
+    let (grid, params) = (m.start.grid, m.start.params);
+    let mut a = m.start.a.clone();
+    let mut follow = params;
+    follow.anchor = Anchor::FollowA;
+    for params in [params, follow] {
+        let mut reference = CpuCollision::new(grid, params).unwrap();
+        let mut parallel = ParallelCpuCollision::new(grid, params).unwrap();
+        let mut report = ContactReport::default();
+        for k in 0..8 {
+            let b = m.b_at(k);
+            let mid = a.len() / 2 + 13;
+            match k {
+                2 => a[mid].x += 0.3,
+                3 => a[mid].x = f32::from_bits(a[mid].x.to_bits() + 1),
+                5 => {
+                    // A vertex on a voxel's face, then the same place as -0.0 (the same voxel,
+                    // other bits).
+                    a[5] = Vec3::new(0.0, a[5].y, a[5].z);
+                }
+                6 => a[5].x = -0.0,
+                7 => a.push(a[0] + Vec3::splat(0.3)),
+                _ => {}
+            }
+            let expected = reference.step(&a, &b).unwrap();
+            parallel.step_into(&a, &b, &mut report).unwrap();
+            assert!(expected == report, "step {k} {:?}", params.anchor);
+        }
+    }
+}
+
+#[test]
 fn parallel_errors_match_the_reference() {
     let grid =
         VoxelGrid::new(voxcollide::glam::Vec3::splat(2.0), 1.0, voxcollide::glam::UVec3::splat(4)).unwrap();
