@@ -247,9 +247,9 @@ fn interleaved(samples: usize, contenders: Vec<Contender>) -> Result<Vec<Measure
 }
 
 /// Bytes a benchmark case holds per vertex of each body, generously: the two bodies and the
-/// k-d tree's copies, the reference's lists, the parallel backend's sorted copies, slots and
-/// accumulators, the reports and the GPU upload's scratch.
-const BYTES_PER_VERTEX: u64 = 320;
+/// k-d tree's copies, the reference's lists, the parallel backend's sorted copies, slots,
+/// accumulators and kept copy of A, the reports and the GPU upload's scratch.
+const BYTES_PER_VERTEX: u64 = 336;
 
 /// What `moving(N)` holds per vertex of each body beyond that: B at each of its 20 steps, on
 /// the host twice (for the backends and the k-d tree) and once on the device.

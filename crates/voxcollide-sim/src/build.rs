@@ -181,19 +181,48 @@ fn place_on_wall(
     // Within her borders: where the base under the landmark would reach past one, it moves
     // across the wall, away from it, and the wall is sampled again there (its frame turns with
     // the wall, so a few rounds settle it).
+    // A border where her breast ends cannot be where the implant stands.
+    for (name, b) in place.within.iter().zip(&borders) {
+        if !(b.distance(mark) >= h) {
+            return Err(file.body_error(
+                k,
+                "place.within",
+                format!(
+                    "border {name:?} lies within a spacing ({h}) of {:?}, the landmark the implant stands under: a border is where her breast ends",
+                    place.landmark
+                ),
+            ));
+        }
+    }
     let under = wall.origin;
     let mut overreach = 0.0;
-    for _ in 0..4 {
+    for round in 0..=6 {
         let (shift, over) = wall.within(radius, mark, &borders);
         overreach = over;
-        if shift.length() <= 1e-3 * h {
+        if shift.length() <= 0.05 * h {
             break;
         }
-        // On the wall where the line along its normal across the move meets it (a hundredth
-        // of a cell in front, so that its closest point is there and the normal's side is
-        // known).
+        if round == 6 {
+            return Err(key_error(format!(
+                "the base does not settle within its borders {:?} on this chest wall: after six moves it would still move {:.2} (the wall turns too much under it)",
+                place.within,
+                shift.length()
+            )));
+        }
+        // On the wall where the line along its normal across the move meets it: sampled
+        // again from a tenth of a spacing in front of it, so that the closest point is about
+        // there and the side it faces is known (the grid's bilinear heights may lie a little
+        // behind a faceted wall; farther out, the closest point drifts where the wall turns).
+        // A wall that turned to face the other way is refused.
         let height = wall.height(shift.x, shift.y).unwrap_or(0.0);
-        wall = sample(wall.point(shift.extend(height + 1e-2 * h)))?;
+        let before = wall.normal;
+        wall = sample(wall.point(shift.extend(height + 0.1 * h)))?;
+        if wall.normal.dot(before) <= 0.0 {
+            return Err(key_error(format!(
+                "the chest wall turns away under the base moved to keep within {:?}",
+                place.within
+            )));
+        }
     }
     let moved = wall.origin - under;
     // The base must stand inside the tissue's box.
@@ -1297,7 +1326,7 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
             ));
             if moved.length() > 0.0 {
                 notes[k].remarks.push(format!(
-                    "its base moved {:.1} {u} across the wall, by [{:.1}, {:.1}, {:.1}], from under {:?} to keep its rim within {:?}",
+                    "its base's centre moved {:.1} {u} along the wall, by [{:.1}, {:.1}, {:.1}], from under {:?} to keep its rim within {:?}",
                     moved.length(),
                     moved.x,
                     moved.y,

@@ -191,10 +191,12 @@ impl Wall {
     /// and lateral borders on the skin), seen from `from` (the landmark it stands under). All
     /// are seen along the normal on the plane across, and each border bounds the base by the
     /// line through it square to its direction from `from`. A border that leaves the base room
-    /// asks nothing, so the answer is the origin where all do. Returns a least move that keeps
-    /// within them all, and where they leave less room than the base needs, how much the base
-    /// overreaches at most (`0` where it fits); then the move shares that overreach between
-    /// them, the least it can at the most overreached (centred between two across each other).
+    /// asks nothing, so the answer is the origin where all do. Returns a move that keeps within
+    /// them all (the least for one border, or for two across each other; for two at an angle,
+    /// averaged projections onto each, which may move a little more than the least), and where
+    /// they leave less room than the base needs, how much the base overreaches at most (`0`
+    /// where it fits); then the move shares that overreach between them, the least it can at
+    /// the most overreached (centred between two across each other).
     #[must_use]
     pub fn within(&self, radius: f32, from: Vec3, borders: &[Vec3]) -> (glam::Vec2, f32) {
         let from = self.local(from).truncate();
@@ -234,7 +236,10 @@ impl Wall {
         // Too little room: the least overreach that leaves some, by bisection (the origin
         // overreaches by `over(0)`, so that much always does).
         let (mut lo, mut hi) = (0.0f32, over(glam::Vec2::ZERO));
-        while hi - lo > 1e-4 * radius {
+        for _ in 0..64 {
+            if hi - lo <= 1e-4 * radius {
+                break;
+            }
             let mid = 0.5 * (lo + hi);
             if over(into(mid)) <= mid + tolerance {
                 hi = mid;
@@ -243,7 +248,8 @@ impl Wall {
             }
         }
         let s = into(hi);
-        (s, over(s))
+        let left = over(s);
+        (s, if left > tolerance { left } else { 0.0 })
     }
 
     /// How far `p` lies in front of the wall raised by `offset` along the normal (negative:

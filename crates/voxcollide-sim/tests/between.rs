@@ -330,6 +330,18 @@ fn a_base_that_would_reach_past_her_border_moves_across_the_wall_away_from_it() 
     assert!(origin.distance(voxcollide::glam::Vec3::new(10.0, 0.0, 0.0)) < 0.3, "{origin:?} {said}");
     let past: f32 = said.split(" mm past").next().unwrap().rsplit(' ').next().unwrap().parse().unwrap();
     assert!(said.contains("warning: its base is too wide") && (past - 10.0).abs() < 0.3, "{said}");
+    // A border at the landmark it stands under is no border.
+    let text = scene(
+        &dir,
+        [-90.0, -90.0, -10.0],
+        [90.0, 90.0, 70.0],
+        "landmarks = { nipple = [0, 0, 55], areola = [2, 0, 54.9] }",
+    ) + "[[body]]\nname = \"implant\"\nkind = \"shell\"\nshape = { implant = { volume_ml = 200, base_mm = 100, profile = \"moderate\" } }\nspacing = 6\nplace = { under = \"breast.nipple\", within = [\"breast.areola\"] }\n";
+    let e = read(&dir, &text).map(|_| ()).unwrap_err().to_string();
+    assert!(
+        e.contains("breast.toml") && e.contains("body[1].place.within") && e.contains("within a spacing"),
+        "{e}"
+    );
 }
 
 #[test]

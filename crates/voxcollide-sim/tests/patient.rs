@@ -259,6 +259,10 @@ fn the_shipped_plan_keeps_her_implant_off_her_sternum() {
     assert!(!said.contains("moved"), "{said}");
     let (kept, said) = place(&text);
     eprintln!("the base's medial rim: {alone:.1} mm under the nipple alone, {kept:.1} mm within her borders");
-    assert!(kept > 5.0 && kept > alone + 15.0, "within her borders its rim is at {kept} mm: {said}");
-    assert!(said.contains("its base moved") && !said.contains("too wide"), "{said}");
+    // Her medial border, seen along the wall's normal, is at about 16 mm: the rim stops near it.
+    assert!(
+        (5.0..25.0).contains(&kept) && kept > alone + 15.0,
+        "within her borders its rim is at {kept} mm: {said}"
+    );
+    assert!(said.contains("its base's centre moved") && !said.contains("too wide"), "{said}");
 }
