@@ -183,7 +183,8 @@ fn place_on_wall(
     // the wall, so a few rounds settle it).
     // A border where her breast ends cannot be where the implant stands.
     for (name, b) in place.within.iter().zip(&borders) {
-        if !(b.distance(mark) >= h) {
+        // (A distance that does not compare, NaN, is refused as well.)
+        if b.distance(mark).partial_cmp(&h).is_none_or(|o| o.is_lt()) {
             return Err(file.body_error(
                 k,
                 "place.within",
