@@ -178,9 +178,6 @@ fn place_on_wall(
             .map_err(|e| key_error(format!("the implant does not fit on the chest wall: {e}")))
     };
     let mut wall = sample(mark)?;
-    // Within her borders: where the base under the landmark would reach past one, it moves
-    // across the wall, away from it, and the wall is sampled again there (its frame turns with
-    // the wall, so a few rounds settle it).
     // A border where her breast ends cannot be where the implant stands.
     for (name, b) in place.within.iter().zip(&borders) {
         // (A distance that does not compare, NaN, is refused as well.)
@@ -195,6 +192,9 @@ fn place_on_wall(
             ));
         }
     }
+    // Within her borders: where the base under the landmark would reach past one, it moves
+    // across the wall, away from it, and the wall is sampled again there (its frame turns with
+    // the wall, so a few rounds settle it).
     let under = wall.origin;
     let mut overreach = 0.0;
     for round in 0..=6 {

@@ -275,25 +275,25 @@ struct Bins {
     voxel: Vec<UVec3>,
 }
 
-/// A as the last step sorted it: its positions, the grid and how many it binned. A step whose
-/// A and grid are the same, bit for bit, keeps that order instead of sorting A again: a body
+/// A as the last step sorted it: its positions and how many it binned (the grid follows from
+/// them). A step whose A is the same, bit for bit, keeps that order instead of sorting A
+/// again: a body
 /// held still (a rigid wall, an instrument at rest, `moving(N)`'s A) is sorted once. Keeping
 /// it is a parallel copy of A each step that sorts (12 MB at 1M vertices); checking it, a
 /// comparison that stops at the first difference (docs/performance.md, "Moving bodies").
 #[derive(Debug, Default)]
 struct Kept {
     a: Vec<Vec3>,
-    grid: Option<VoxelGrid>,
     binned: Option<u32>,
 }
 
 impl Kept {
-    fn keep(&mut self, grid: VoxelGrid, a: &[Vec3], binned: u32) {
+    fn keep(&mut self, a: &[Vec3], binned: u32) {
         self.a.resize(a.len(), Vec3::ZERO);
         self.a.par_chunks_mut(chunk(a.len())).zip(a.par_chunks(chunk(a.len()))).for_each(|(to, from)| {
             to.copy_from_slice(from);
         });
-        (self.grid, self.binned) = (Some(grid), Some(binned));
+        self.binned = Some(binned);
     }
 }
 
@@ -479,13 +479,14 @@ impl ParallelCpuCollision {
             }
         };
         let grid = step_grid(&self.grid, self.params.anchor, a)?;
-        // A that has not moved since the last step, bit for bit, in the same grid, is in the
-        // order it was sorted in then (docs/design.md §7 lets a backend keep it).
+        // A that has not moved since the last step, bit for bit, is in the order it was
+        // sorted in then (docs/design.md §7 lets a backend keep it): the step's grid follows
+        // from A and the backend's own, which never changes.
         let binned = match self.kept.binned {
-            Some(binned) if self.kept.grid == Some(grid) && same_bits(&self.kept.a, a) => binned,
+            Some(binned) if same_bits(&self.kept.a, a) => binned,
             _ => {
                 let binned = self.bin(&grid, a);
-                self.kept.keep(grid, a, binned);
+                self.kept.keep(a, binned);
                 binned
             }
         };
