@@ -472,11 +472,13 @@ impl MassSpring {
         out.clear();
         let m = &self.material;
         let pressure = self.pressure(inputs);
+        // What each material's forces share between vertices, once (a tetrahedron's).
+        let prepared: Vec<Vec<Mat3>> = self.materials().map(|mat| mat.prepare(self, &self.pos)).collect();
         // Each vertex's sum is its own, in its own order: the same on any number of threads.
         out.par_extend((0..self.len()).into_par_iter().with_min_len(PAR_CHUNK).map(|i| {
             let mut f = contact[i] - m.damping * self.vel[i];
-            for material in self.materials() {
-                material.add_force(self, &self.pos, &self.vel, inputs.rest_scale, i, &mut f);
+            for (material, prepared) in self.materials().zip(&prepared) {
+                material.add_force(self, &self.pos, &self.vel, inputs.rest_scale, i, prepared, &mut f);
             }
             if pressure != 0.0 {
                 // Each triangle's force p * area * normal = p * cross / 2, a third to each corner.

@@ -381,12 +381,13 @@ impl MassSpring {
     pub fn residual(&self, inputs: &StepInputs, contact: &[Vec3]) -> Residual {
         let pressure = self.pressure(inputs);
         let loads = inputs.gravity != Vec3::ZERO;
+        let prepared = self.prepared(&self.pos);
         let (net, gross) = (0..self.len())
             .into_par_iter()
             .with_min_len(CHUNK)
             .filter(|&i| loads || self.mode[i] == Mode::Free)
             .map(|i| {
-                let (f, g, external) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
+                let (f, g, external) = self.force_at_rest(&self.pos, i, &prepared, inputs, contact, pressure);
                 match (loads, self.mode[i] == Mode::Free) {
                     (false, _) => (f64::from(f.length_squared()), f64::from(g) * f64::from(g)),
                     (true, true) => {
@@ -423,17 +424,23 @@ impl MassSpring {
                 Vec3::new(bump(p.x, 3), bump(p.y, 7), bump(p.z, 11))
             })
             .collect();
+        let (at, near) = (self.prepared(&self.pos), self.prepared(&jittered));
         let change: f64 = (0..self.len())
             .into_par_iter()
             .with_min_len(CHUNK)
             .filter(|&i| self.mode[i] == Mode::Free)
             .map(|i| {
-                let (a, ..) = self.force_at_rest(&self.pos, i, inputs, contact, pressure);
-                let (b, ..) = self.force_at_rest(&jittered, i, inputs, contact, pressure);
+                let (a, ..) = self.force_at_rest(&self.pos, i, &at, inputs, contact, pressure);
+                let (b, ..) = self.force_at_rest(&jittered, i, &near, inputs, contact, pressure);
                 f64::from((b - a).length_squared())
             })
             .sum();
         0.5 * change.sqrt()
+    }
+
+    /// Each material's [`prepare`](crate::material::Material::prepare) at `pos`.
+    fn prepared(&self, pos: &[Vec3]) -> Vec<Vec<Mat3>> {
+        self.materials().map(|mat| mat.prepare(self, pos)).collect()
     }
 
     /// Vertex `i`'s net force at rest with the body at `pos` (springs without damping,
@@ -445,6 +452,7 @@ impl MassSpring {
         &self,
         pos: &[Vec3],
         i: usize,
+        prepared: &[Vec<Mat3>],
         inputs: &StepInputs,
         contact: &[Vec3],
         pressure: f32,
@@ -452,8 +460,8 @@ impl MassSpring {
         let mut f = contact[i];
         let mut g = contact[i].length();
         let mut external = g;
-        for material in self.materials() {
-            material.for_each_term(self, pos, inputs.rest_scale, i, &mut |t| {
+        for (material, prepared) in self.materials().zip(prepared) {
+            material.for_each_term(self, pos, inputs.rest_scale, i, prepared, &mut |t| {
                 f += t;
                 g += t.length();
             });

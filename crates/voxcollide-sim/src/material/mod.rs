@@ -31,8 +31,18 @@ use crate::body::{MassSpring, StepInputs};
 /// Sums are per vertex, over the material's terms in a fixed order, so that the result does
 /// not depend on the thread count and the GPU's twin gives the same bits.
 pub trait Material: Sync {
+    /// What its forces at `pos` share between vertices, computed once over the body before
+    /// [`add_force`](Self::add_force) or [`for_each_term`](Self::for_each_term) gathers each
+    /// vertex's from it (a tetrahedron's forces on its four corners: one deformation gradient
+    /// instead of four). Empty where each vertex's terms are its own.
+    fn prepare(&self, _body: &MassSpring, _pos: &[Vec3]) -> Vec<Mat3> {
+        Vec::new()
+    }
+
     /// Adds the material's force on vertex `i` of `body`, at positions `pos` and velocities
-    /// `vel` (its damping), to `f`, in the order its WGSL twin adds it.
+    /// `vel` (its damping), to `f`, in the order its WGSL twin adds it; `prepared` is
+    /// [`prepare`](Self::prepare)'s at `pos`.
+    #[allow(clippy::too_many_arguments)]
     fn add_force(
         &self,
         body: &MassSpring,
@@ -40,18 +50,21 @@ pub trait Material: Sync {
         vel: &[Vec3],
         rest_scale: f32,
         i: usize,
+        prepared: &[Mat3],
         f: &mut Vec3,
     );
 
     /// Calls `term` with each of the material's forces on vertex `i` at rest (no damping), the
     /// body at `pos`, in the same order: a static answer drives their sum to zero, and their
-    /// magnitudes are the scale it is judged against.
+    /// magnitudes are the scale it is judged against; `prepared` is [`prepare`](Self::prepare)'s
+    /// at `pos`.
     fn for_each_term(
         &self,
         body: &MassSpring,
         pos: &[Vec3],
         rest_scale: f32,
         i: usize,
+        prepared: &[Mat3],
         term: &mut dyn FnMut(Vec3),
     );
 

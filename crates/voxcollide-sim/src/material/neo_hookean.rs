@@ -212,6 +212,13 @@ impl Elements {
     /// The force of tetrahedron `k` on its corner `corner` at positions `pos`.
     #[must_use]
     pub fn corner_force(&self, pos: &[Vec3], k: usize, corner: usize) -> Vec3 {
+        corner_of(&self.tet_force(pos, k), corner)
+    }
+
+    /// Tetrahedron `k`'s `−V₀·P·D_m⁻ᵀ` at positions `pos`: its forces on corners 1..=3 as
+    /// columns ([`corner_of`] gives each corner's, corner 0's minus their sum).
+    #[must_use]
+    pub fn tet_force(&self, pos: &[Vec3], k: usize) -> Mat3 {
         let t = self.tets[k];
         let p = t.map(|v| pos[v as usize]);
         let ds = Mat3::from_cols(p[1] - p[0], p[2] - p[0], p[3] - p[0]);
@@ -221,13 +228,25 @@ impl Elements {
         let cof =
             Mat3::from_cols(f.y_axis.cross(f.z_axis), f.z_axis.cross(f.x_axis), f.x_axis.cross(f.y_axis));
         let stress = self.mu * f + (self.lambda * (j - self.alpha())) * cof;
-        let h = -self.weight(k) * (stress * self.dm_inv[k].transpose());
-        match corner {
-            0 => -(h.x_axis + h.y_axis + h.z_axis),
-            1 => h.x_axis,
-            2 => h.y_axis,
-            _ => h.z_axis,
+        -self.weight(k) * (stress * self.dm_inv[k].transpose())
+    }
+
+    /// Every tetrahedron's [`tet_force`](Self::tet_force) at `pos`, once each.
+    #[must_use]
+    pub fn tet_forces(&self, pos: &[Vec3]) -> Vec<Mat3> {
+        use rayon::prelude::*;
+        (0..self.tets.len()).into_par_iter().with_min_len(PAR_CHUNK).map(|k| self.tet_force(pos, k)).collect()
+    }
+
+    /// The force on vertex `i` from its tetrahedra's [`tet_forces`](Self::tet_forces),
+    /// summed in adjacency order: [`force_on`](Self::force_on)'s bits.
+    #[must_use]
+    pub fn gathered(&self, forces: &[Mat3], i: usize) -> Vec3 {
+        let mut f = Vec3::ZERO;
+        for &[k, c] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
+            f += corner_of(&forces[k as usize], c as usize);
         }
+        f
     }
 
     /// The force on vertex `i`: its tetrahedra's, summed in adjacency order.
@@ -267,10 +286,15 @@ impl Material for Elements {
         _vel: &[Vec3],
         _rest_scale: f32,
         i: usize,
+        prepared: &[Mat3],
         f: &mut Vec3,
     ) {
         // Summed first, then added: as `shaders/elements.wgsl`'s `elements_force`.
-        *f += self.force_on(pos, i);
+        *f += if prepared.is_empty() { self.force_on(pos, i) } else { self.gathered(prepared, i) };
+    }
+
+    fn prepare(&self, _body: &MassSpring, pos: &[Vec3]) -> Vec<Mat3> {
+        self.tet_forces(pos)
     }
 
     fn for_each_term(
@@ -279,10 +303,12 @@ impl Material for Elements {
         pos: &[Vec3],
         _rest_scale: f32,
         i: usize,
+        prepared: &[Mat3],
         term: &mut dyn FnMut(Vec3),
     ) {
         for &[k, c] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-            term(self.corner_force(pos, k as usize, c as usize));
+            let (k, c) = (k as usize, c as usize);
+            term(if prepared.is_empty() { self.corner_force(pos, k, c) } else { corner_of(&prepared[k], c) });
         }
     }
 
@@ -446,26 +472,29 @@ fn symmetric_eigen(a: Mat3) -> (Vec3, Mat3) {
             if m[p][q] == 0.0 {
                 continue;
             }
-            // The rotation in the (p, q) plane that zeroes m[p][q].
-            let theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+            // The rotation in the (p, q) plane that zeroes m[p][q], applied to the five
+            // entries it changes (both halves kept, m symmetric) and to v's columns p and q, in
+            // Rutishauser's form with τ = s/(1 + c) (Numerical Recipes' `jacobi`): a quarter
+            // of the arithmetic of rotating m's rows and columns whole.
+            let apq = m[p][q];
+            let theta = (m[q][q] - m[p][p]) / (2.0 * apq);
             let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
             let t = if theta == 0.0 { 1.0 } else { t };
             let c = 1.0 / (t * t + 1.0).sqrt();
             let s = t * c;
-            for row in &mut m {
-                let (x, y) = (row[p], row[q]);
-                row[p] = c * x - s * y;
-                row[q] = s * x + c * y;
-            }
-            for k in 0..3 {
-                let (x, y) = (m[p][k], m[q][k]);
-                m[p][k] = c * x - s * y;
-                m[q][k] = s * x + c * y;
-            }
+            let tau = s / (1.0 + c);
+            m[p][p] -= t * apq;
+            m[q][q] += t * apq;
+            m[p][q] = 0.0;
+            m[q][p] = 0.0;
+            let r = 3 - p - q;
+            let (g, h) = (m[r][p], m[r][q]);
+            let (gp, hq) = (g - s * (h + g * tau), h + s * (g - h * tau));
+            (m[r][p], m[p][r], m[r][q], m[q][r]) = (gp, gp, hq, hq);
             for row in &mut v {
-                let (x, y) = (row[p], row[q]);
-                row[p] = c * x - s * y;
-                row[q] = s * x + c * y;
+                let (g, h) = (row[p], row[q]);
+                row[p] = g - s * (h + g * tau);
+                row[q] = h + s * (g - h * tau);
             }
         }
     }
@@ -586,7 +615,22 @@ impl TetStiffness {
     pub fn product(&self, u: [Vec3; 4]) -> Mat3 {
         let u0 = Vec3A::from(u[0]);
         let ds = Mat3A::from_cols(Vec3A::from(u[1]) - u0, Vec3A::from(u[2]) - u0, Vec3A::from(u[3]) - u0);
-        let d = self.u.transpose() * (ds * self.w);
+        self.through(self.u.transpose() * (ds * self.w))
+    }
+
+    /// The [`product`](Self::product) of a unit displacement of corner `column` (1..=3) along
+    /// `axis`: `D_s` is then that axis in the corner's column alone, so `Uᵀ·D_s·W` is the
+    /// outer product of `U`'s row `axis` and `W`'s row `column − 1`, nine products instead of
+    /// two matrices'.
+    fn unit_product(&self, column: usize, axis: usize) -> Mat3 {
+        let a = Vec3A::new(self.u.x_axis[axis], self.u.y_axis[axis], self.u.z_axis[axis]);
+        let row = column - 1;
+        let d = Mat3A::from_cols(a * self.w.x_axis[row], a * self.w.y_axis[row], a * self.w.z_axis[row]);
+        self.through(d)
+    }
+
+    /// `U·T(d)·Wᵀ` for `d = Uᵀ·D_s·W`: the tangent applied in the singular frame, and back.
+    fn through(&self, d: Mat3A) -> Mat3 {
         let dt = d.transpose();
         let diag = self.stretch * Vec3A::new(d.x_axis.x, d.y_axis.y, d.z_axis.z);
         let p = Mat3A::from_cols(
@@ -605,11 +649,7 @@ impl TetStiffness {
     pub fn blocks(&self) -> [Mat3; 16] {
         let mut out = [Mat3::ZERO; 16];
         for column in 1..4 {
-            let cols = [Vec3::X, Vec3::Y, Vec3::Z].map(|e| {
-                let mut u = [Vec3::ZERO; 4];
-                u[column] = e;
-                self.product(u)
-            });
+            let cols = [0, 1, 2].map(|axis| self.unit_product(column, axis));
             for row in 0..4 {
                 out[4 * row + column] = Mat3::from_cols(
                     corner_of(&cols[0], row),
@@ -845,6 +885,45 @@ mod tests {
         // A row couples a vertex to itself and the 14 vertices it shares a tetrahedron with.
         let inner = 21; // (1, 1, 1)
         assert_eq!(p.offsets[inner + 1] - p.offsets[inner], 15);
+    }
+
+    /// The eigen-decomposition of symmetric matrices as the stiffness meets them: near the
+    /// identity (a tetrahedron at rest), with equal eigenvalues, diagonal, stretched and
+    /// sheared, flat (a tetrahedron crushed to a plane), and in no particular form: the
+    /// vectors are a right-handed orthonormal frame, `A·v = λ·v` to single precision, and the
+    /// values come largest first.
+    #[test]
+    fn symmetric_matrices_decompose_into_their_eigenvalues_and_a_rotation() {
+        let mut cases: Vec<Mat3> = deformations().into_iter().map(|f| f.transpose() * f).collect();
+        cases.extend([
+            Mat3::IDENTITY,
+            Mat3::from_diagonal(Vec3::new(2.0, 2.0, 0.5)),
+            Mat3::from_diagonal(Vec3::new(0.5, 3.0, 1.0)),
+            Mat3::from_diagonal(Vec3::new(1.0, 1.0, 0.0)),
+            Mat3::IDENTITY
+                + 1e-6
+                    * Mat3::from_cols(
+                        Vec3::new(0.0, 1.0, 2.0),
+                        Vec3::new(1.0, 0.0, 3.0),
+                        Vec3::new(2.0, 3.0, 0.0),
+                    ),
+            Mat3::ZERO,
+        ]);
+        for k in 0..40 {
+            let g = Mat3::from_cols_array(&std::array::from_fn(|i| ((i * 7 + k * 13) as f32 * 0.61).sin()));
+            cases.push(g.transpose() * g);
+        }
+        for a in cases {
+            let (values, v) = symmetric_eigen(a);
+            let scale = a.abs().to_cols_array().into_iter().fold(1e-30, f32::max);
+            let worst = |m: Mat3| m.abs().to_cols_array().into_iter().fold(0.0f32, f32::max);
+            assert!(worst(v.transpose() * v - Mat3::IDENTITY) < 1e-5, "{a}: {v}");
+            assert!((v.determinant() - 1.0).abs() < 1e-5, "{a}: {v}");
+            assert!(values.x >= values.y && values.y >= values.z, "{a}: {values}");
+            for (c, l) in [(v.x_axis, values.x), (v.y_axis, values.y), (v.z_axis, values.z)] {
+                assert!((a * c - l * c).abs().max_element() <= 1e-5 * scale, "{a}: {l}, {c}");
+            }
+        }
     }
 
     #[test]

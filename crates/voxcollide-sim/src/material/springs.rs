@@ -55,6 +55,7 @@ impl Material for Springs {
         vel: &[Vec3],
         rest_scale: f32,
         i: usize,
+        _prepared: &[Mat3],
         f: &mut Vec3,
     ) {
         let (x, v) = (pos[i], vel[i]);
@@ -78,6 +79,7 @@ impl Material for Springs {
         pos: &[Vec3],
         rest_scale: f32,
         i: usize,
+        _prepared: &[Mat3],
         term: &mut dyn FnMut(Vec3),
     ) {
         let x = pos[i];
