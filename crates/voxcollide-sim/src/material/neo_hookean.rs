@@ -62,6 +62,27 @@ pub struct Elements {
     pub adjacency: Vec<[u32; 2]>,
     /// Where each tetrahedron's stiffness goes in the body's ([`Pattern`]).
     pattern: Pattern,
+    /// Each tetrahedron's frame of singular vectors at its last assembly, where the next one's
+    /// decomposition starts ([`Elements::assemble`]).
+    frames: Frames,
+}
+
+/// The frames the last assembly's decompositions ended in, one per tetrahedron: a cache of
+/// work, not part of the material, so two bodies with the same elements are equal whatever
+/// their caches hold, and a clone starts with a copy of its original's.
+#[derive(Debug, Default)]
+struct Frames(std::sync::Mutex<Vec<Mat3>>);
+
+impl Clone for Frames {
+    fn clone(&self) -> Frames {
+        Frames(std::sync::Mutex::new(self.0.lock().map_or_else(|e| e.into_inner().clone(), |f| f.clone())))
+    }
+}
+
+impl PartialEq for Frames {
+    fn eq(&self, _: &Frames) -> bool {
+        true
+    }
 }
 
 /// The sparsity of the elements' stiffness over the vertices, for the implicit solve's
@@ -193,6 +214,7 @@ impl Elements {
             offsets,
             adjacency,
             pattern,
+            frames: Frames::default(),
         })
     }
 
@@ -334,7 +356,7 @@ impl Elements {
     pub fn assemble(&self, pos: &[Vec3]) -> Vec<Mat3> {
         use rayon::prelude::*;
         let per_tet: Vec<[Mat3; 16]> =
-            self.stiffnesses(pos).par_iter().with_min_len(PAR_CHUNK).map(TetStiffness::blocks).collect();
+            self.stiffnesses_warm(pos).par_iter().with_min_len(PAR_CHUNK).map(TetStiffness::blocks).collect();
         let p = &self.pattern;
         let mut blocks = vec![Mat3::ZERO; p.columns.len()];
         let mut rows: Vec<&mut [Mat3]> = Vec::with_capacity(p.offsets.len());
@@ -455,6 +477,16 @@ pub fn lattice_tets(rest: &[Vec3], h: f32) -> Vec<[u32; 4]> {
 /// cyclic Jacobi rotations in `f64`, largest eigenvalue first.
 #[allow(clippy::needless_range_loop)] // rows p and q of one matrix, by index
 fn symmetric_eigen(a: Mat3) -> (Vec3, Mat3) {
+    symmetric_eigen_from(a, None)
+}
+
+/// [`symmetric_eigen`] with its rotations started from the frame `start` (a decomposition of a
+/// nearby matrix: the last step's, [`Frames`]) instead of the axes: `a` is first taken into
+/// that frame, where it is nearly diagonal, and fewer rotations are left to do. The frame is
+/// made orthonormal again in `f64` first (Gram–Schmidt); one that is not finite or not a
+/// frame starts from the axes.
+#[allow(clippy::needless_range_loop)] // rows p and q of one matrix, by index
+fn symmetric_eigen_from(a: Mat3, start: Option<Mat3>) -> (Vec3, Mat3) {
     let mut m = [[0.0f64; 3]; 3];
     for (i, row) in m.iter_mut().enumerate() {
         for (j, x) in row.iter_mut().enumerate() {
@@ -462,6 +494,15 @@ fn symmetric_eigen(a: Mat3) -> (Vec3, Mat3) {
         }
     }
     let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
+    if let Some(q) = start.and_then(orthonormal) {
+        // m ← qᵀ·m·q, kept symmetric; v starts as q (its columns the frame's axes).
+        let mq: [[f64; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| m[i][k] * q[k][j]).sum()));
+        let qmq: [[f64; 3]; 3] =
+            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| q[k][i] * mq[k][j]).sum()));
+        m = std::array::from_fn(|i| std::array::from_fn(|j| 0.5 * (qmq[i][j] + qmq[j][i])));
+        v = q;
+    }
     for _ in 0..16 {
         let off = m[0][1].abs() + m[0][2].abs() + m[1][2].abs();
         let scale = m[0][0].abs() + m[1][1].abs() + m[2][2].abs();
@@ -506,6 +547,22 @@ fn symmetric_eigen(a: Mat3) -> (Vec3, Mat3) {
     (values, Mat3::from_cols(x, y, x.cross(y)))
 }
 
+/// `q`'s columns made orthonormal in `f64` (Gram–Schmidt, right-handed), as rows `[i][j]` of
+/// the matrix; `None` where they are not finite or nearly dependent.
+fn orthonormal(q: Mat3) -> Option<[[f64; 3]; 3]> {
+    let col = |j: usize| q.col(j).to_array().map(f64::from);
+    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let unit = |a: [f64; 3]| {
+        let n = dot(a, a).sqrt();
+        (n.is_finite() && n > 0.5).then(|| a.map(|x| x / n))
+    };
+    let x = unit(col(0))?;
+    let y = col(1);
+    let y = unit(std::array::from_fn(|i| y[i] - dot(x, y) * x[i]))?;
+    let z = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
+    Some(std::array::from_fn(|i| [x[i], y[i], z[i]]))
+}
+
 /// Any unit vector across `u` (unit).
 fn across(u: Vec3) -> Vec3 {
     let other = if u.x.abs() < 0.6 { Vec3::X } else { Vec3::Y };
@@ -514,8 +571,8 @@ fn across(u: Vec3) -> Vec3 {
 
 /// `F = U·diag(σ)·Vᵀ` with `U`, `V` rotations and `σ₀ ≥ σ₁ ≥ |σ₂|`, `σ₂` negative where `F`
 /// is inverted (so that `J = σ₀σ₁σ₂`).
-fn rotation_svd(f: Mat3) -> (Mat3, Vec3, Mat3) {
-    let (values, v) = symmetric_eigen(f.transpose() * f);
+fn rotation_svd(f: Mat3, start: Option<Mat3>) -> (Mat3, Vec3, Mat3) {
+    let (values, v) = symmetric_eigen_from(f.transpose() * f, start);
     let s0 = values.x.max(0.0).sqrt();
     let s1 = values.y.max(0.0).sqrt();
     let scale = s0.max(1e-30);
@@ -677,6 +734,29 @@ impl Elements {
             .collect()
     }
 
+    /// [`stiffnesses`](Self::stiffnesses), each tetrahedron's decomposition started from its
+    /// last one's frame and that frame kept for the next ([`Frames`]): a step's deformations
+    /// differ little from the last's, so fewer rotations are left (the first call starts
+    /// from the axes).
+    fn stiffnesses_warm(&self, pos: &[Vec3]) -> Vec<TetStiffness> {
+        use rayon::prelude::*;
+        let mut frames = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let fresh = frames.len() != self.tets.len();
+        if fresh {
+            *frames = vec![Mat3::IDENTITY; self.tets.len()];
+        }
+        frames
+            .par_iter_mut()
+            .enumerate()
+            .with_min_len(1024)
+            .map(|(k, frame)| {
+                let tangent = self.tangent_from(self.deformation(pos, k), true, (!fresh).then_some(*frame));
+                *frame = tangent.v;
+                TetStiffness::new(self, k, &tangent)
+            })
+            .collect()
+    }
+
     /// Tetrahedron `k`'s deformation gradient at `pos`.
     fn deformation(&self, pos: &[Vec3], k: usize) -> Mat3 {
         let p = self.tets[k].map(|v| pos[v as usize]);
@@ -687,7 +767,13 @@ impl Elements {
     /// as it is (indefinite under compression), for checking against finite differences.
     #[must_use]
     pub fn tangent_at(&self, f: Mat3, project: bool) -> Tangent {
-        let (u, sigma, v) = rotation_svd(f);
+        self.tangent_from(f, project, None)
+    }
+
+    /// [`tangent_at`](Self::tangent_at), its decomposition started from the frame `start`
+    /// ([`symmetric_eigen_from`]).
+    fn tangent_from(&self, f: Mat3, project: bool, start: Option<Mat3>) -> Tangent {
+        let (u, sigma, v) = rotation_svd(f, start);
         let (mu, lambda) = (self.mu, self.lambda);
         let j = sigma.x * sigma.y * sigma.z;
         let s = lambda * (j - self.alpha());
@@ -923,6 +1009,61 @@ mod tests {
             for (c, l) in [(v.x_axis, values.x), (v.y_axis, values.y), (v.z_axis, values.z)] {
                 assert!((a * c - l * c).abs().max_element() <= 1e-5 * scale, "{a}: {l}, {c}");
             }
+        }
+    }
+
+    /// Started from another frame (the last step's, a turned one, a frame that is not one, a
+    /// NaN), the decomposition is the one started from the axes, to single precision; and an
+    /// assembly warm-started from an earlier one gives the cold rows.
+    #[test]
+    fn a_decomposition_started_from_a_nearby_frame_is_the_same_decomposition() {
+        let turn = Mat3::from_axis_angle(Vec3::new(1.0, 2.0, 0.5).normalize(), 0.7);
+        for f in deformations() {
+            let a = f.transpose() * f;
+            let (values, v) = symmetric_eigen(a);
+            let near = symmetric_eigen(
+                (f + 0.01 * Mat3::from_diagonal(Vec3::new(1.0, -1.0, 0.5))).transpose()
+                    * (f + 0.01 * Mat3::from_diagonal(Vec3::new(1.0, -1.0, 0.5))),
+            )
+            .1;
+            let bad = Mat3::from_cols(Vec3::X, Vec3::X, Vec3::Z);
+            for start in [
+                Mat3::IDENTITY,
+                v,
+                near,
+                turn,
+                1.01 * turn,
+                bad,
+                Mat3::from_cols(Vec3::NAN, Vec3::Y, Vec3::Z),
+            ] {
+                let (w, u) = symmetric_eigen_from(a, Some(start));
+                let scale = values.x.abs().max(1e-6);
+                assert!((w - values).abs().max_element() <= 1e-5 * scale, "{f}: {w} against {values}");
+                for (c, l) in [(u.x_axis, w.x), (u.y_axis, w.y), (u.z_axis, w.z)] {
+                    assert!(
+                        (a * c - l * c).abs().max_element() <= 1e-5 * scale,
+                        "{f} from {start}: {l}, {c}"
+                    );
+                    assert!((c.length() - 1.0).abs() < 1e-5, "{f} from {start}: {c}");
+                }
+            }
+        }
+        let rest: Vec<Vec3> =
+            (0..27).map(|i| Vec3::new((i % 3) as f32, ((i / 3) % 3) as f32, (i / 9) as f32)).collect();
+        let e = Elements::new(&rest, &lattice_tets(&rest, 1.0), 1.0, 0.49).unwrap();
+        let bent = |s: f32| -> Vec<Vec3> {
+            rest.iter().map(|p| *p + s * Vec3::new((p.z * 1.3).sin(), 0.2 * p.x, (p.y * 0.7).cos())).collect()
+        };
+        let cold =
+            |pos: &[Vec3]| e.stiffnesses(pos).iter().flat_map(TetStiffness::blocks).collect::<Vec<Mat3>>();
+        let _ = e.assemble(&bent(0.1));
+        let pos = bent(0.12);
+        let (warm, want) = (e.stiffnesses_warm(&pos), cold(&pos));
+        let got: Vec<Mat3> = warm.iter().flat_map(TetStiffness::blocks).collect();
+        for (g, w) in got.iter().zip(&want) {
+            let scale = w.abs().to_cols_array().into_iter().fold(1e-3, f32::max);
+            let off = (*g - *w).abs().to_cols_array().into_iter().fold(0.0f32, f32::max);
+            assert!(off <= 1e-4 * scale, "{g} against {w}");
         }
     }
 
