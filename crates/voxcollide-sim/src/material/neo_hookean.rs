@@ -31,7 +31,7 @@
 //! instead (Gauss–Newton) was not done: it halves the shear stiffness at rest, and a step of
 //! the implicit integrator then overshoots a shear by its whole size.
 
-use glam::{Mat3, Mat3A, UVec3, Vec3, Vec3A};
+use glam::{DMat3, DVec3, Mat3, Mat3A, UVec3, Vec3, Vec3A};
 use std::collections::HashMap;
 
 use super::{Linearised, Material};
@@ -264,19 +264,21 @@ impl Elements {
     /// summed in adjacency order: [`force_on`](Self::force_on)'s bits.
     #[must_use]
     pub fn gathered(&self, forces: &[Mat3], i: usize) -> Vec3 {
-        let mut f = Vec3::ZERO;
-        for &[k, c] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-            f += corner_of(&forces[k as usize], c as usize);
-        }
-        f
+        self.sum_corners(i, |k, c| corner_of(&forces[k], c))
     }
 
     /// The force on vertex `i`: its tetrahedra's, summed in adjacency order.
     #[must_use]
     pub fn force_on(&self, pos: &[Vec3], i: usize) -> Vec3 {
+        self.sum_corners(i, |k, c| self.corner_force(pos, k, c))
+    }
+
+    /// `corner(k, c)` summed over vertex `i`'s tetrahedra `k` (it their corner `c`), in
+    /// adjacency order.
+    fn sum_corners(&self, i: usize, corner: impl Fn(usize, usize) -> Vec3) -> Vec3 {
         let mut f = Vec3::ZERO;
         for &[k, c] in &self.adjacency[self.offsets[i] as usize..self.offsets[i + 1] as usize] {
-            f += self.corner_force(pos, k as usize, c as usize);
+            f += corner(k as usize, c as usize);
         }
         f
     }
@@ -485,24 +487,21 @@ fn symmetric_eigen(a: Mat3) -> (Vec3, Mat3) {
 /// that frame, where it is nearly diagonal, and fewer rotations are left to do. The frame is
 /// made orthonormal again in `f64` first (Gram–Schmidt); one that is not finite or not a
 /// frame starts from the axes.
-#[allow(clippy::needless_range_loop)] // rows p and q of one matrix, by index
 fn symmetric_eigen_from(a: Mat3, start: Option<Mat3>) -> (Vec3, Mat3) {
-    let mut m = [[0.0f64; 3]; 3];
-    for (i, row) in m.iter_mut().enumerate() {
-        for (j, x) in row.iter_mut().enumerate() {
-            *x = f64::from(0.5 * (a.col(j)[i] + a.col(i)[j]));
+    let sym = ((a + a.transpose()) * 0.5).as_dmat3();
+    let q = start.and_then(orthonormal);
+    // m ← qᵀ·m·q, kept symmetric; v starts as q (its columns the frame's axes).
+    let (sym, q) = match q {
+        Some(q) => {
+            let qmq = q.transpose() * (sym * q);
+            ((qmq + qmq.transpose()) * 0.5, q)
         }
-    }
-    let mut v = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0f64]];
-    if let Some(q) = start.and_then(orthonormal) {
-        // m ← qᵀ·m·q, kept symmetric; v starts as q (its columns the frame's axes).
-        let mq: [[f64; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| m[i][k] * q[k][j]).sum()));
-        let qmq: [[f64; 3]; 3] =
-            std::array::from_fn(|i| std::array::from_fn(|j| (0..3).map(|k| q[k][i] * mq[k][j]).sum()));
-        m = std::array::from_fn(|i| std::array::from_fn(|j| 0.5 * (qmq[i][j] + qmq[j][i])));
-        v = q;
-    }
+        None => (sym, DMat3::IDENTITY),
+    };
+    // The rotations below work on entries by index: `m[i][j]` (symmetric, so rows or columns
+    // alike) and `v[i][j]`, row `i` and column `j` of the frame.
+    let mut m = sym.to_cols_array_2d();
+    let mut v = q.transpose().to_cols_array_2d();
     for _ in 0..16 {
         let off = m[0][1].abs() + m[0][2].abs() + m[1][2].abs();
         let scale = m[0][0].abs() + m[1][1].abs() + m[2][2].abs();
@@ -547,20 +546,17 @@ fn symmetric_eigen_from(a: Mat3, start: Option<Mat3>) -> (Vec3, Mat3) {
     (values, Mat3::from_cols(x, y, x.cross(y)))
 }
 
-/// `q`'s columns made orthonormal in `f64` (Gram–Schmidt, right-handed), as rows `[i][j]` of
-/// the matrix; `None` where they are not finite or nearly dependent.
-fn orthonormal(q: Mat3) -> Option<[[f64; 3]; 3]> {
-    let col = |j: usize| q.col(j).to_array().map(f64::from);
-    let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-    let unit = |a: [f64; 3]| {
-        let n = dot(a, a).sqrt();
-        (n.is_finite() && n > 0.5).then(|| a.map(|x| x / n))
+/// `q`'s columns made orthonormal in `f64` (Gram–Schmidt, right-handed); `None` where they
+/// are not finite or nearly dependent.
+fn orthonormal(q: Mat3) -> Option<DMat3> {
+    let unit = |a: DVec3| {
+        let n = a.length();
+        (n.is_finite() && n > 0.5).then(|| a / n)
     };
-    let x = unit(col(0))?;
-    let y = col(1);
-    let y = unit(std::array::from_fn(|i| y[i] - dot(x, y) * x[i]))?;
-    let z = [x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]];
-    Some(std::array::from_fn(|i| [x[i], y[i], z[i]]))
+    let x = unit(q.x_axis.as_dvec3())?;
+    let y = q.y_axis.as_dvec3();
+    let y = unit(y - x.dot(y) * x)?;
+    Some(DMat3::from_cols(x, y, x.cross(y)))
 }
 
 /// Any unit vector across `u` (unit).
@@ -726,12 +722,7 @@ impl Elements {
     /// Every tetrahedron's [`TetStiffness`] at `pos`, projected.
     #[must_use]
     pub fn stiffnesses(&self, pos: &[Vec3]) -> Vec<TetStiffness> {
-        use rayon::prelude::*;
-        (0..self.tets.len())
-            .into_par_iter()
-            .with_min_len(1024)
-            .map(|k| TetStiffness::new(self, k, &self.tangent_at(self.deformation(pos, k), true)))
-            .collect()
+        self.stiffnesses_in(pos, &mut Vec::new())
     }
 
     /// [`stiffnesses`](Self::stiffnesses), each tetrahedron's decomposition started from its
@@ -739,8 +730,14 @@ impl Elements {
     /// differ little from the last's, so fewer rotations are left (the first call starts
     /// from the axes).
     fn stiffnesses_warm(&self, pos: &[Vec3]) -> Vec<TetStiffness> {
-        use rayon::prelude::*;
         let mut frames = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        self.stiffnesses_in(pos, &mut frames)
+    }
+
+    /// The stiffnesses, each decomposition started from its frame in `frames` (from the axes
+    /// where `frames` is not one a tetrahedron), and those frames replaced by the new ones.
+    fn stiffnesses_in(&self, pos: &[Vec3], frames: &mut Vec<Mat3>) -> Vec<TetStiffness> {
+        use rayon::prelude::*;
         let fresh = frames.len() != self.tets.len();
         if fresh {
             *frames = vec![Mat3::IDENTITY; self.tets.len()];
