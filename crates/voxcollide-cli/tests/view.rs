@@ -266,7 +266,16 @@ fn a_dragged_instrument_moves_the_dent_in_the_picture_and_the_numbers() {
         xs.iter().sum::<f64>() / xs.len() as f64
     };
     let (sx, dx) = (dent_x(&still), dent_x(&dragged));
-    assert!(dx - sx > 40.0, "the dent moved {:.0} pixels on the screen ({sx:.0} → {dx:.0})", dx - sx);
+    // (It moves about 48 pixels. Once, in a clean clone's CI on a loaded machine, it moved
+    // 19 with the numbers above passing, and never again in many runs: the message says
+    // enough to tell why, should it come back.)
+    assert!(
+        dx - sx > 40.0,
+        "the dent moved {:.0} pixels on the screen ({sx:.0} → {dx:.0}) in a {w}×{h} picture; the ball \
+         was first drawn at ({bx:.1}, {by:.1}) and dragged {moved:.2} mm; the dent's centre moved from \
+         {a:?} to {b:?}",
+        dx - sx
+    );
     std::fs::remove_dir_all(&d).unwrap();
 }
 
