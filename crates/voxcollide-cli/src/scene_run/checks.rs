@@ -208,7 +208,18 @@ fn contact_depths(
     let surface_of = |k: usize| shown_surface(&world.bodies[k]);
     let (a_pos, a_mesh) = surface_of(pair.a);
     let (b_pos, b_mesh) = surface_of(pair.b);
-    let (wall_a, wall_b) = (world.bodies[pair.a].wall.as_deref(), world.bodies[pair.b].wall.as_deref());
+    // The walls of the implants placed on the other body's chest wall, whose vertices must stay
+    // covered by it (both bodies rest on that wall, but only the implant is in her pocket,
+    // whichever of the pair's two the scene names it).
+    let placed = |k: usize, on: usize| {
+        world
+            .pockets
+            .iter()
+            .any(|p| (p.implant, p.tissue) == (k, on))
+            .then(|| world.bodies[k].wall.as_deref())
+            .flatten()
+    };
+    let (wall_a, wall_b) = (placed(pair.a, pair.b), placed(pair.b, pair.a));
     let [ha, hb] = hierarchies;
     let [wa, wb] = watches;
     // The two ways at once, each on every core.
