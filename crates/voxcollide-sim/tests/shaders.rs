@@ -16,6 +16,9 @@ fn every_simulation_shader_validates() {
     wgsl::validate("implicit_contact", voxcollide_sim::gpu::implicit::IMPLICIT_CONTACT, &["main"]);
     wgsl::validate("couple", voxcollide_sim::gpu::implicit::COUPLE, &["main"]);
     wgsl::validate("couple_gather", voxcollide_sim::gpu::implicit::COUPLE_GATHER, &["main"]);
+    // The surface contact's search, after the core's common part.
+    let search = [voxcollide::gpu::shaders::COMMON, voxcollide_sim::gpu::surface::SURFACE_SEARCH].concat();
+    wgsl::validate("surface_search", &search, &["main"]);
 }
 
 #[test]

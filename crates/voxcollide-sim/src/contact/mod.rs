@@ -15,7 +15,8 @@
 pub mod surface;
 
 pub use surface::{
-    POINT_VERTICES, Push, Stencil, SurfaceContact, SurfaceForces, SurfacePenalty, SurfaceStats, entries,
+    POINT_VERTICES, Push, Stencil, SurfaceContact, SurfaceForces, SurfaceHit, SurfacePenalty, SurfaceStats,
+    entries, nearest_pushes,
 };
 
 use glam::{Mat3, Vec3};

@@ -213,7 +213,7 @@ fn closest_on_triangle(p: Vec3, [a, b, c]: [Vec3; 3]) -> Option<([f32; 3], Featu
 
 /// Per triangle, the triangle across each of its edges (edge `e` from corner `e` to `e + 1`);
 /// `u32::MAX` where the edge is not shared by exactly two triangles.
-fn edge_neighbours(mesh: &TriangleMesh) -> Vec<[u32; 3]> {
+pub(crate) fn edge_neighbours(mesh: &TriangleMesh) -> Vec<[u32; 3]> {
     let mut by_edge: HashMap<(u32, u32), Vec<(u32, u8)>> = HashMap::default();
     for (t, tri) in mesh.triangles.iter().enumerate() {
         for e in 0..3u8 {
@@ -271,14 +271,17 @@ struct Side {
 
 /// What a probe found: the nearest triangle, its weights, the push's direction and its depth
 /// beyond the gap.
-#[derive(Clone, Copy, Debug)]
-struct Hit {
-    triangle: u32,
-    weights: [f32; 3],
-    /// Outward from the partner's surface.
-    normal: Vec3,
-    /// `gap − s`, positive.
-    depth: f32,
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfaceHit {
+    /// The partner's nearest triangle within the cutoff.
+    pub triangle: u32,
+    /// The nearest point's barycentric weights on it.
+    pub weights: [f32; 3],
+    /// The push's direction: outward from the partner's surface, unit.
+    pub normal: Vec3,
+    /// `gap − s` for the probe's signed distance `s`: positive where it is pushed, at most 0
+    /// within the margin (no force).
+    pub depth: f32,
 }
 
 impl Side {
@@ -389,7 +392,12 @@ impl Side {
     /// the probe has passed its middle, and the push would carry it through: a filling
     /// implant came through a patient's 16 mm layer of tissue over her sternum so, at 10 mm
     /// spacing, no vertex ever deeper than 3.6 mm.
-    fn hits(&self, probing: &View, partner: &View, penalty: &SurfacePenalty) -> Vec<(Option<Hit>, u32, f32)> {
+    fn hits(
+        &self,
+        probing: &View,
+        partner: &View,
+        penalty: &SurfacePenalty,
+    ) -> Vec<(Option<SurfaceHit>, u32, f32)> {
         let pos = &partner.pos;
         let tris = &partner.mesh.triangles;
         (0..self.probes.len())
@@ -467,7 +475,7 @@ impl Side {
         t: u32,
         w: [f32; 3],
         feature: Feature,
-    ) -> (Option<Hit>, f32) {
+    ) -> (Option<SurfaceHit>, f32) {
         let (pos, tris) = (&partner.pos, &partner.mesh.triangles);
         let tri = tris[t as usize];
         let pseudo = match feature {
@@ -497,7 +505,7 @@ impl Side {
         if normal == Vec3::ZERO {
             return (None, s);
         }
-        (Some(Hit { triangle: t, weights: w, normal, depth: penalty.gap - s }), s)
+        (Some(SurfaceHit { triangle: t, weights: w, normal, depth: penalty.gap - s }), s)
     }
 }
 
@@ -511,7 +519,7 @@ impl Side {
 /// truly comes in does so gradually. A holding contact's hits pass neither test, so the
 /// hierarchy is rarely built. Returns, per probe, whether it is now inside.
 fn confirm(
-    hits: &mut [Option<Hit>],
+    hits: &mut [Option<SurfaceHit>],
     probes: &[u32],
     was_inside: &[bool],
     moved: &[f32],
@@ -521,7 +529,7 @@ fn confirm(
 ) -> Vec<bool> {
     let deep = penalty.gap + 0.25 * penalty.reach;
     let slack = 1e-4 * penalty.reach;
-    let suspect = |k: usize, h: &Hit| {
+    let suspect = |k: usize, h: &SurfaceHit| {
         let inside = h.depth - penalty.gap;
         h.depth > deep
             || (inside > 0.0
@@ -554,6 +562,37 @@ fn vertex_normal(partner: &View, v: u32) -> Vec3 {
             face_normal(pos, tri) * u.angle_between(w)
         })
         .sum()
+}
+
+/// One side of a surface contact's search alone, from nothing kept: each of the points
+/// `probes` against the surface `mesh` over the points `partner`, with the way each was pushed
+/// out at the last step (`entry`, zero or missing: none), as [`SurfaceContact::step`] finds its
+/// pushes before the inside test confirms doubtful ones. The reference that the search on the
+/// device (`crate::gpu::surface`) is held to, bit for bit.
+#[must_use]
+pub fn nearest_pushes(
+    penalty: &SurfacePenalty,
+    probes: &[Vec3],
+    partner: &[Vec3],
+    mesh: &TriangleMesh,
+    entry: &[Vec3],
+) -> Vec<Option<SurfaceHit>> {
+    let (tri_offsets, tri_adjacency) = mesh.triangles_at(partner.len());
+    let view = |pos: &[Vec3]| View {
+        pos: Cow::Owned(pos.to_vec()),
+        mesh,
+        tri_offsets: &tri_offsets,
+        tri_adjacency: &tri_adjacency,
+        vertices: pos.len(),
+        embedding: None,
+    };
+    let (probing, partner) = (view(probes), view(partner));
+    let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
+    let mut side = Side::new(&probing, &partner);
+    side.refresh(&probing, &partner, cutoff, 0.5 * cutoff);
+    side.age(&probing, &partner);
+    side.entry = (0..probes.len()).map(|k| entry.get(k).copied().unwrap_or(Vec3::ZERO)).collect();
+    side.hits(&probing, &partner, penalty).into_iter().map(|(hit, _, _)| hit).collect()
 }
 
 /// What one step of a surface contact found.

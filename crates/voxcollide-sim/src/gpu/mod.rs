@@ -16,6 +16,7 @@
 
 mod contact;
 pub mod implicit;
+pub mod surface;
 
 use bytemuck::{Pod, Zeroable};
 use glam::Vec4;

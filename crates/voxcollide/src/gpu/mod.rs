@@ -506,79 +506,9 @@ impl GpuCollision {
         b: &Buffer,
         n_b: u32,
     ) -> Result<(), Error> {
-        self.check_input(Body::A, a, n_a)?;
-        self.check_input(Body::B, b, n_b)?;
-        let device = self.ctx.device().clone();
-        let (slots, dense) = self.slots(n_a);
-        let grow = self
-            .buffers
-            .as_ref()
-            .is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b || slots > bufs.cap_slots);
-        if grow {
-            let (cap_a, cap_b, cap_slots) = self
-                .buffers
-                .as_ref()
-                .map_or((n_a, n_b, slots), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b), x.cap_slots.max(slots)));
-            self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b, cap_slots))?);
-            self.bound = None;
-        }
+        let (slots, dense) = self.ready(a, n_a, b, n_b)?;
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
-
-        // Sizes live in the uniform. A slot holds any number of vertices, so the table never
-        // fills; in a hashed one, aliasing only lengthens a walk.
-        let params = GpuParams { n_a, n_b, slot_mask: slots - 1, dense: u32::from(dense), ..self.base };
-        if params != self.uploaded {
-            self.ctx.queue().write_buffer(&bufs.params, 0, bytemuck::bytes_of(&params));
-            self.uploaded = params;
-        }
-        let stale = self.bound.as_ref().is_none_or(|bound| bound.a != *a || bound.b != *b);
-        if stale {
-            let k = &self.kernels;
-            let (sa, sb) = (&bufs.sort_a, &bufs.sort_b);
-            let bound = scoped(&device, || Bound {
-                a: a.clone(),
-                b: b.clone(),
-                bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
-                frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
-                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &sa.count]),
-                scan: k.scan.bind(&device, &[&bufs.params, &sa.count, &sa.start, &sa.partial]),
-                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &sa.partial]),
-                scan_add: k.scan_add.bind(&device, &[&bufs.params, &sa.start, &sa.partial, &sa.cursor]),
-                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &sa.cursor, &sa.sorted]),
-                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.count]),
-                scan_b: k.scan.bind(&device, &[&bufs.params, &sb.count, &sb.start, &sb.partial]),
-                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &sb.partial]),
-                scan_add_b: k.scan_add.bind(&device, &[&bufs.params, &sb.start, &sb.partial, &sb.cursor]),
-                sort_b: k.sort_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.cursor, &sb.sorted]),
-                probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
-                    probe.bind(
-                        &device,
-                        &[
-                            &bufs.params,
-                            &bufs.state,
-                            &sb.sorted,
-                            &sa.start,
-                            &sa.sorted,
-                            &bufs.fixed,
-                            &bufs.force_b,
-                        ],
-                    )
-                }),
-                probe_given: [&k.probe_hashed_given, &k.probe_dense_given].map(|probe| {
-                    probe.bind(
-                        &device,
-                        &[&bufs.params, &bufs.state, b, &sa.start, &sa.sorted, &bufs.fixed, &bufs.force_b],
-                    )
-                }),
-                resolve: k
-                    .resolve
-                    .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &sa.sorted, &bufs.force_a]),
-            })?;
-            self.bound = Some(bound);
-            self.bind_group_builds += 1;
-        }
         let Some(bound) = self.bound.as_ref() else { unreachable!("bind groups were just made") };
-
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         for sort in [&bufs.sort_a, &bufs.sort_b] {
@@ -663,6 +593,160 @@ impl GpuCollision {
             profile.recorded = true;
         }
         Ok(())
+    }
+
+    /// Checks a step's inputs and makes its buffers, uniform and bind groups ready for
+    /// [`record`](Self::record) or [`record_binning`](Self::record_binning): the voxel table's
+    /// slots, and whether it is dense.
+    fn ready(&mut self, a: &Buffer, n_a: u32, b: &Buffer, n_b: u32) -> Result<(u32, bool), Error> {
+        self.check_input(Body::A, a, n_a)?;
+        self.check_input(Body::B, b, n_b)?;
+        let device = self.ctx.device().clone();
+        let (slots, dense) = self.slots(n_a);
+        let grow = self
+            .buffers
+            .as_ref()
+            .is_none_or(|bufs| n_a > bufs.cap_a || n_b > bufs.cap_b || slots > bufs.cap_slots);
+        if grow {
+            let (cap_a, cap_b, cap_slots) = self
+                .buffers
+                .as_ref()
+                .map_or((n_a, n_b, slots), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b), x.cap_slots.max(slots)));
+            self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b, cap_slots))?);
+            self.bound = None;
+        }
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
+
+        // Sizes live in the uniform. A slot holds any number of vertices, so the table never
+        // fills; in a hashed one, aliasing only lengthens a walk.
+        let params = GpuParams { n_a, n_b, slot_mask: slots - 1, dense: u32::from(dense), ..self.base };
+        if params != self.uploaded {
+            self.ctx.queue().write_buffer(&bufs.params, 0, bytemuck::bytes_of(&params));
+            self.uploaded = params;
+        }
+        let stale = self.bound.as_ref().is_none_or(|bound| bound.a != *a || bound.b != *b);
+        if stale {
+            let k = &self.kernels;
+            let (sa, sb) = (&bufs.sort_a, &bufs.sort_b);
+            let bound = scoped(&device, || Bound {
+                a: a.clone(),
+                b: b.clone(),
+                bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
+                frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &sa.count]),
+                scan: k.scan.bind(&device, &[&bufs.params, &sa.count, &sa.start, &sa.partial]),
+                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &sa.partial]),
+                scan_add: k.scan_add.bind(&device, &[&bufs.params, &sa.start, &sa.partial, &sa.cursor]),
+                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &sa.cursor, &sa.sorted]),
+                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.count]),
+                scan_b: k.scan.bind(&device, &[&bufs.params, &sb.count, &sb.start, &sb.partial]),
+                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &sb.partial]),
+                scan_add_b: k.scan_add.bind(&device, &[&bufs.params, &sb.start, &sb.partial, &sb.cursor]),
+                sort_b: k.sort_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.cursor, &sb.sorted]),
+                probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
+                    probe.bind(
+                        &device,
+                        &[
+                            &bufs.params,
+                            &bufs.state,
+                            &sb.sorted,
+                            &sa.start,
+                            &sa.sorted,
+                            &bufs.fixed,
+                            &bufs.force_b,
+                        ],
+                    )
+                }),
+                probe_given: [&k.probe_hashed_given, &k.probe_dense_given].map(|probe| {
+                    probe.bind(
+                        &device,
+                        &[&bufs.params, &bufs.state, b, &sa.start, &sa.sorted, &bufs.fixed, &bufs.force_b],
+                    )
+                }),
+                resolve: k
+                    .resolve
+                    .bind(&device, &[&bufs.params, &bufs.state, &bufs.fixed, &sa.sorted, &bufs.force_a]),
+            })?;
+            self.bound = Some(bound);
+            self.bind_group_builds += 1;
+        }
+        Ok((slots, dense))
+    }
+
+    /// **Embedding API.** Records the first half of a step alone into `encoder`: `a`'s `n_a`
+    /// positions binned by voxel (the grid following them under [`Anchor::FollowA`]), in the
+    /// buffers that the app's own passes may then walk as the probe does: the uniform
+    /// ([`params_buffer`](Self::params_buffer), `Params` in `shaders/common.wgsl`), the state
+    /// with this step's grid origin ([`state_buffer`](Self::state_buffer)), each slot's first
+    /// place ([`slot_starts_buffer`](Self::slot_starts_buffer), `slots + 1` words, the slot of a
+    /// voxel as `slot_of` in `shaders/common.wgsl` gives it) and the binned vertices in slot
+    /// order ([`sorted_buffer`](Self::sorted_buffer): per place, the position's bits in xyz and
+    /// the vertex in w). A slot of a hashed table may hold other voxels' vertices too. Vertices
+    /// outside the grid are not binned; the state counts those that are. Nothing is probed,
+    /// and the forces are left as they were. The surface contact's search on the device walks
+    /// these (`voxcollide-sim`, docs/contacts.md).
+    ///
+    /// # Errors
+    /// Those of [`record`](Self::record) for `a`.
+    pub fn record_binning(
+        &mut self,
+        encoder: &mut CommandEncoder,
+        a: &Buffer,
+        n_a: u32,
+    ) -> Result<(), Error> {
+        // (B's buffers are bound to `a` as well, and not used.)
+        let (slots, dense) = self.ready(a, n_a, a, n_a)?;
+        let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
+        let Some(bound) = self.bound.as_ref() else { unreachable!("bind groups were just made") };
+        let cleared = GpuState::CLEARED;
+        encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
+        encoder.clear_buffer(&bufs.sort_a.count, 0, Some(4 * u64::from(scan_slots(slots))));
+        let k = &self.kernels;
+        let follow = self.params.anchor == Anchor::FollowA;
+        let passes: [(&Kernel, &wgpu::BindGroup, Option<u32>); 7] = [
+            (&k.bounds, &bound.bounds, Some(if follow { n_a } else { 0 })),
+            (&k.frame, &bound.frame, None),
+            (&k.bin, &bound.bin, Some(n_a)),
+            (&k.scan, &bound.scan, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
+            (&k.scan_carry, &bound.scan_carry, None),
+            (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
+            (&k.sort, &bound.sort, Some(n_a)),
+        ];
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("voxcollide binning"),
+            timestamp_writes: None,
+        });
+        for (kernel, group, items) in passes {
+            match items {
+                Some(items) => kernel.dispatch(&mut pass, group, items, self.max_per_dim),
+                None => kernel.dispatch_one(&mut pass, group),
+            }
+        }
+        drop(pass);
+        self.dense = Some(dense);
+        Ok(())
+    }
+
+    /// The uniform of the recorded steps (`Params` in `shaders/common.wgsl`); `None` before the
+    /// first.
+    #[must_use]
+    pub fn params_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.params)
+    }
+
+    /// Each voxel slot's first place in [`sorted_buffer`](Self::sorted_buffer) after a recorded
+    /// step or binning (`u32`, one more than the slots: slot `s`'s vertices are places
+    /// `start[s]..start[s + 1]`); `None` before the first.
+    #[must_use]
+    pub fn slot_starts_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.sort_a.start)
+    }
+
+    /// A's binned vertices in slot order after a recorded step or binning (`vec4<u32>`: the
+    /// position's bits, then the vertex); `None` before the first.
+    #[must_use]
+    pub fn sorted_buffer(&self) -> Option<&Buffer> {
+        self.buffers.as_ref().map(|b| &b.sort_a.sorted)
     }
 
     /// Times every pass of the steps recorded from now on (`true`) or stops (`false`). Each pass

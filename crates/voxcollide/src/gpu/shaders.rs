@@ -47,3 +47,8 @@ pub const PROBE: &str =
 /// Pass 4: A's fixed-point totals to f32.
 pub const RESOLVE: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/resolve.wgsl"));
+
+/// `common.wgsl` alone: the uniform and state of a step (`Params`, `State`), voxel indexing
+/// (`voxel_of`, `slot_of`) and the `f32` helpers in the CPU's order, for other crates' passes
+/// that walk a binning ([`GpuCollision::record_binning`](super::GpuCollision::record_binning)).
+pub const COMMON: &str = include_str!("../../shaders/common.wgsl");

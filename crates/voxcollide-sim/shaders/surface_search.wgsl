@@ -1,0 +1,293 @@
+// The surface contact's search on the device (docs/contacts.md, "The search on the device"): each
+// probing point's nearest triangle of the partner's surface within the cutoff, found through the
+// voxel model. The partner's points are binned by the core's passes (its `Params`, `State`,
+// slot starts and sorted points, `voxcollide::GpuCollision::record_binning`, composed from its
+// `common.wgsl`), and each probe walks the 3×3×3 block of voxels about its own to the triangles
+// at the points binned there. A voxel is at least the cutoff plus the surface's longest edge, so
+// every triangle within the cutoff has a corner in the block. Then the push as the CPU's
+// `Side::hit` finds it (src/contact/surface.rs): the nearest feature's pseudo-normal, the signed
+// distance, the direction. Every float operation is written in the CPU's order (glam's `Vec3`
+// methods spelled out), so that both give the same bits.
+
+struct Search {
+    n_probes: u32,
+    tri_at: u32,        // where in `topology` the triangles start (3 corners each)
+    nbr_at: u32,        // the triangle across each edge (3 each; NONE: none)
+    off_at: u32,        // per partner point, where its triangles start in the list below (CSR)
+    adj_at: u32,        // the triangles at each point
+    cutoff: f32,        // max(reach, gap + margin): no push from farther
+    reach: f32,
+    gap: f32,
+    margin: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct SurfaceHit {
+    normal: vec4<f32>,  // xyz: the push's direction, out of the partner; w: its depth, gap - s
+    weights: vec4<f32>, // xyz: the nearest point's barycentric weights; w: s, the signed distance
+    entry: vec4<f32>,   // in: xyz the way the probe was pushed out at the last step (0: none)
+    triangle: u32,      // the nearest triangle within the cutoff (NONE: none)
+    found: u32,         // 1: pushed, or listed within the margin; 0: not
+    _pad0: u32,
+    _pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(1) var<storage, read_write> state: State;
+@group(0) @binding(2) var<storage, read> starts: array<u32>;
+@group(0) @binding(3) var<storage, read> sorted: array<vec4<u32>>;
+@group(0) @binding(4) var<uniform> search: Search;
+@group(0) @binding(5) var<storage, read> probes: array<vec4<f32>>;
+@group(0) @binding(6) var<storage, read> partner: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> topology: array<u32>;
+@group(0) @binding(8) var<storage, read_write> hits: array<SurfaceHit>;
+
+const NONE: u32 = 0xffffffffu;
+// Where on a triangle its nearest point lies: the face, an edge (from corner e to e + 1), a corner.
+const FACE: u32 = 0u;
+const EDGE: u32 = 1u;
+const CORNER: u32 = 4u;
+
+fn corner_of(t: u32, c: u32) -> u32 {
+    return topology[search.tri_at + 3u * t + c];
+}
+
+fn point(i: u32) -> vec3<f32> {
+    return partner[i].xyz;
+}
+
+// glam's `normalize_or_zero`: times the reciprocal of the length, or zero where that is not a
+// positive finite number.
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let rcp = 1.0 / sqrt(dot3(v, v));
+    if is_finite_f32(rcp) && rcp > 0.0 {
+        return v * rcp;
+    }
+    return vec3<f32>(0.0);
+}
+
+// The unit normal of triangle `t` (zero for a degenerate one): `face_normal`.
+fn face_normal(t: u32) -> vec3<f32> {
+    let a = point(corner_of(t, 0u));
+    return normalize_or_zero(cross3(point(corner_of(t, 1u)) - a, point(corner_of(t, 2u)) - a));
+}
+
+// glam's `acos_approx` (DirectXMath's `XMScalarAcos`), the angle `angle_between` takes.
+fn acos_approx(v: f32) -> f32 {
+    let nonnegative = v >= 0.0;
+    let x = abs(v);
+    var omx = 1.0 - x;
+    if omx < 0.0 {
+        omx = 0.0;
+    }
+    let root = sqrt(omx);
+    var result = ((((((-0.0012624911 * x + 0.00667009) * x - 0.017088126) * x + 0.03089188) * x
+        - 0.050174303) * x + 0.08897899) * x - 0.2145988) * x + 1.5707963;
+    result = result * root;
+    if nonnegative {
+        return result;
+    }
+    return 3.14159265358979323846264338327950288 - result;
+}
+
+fn angle_between(u: vec3<f32>, w: vec3<f32>) -> f32 {
+    return acos_approx(dot3(u, w) / sqrt(dot3(u, u) * dot3(w, w)));
+}
+
+// The angle-weighted normal at partner point `v`, over its triangles in order: `vertex_normal`.
+fn vertex_normal(v: u32) -> vec3<f32> {
+    var n = vec3<f32>(0.0);
+    let o = point(v);
+    for (var a = topology[search.off_at + v]; a < topology[search.off_at + v + 1u]; a++) {
+        let t = topology[search.adj_at + a];
+        // (Its first corner that is v.)
+        var c = 0u;
+        if corner_of(t, 0u) != v && corner_of(t, 1u) == v {
+            c = 1u;
+        } else if corner_of(t, 0u) != v && corner_of(t, 2u) == v {
+            c = 2u;
+        }
+        let u = point(corner_of(t, (c + 1u) % 3u)) - o;
+        let w = point(corner_of(t, (c + 2u) % 3u)) - o;
+        n = n + face_normal(t) * angle_between(u, w);
+    }
+    return n;
+}
+
+fn ratio(n: f32, d: f32) -> f32 {
+    if d > 0.0 {
+        return n / d;
+    }
+    return 0.0;
+}
+
+// The nearest point of triangle abc to p (`closest_region` then `closest_on_triangle`, Ericson
+// §5.1.5): xyz its barycentric weights, w the feature (FACE, EDGE + e, CORNER + c) as bits;
+// w = NONE for a degenerate face (its neighbours cover its edges).
+fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec4<f32> {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot3(ab, ap);
+    let d2 = dot3(ac, ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return vec4<f32>(1.0, 0.0, 0.0, bitcast<f32>(CORNER));
+    }
+    let bp = p - b;
+    let d3 = dot3(ab, bp);
+    let d4 = dot3(ac, bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return vec4<f32>(0.0, 1.0, 0.0, bitcast<f32>(CORNER + 1u));
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = ratio(d1, d1 - d3);
+        return vec4<f32>(1.0 - v, v, 0.0, bitcast<f32>(EDGE));
+    }
+    let cp = p - c;
+    let d5 = dot3(ab, cp);
+    let d6 = dot3(ac, cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return vec4<f32>(0.0, 0.0, 1.0, bitcast<f32>(CORNER + 2u));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = ratio(d2, d2 - d6);
+        return vec4<f32>(1.0 - w, 0.0, w, bitcast<f32>(EDGE + 2u));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = ratio(d4 - d3, (d4 - d3) + (d5 - d6));
+        return vec4<f32>(0.0, 1.0 - w, w, bitcast<f32>(EDGE + 1u));
+    }
+    let sum = va + vb + vc;
+    if !(sum > 0.0) || !is_finite_f32(sum) {
+        return vec4<f32>(0.0, 0.0, 0.0, bitcast<f32>(NONE));
+    }
+    let v = vb / sum;
+    let w = vc / sum;
+    return vec4<f32>(1.0 - v - w, v, w, bitcast<f32>(FACE));
+}
+
+// Whether voxel u (w = 1: in the grid) lies in the 3×3×3 block from lo.
+fn in_block(u: vec4<u32>, lo: vec3<i32>) -> bool {
+    let q = vec3<i32>(u.xyz) - lo;
+    return u.w == 1u && all(q >= vec3<i32>(0)) && all(q <= vec3<i32>(2));
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let k = item_index(gid, nwg);
+    if k >= search.n_probes {
+        return;
+    }
+    let p = probes[k].xyz;
+    let entry = hits[k].entry.xyz;
+    let origin = state.origin.xyz;
+    var found = false;
+    var best_d2 = 0.0;
+    var best_t = NONE;
+    var best = vec4<f32>(0.0);
+    var bound = search.cutoff * search.cutoff;
+    let v = voxel_of(p, origin);
+    if v.w == 1u {
+        let lo = vec3<i32>(v.xyz) - vec3<i32>(1);
+        let dims = vec3<i32>(params.dims.xyz);
+        for (var z = 0; z < 3; z++) {
+            for (var y = 0; y < 3; y++) {
+                for (var x = 0; x < 3; x++) {
+                    let q = lo + vec3<i32>(x, y, z);
+                    if any(q < vec3<i32>(0)) || any(q >= dims) {
+                        continue;
+                    }
+                    let s = slot_of(vec3<u32>(q));
+                    for (var e = starts[s]; e < starts[s + 1u]; e++) {
+                        let i = sorted[e].w;
+                        // A hashed slot holds other voxels' points too.
+                        if any(voxel_of(point(i), origin).xyz != vec3<u32>(q)) {
+                            continue;
+                        }
+                        for (var a = topology[search.off_at + i]; a < topology[search.off_at + i + 1u]; a++) {
+                            let t = topology[search.adj_at + a];
+                            let c0 = point(corner_of(t, 0u));
+                            let c1 = point(corner_of(t, 1u));
+                            let c2 = point(corner_of(t, 2u));
+                            // Each triangle once: at its first corner in the block.
+                            var first = corner_of(t, 2u);
+                            if in_block(voxel_of(c0, origin), lo) {
+                                first = corner_of(t, 0u);
+                            } else if in_block(voxel_of(c1, origin), lo) {
+                                first = corner_of(t, 1u);
+                            }
+                            if first != i {
+                                continue;
+                            }
+                            let box_lo = min(min(c0, c1), c2);
+                            let box_hi = max(max(c0, c1), c2);
+                            let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
+                            if dot3(out, out) > bound {
+                                continue;
+                            }
+                            // Facing away from the way it came in: the far side.
+                            if any(entry != vec3<f32>(0.0)) && dot3(face_normal(t), entry) < 0.0 {
+                                continue;
+                            }
+                            let near = closest_on_triangle(p, c0, c1, c2);
+                            if bitcast<u32>(near.w) == NONE {
+                                continue;
+                            }
+                            let qn = near.x * c0 + near.y * c1 + near.z * c2;
+                            let d2 = dist2(p, qn);
+                            if d2 <= bound && (!found || d2 < best_d2 || (d2 == best_d2 && t < best_t)) {
+                                found = true;
+                                best_d2 = d2;
+                                best_t = t;
+                                best = near;
+                                bound = d2;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    var hit = SurfaceHit();
+    hit.entry = hits[k].entry;
+    hit.triangle = best_t;
+    if found {
+        // The push (`Side::hit`): the sign from the nearest feature's pseudo-normal.
+        let t = best_t;
+        let feature = bitcast<u32>(best.w);
+        var pseudo = vec3<f32>(0.0);
+        if feature == FACE {
+            pseudo = face_normal(t);
+        } else if feature < CORNER {
+            let other = topology[search.nbr_at + 3u * t + (feature - EDGE)];
+            pseudo = face_normal(t);
+            if other != NONE {
+                pseudo = pseudo + face_normal(other);
+            }
+        } else {
+            pseudo = vertex_normal(corner_of(t, feature - CORNER));
+        }
+        let qn = best.x * point(corner_of(t, 0u)) + best.y * point(corner_of(t, 1u)) + best.z * point(corner_of(t, 2u));
+        let d = p - qn;
+        let dist = sqrt(best_d2);
+        let outside = dot3(d, pseudo) >= 0.0;
+        let s = select(-dist, dist, outside);
+        hit.weights = vec4<f32>(best.xyz, s);
+        if !(s >= search.gap + search.margin || -s > search.reach) {
+            var normal = normalize_or_zero(pseudo);
+            if dist > 1e-6 * search.reach {
+                normal = select(-d / dist, d / dist, outside);
+            }
+            if any(normal != vec3<f32>(0.0)) {
+                hit.normal = vec4<f32>(normal, search.gap - s);
+                hit.found = 1u;
+            }
+        }
+    }
+    hits[k] = hit;
+}

@@ -1,0 +1,142 @@
+//! The surface contact's search on the device (`voxcollide_sim::gpu::surface`, docs/contacts.md
+//! "The search on the device") against the CPU's on the same points, bit for bit: each probe's
+//! nearest triangle within the cutoff, its weights, the push's direction and depth, with and
+//! without the way each probe came in. On a closed breast-like bulge probed by a kidney bean
+//! pushed into it, and on the MakeHuman skin as scanned (an open sheet nobody here made)
+//! probed by points before and behind it.
+
+#[path = "../../voxcollide/tests/common/adapter.rs"]
+mod adapter;
+mod common;
+
+use voxcollide::glam::Vec3;
+use voxcollide_sim::contact::{SurfaceHit, SurfacePenalty, nearest_pushes};
+use voxcollide_sim::gpu::surface::SurfaceSearch;
+use voxcollide_sim::mesh::TriangleMesh;
+
+/// The device's pushes of `probes` against `mesh` over `partner`, the probes' ways in `entry`.
+fn on_device(
+    ctx: &voxcollide::GpuContext,
+    penalty: SurfacePenalty,
+    probes: &[Vec3],
+    partner: &[Vec3],
+    mesh: &TriangleMesh,
+    entry: &[Vec3],
+) -> Vec<Option<SurfaceHit>> {
+    use voxcollide::wgpu::util::DeviceExt as _;
+    let device = ctx.device();
+    let upload = |points: &[Vec3]| {
+        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
+        device.create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
+            label: Some("test points"),
+            contents: bytemuck::cast_slice(&padded),
+            usage: voxcollide::wgpu::BufferUsages::STORAGE,
+        })
+    };
+    let (probe_buffer, partner_buffer) = (upload(probes), upload(partner));
+    let mut search = SurfaceSearch::new(ctx, penalty, mesh, partner, probes.len()).unwrap();
+    search.set_entry(ctx.queue(), entry);
+    let mut encoder = device.create_command_encoder(&Default::default());
+    search.record(&mut encoder, &probe_buffer, &partner_buffer).unwrap();
+    ctx.queue().submit([encoder.finish()]);
+    search.read_hits().unwrap()
+}
+
+/// Both searches agree on every probe, to the bit; returns how many were pushed.
+fn agree(
+    ctx: &voxcollide::GpuContext,
+    penalty: SurfacePenalty,
+    probes: &[Vec3],
+    partner: &[Vec3],
+    mesh: &TriangleMesh,
+    entry: &[Vec3],
+) -> usize {
+    let cpu = nearest_pushes(&penalty, probes, partner, mesh, entry);
+    let gpu = on_device(ctx, penalty, probes, partner, mesh, entry);
+    assert_eq!(cpu.len(), gpu.len());
+    let mut differ = Vec::new();
+    for (k, (c, g)) in cpu.iter().zip(&gpu).enumerate() {
+        let same = match (c, g) {
+            (Some(c), Some(g)) => {
+                c.triangle == g.triangle
+                    && c.weights.map(f32::to_bits) == g.weights.map(f32::to_bits)
+                    && c.normal.to_array().map(f32::to_bits) == g.normal.to_array().map(f32::to_bits)
+                    && c.depth.to_bits() == g.depth.to_bits()
+            }
+            (None, None) => true,
+            _ => false,
+        };
+        if !same {
+            differ.push(format!("probe {k} at {}: cpu {c:?}, gpu {g:?}", probes[k]));
+        }
+    }
+    assert!(
+        differ.is_empty(),
+        "{} of {} probes differ:\n{}",
+        differ.len(),
+        probes.len(),
+        differ[..differ.len().min(8)].join("\n")
+    );
+    cpu.iter().filter(|h| h.is_some()).count()
+}
+
+/// Points on a lattice of `step` over the box `lo..hi`, each nudged off it by a hash, so that
+/// none sits on a plane of the grid or of the surface by construction.
+fn points(lo: Vec3, hi: Vec3, step: f32) -> Vec<Vec3> {
+    let n = ((hi - lo) / step).ceil().as_uvec3();
+    let mut out = Vec::new();
+    for z in 0..=n.z {
+        for y in 0..=n.y {
+            for x in 0..=n.x {
+                let h =
+                    (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ z.wrapping_mul(83_492_791))
+                        % 1000;
+                let nudge = Vec3::new(h as f32, (h * 7 % 1000) as f32, (h * 13 % 1000) as f32) / 1000.0 - 0.5;
+                out.push(lo + step * (Vec3::new(x as f32, y as f32, z as f32) + 0.6 * nudge));
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn the_device_finds_the_pushes_of_a_kidney_pressed_into_a_breast_as_the_cpu_does() {
+    let Some(ctx) = adapter::gpu() else { return };
+    let breast = common::shapes::breast();
+    let kidney = common::shapes::kidney();
+    // The kidney turned and pushed 20 mm into the breast's front, and a cloud of points
+    // through and about the breast.
+    let turn = voxcollide::glam::Mat3::from_rotation_y(0.4);
+    let mut probes: Vec<Vec3> =
+        kidney.positions.iter().map(|p| turn * *p * 0.6 + Vec3::new(10.0, -5.0, 45.0)).collect();
+    probes.extend(points(Vec3::new(-80.0, -90.0, -20.0), Vec3::new(80.0, 75.0, 70.0), 9.0));
+    let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.5, reach: 12.0, margin: 1.5 };
+    let pushed = agree(&ctx, penalty, &probes, &breast.positions, &breast.mesh, &[]);
+    assert!(pushed > 300, "only {pushed} of {} probes pushed", probes.len());
+    // Each probe kept to a way in: up for some, down for others (those facing away are passed
+    // over, so a probe past a layer's middle is still pushed out the way it came).
+    let entry: Vec<Vec3> = (0..probes.len())
+        .map(|k| match k % 3 {
+            0 => Vec3::ZERO,
+            1 => Vec3::Z,
+            _ => Vec3::new(0.3, -0.2, -1.0).normalize(),
+        })
+        .collect();
+    let with_entry = agree(&ctx, penalty, &probes, &breast.positions, &breast.mesh, &entry);
+    assert!(with_entry > 300, "{with_entry}");
+    // A reach smaller than the bulge's facets, a gap of 0, no margin.
+    let tight = SurfacePenalty { stiffness: 1.0, gap: 0.0, reach: 2.0, margin: 0.0 };
+    assert!(agree(&ctx, tight, &probes, &breast.positions, &breast.mesh, &entry) > 20);
+}
+
+#[test]
+fn the_device_finds_the_pushes_out_of_a_scanned_skin_as_the_cpu_does() {
+    let Some(ctx) = adapter::gpu() else { return };
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/makehuman/skin-maxcup-averagefirmness.stl");
+    let skin = voxcollide_sim::mesh_io::read_sheet(std::path::Path::new(path)).unwrap();
+    // About her left breast (docs/patient.md's box), before and behind the skin.
+    let probes = points(Vec3::new(-21.6, 207.8, 64.3), Vec3::new(138.4, 397.8, 237.4), 5.0);
+    let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.0, reach: 7.0, margin: 1.0 };
+    let pushed = agree(&ctx, penalty, &probes, &skin.positions, &skin.mesh, &[]);
+    assert!(pushed > 500, "only {pushed} of {} probes pushed", probes.len());
+}
