@@ -47,7 +47,9 @@ pub fn context(
 /// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
 /// does: the implicit integrator, whose solve waits on the device every few iterations (on
 /// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
-/// contact, whose search runs on the host and makes each GPU step wait for the positions; and
+/// contact with a lattice made from a surface, whose search runs on the host for it and makes
+/// each GPU step wait for the positions (between bodies that show their own surface the
+/// explicit step's contact runs wholly on the device, docs/contacts.md); and
 /// always for a curved chest wall (an implant placed on a patient), which only the CPU holds.
 /// `--backend gpu` steps every world on the device: both integrators, springs or
 /// `"neo-hookean"` tetrahedra, and every contact response.
@@ -60,9 +62,12 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
         Some(
             "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
         )
-    } else if world.contacts.iter().any(|c| c.surface().is_some()) {
+    } else if world.contacts.iter().any(|c| {
+        c.surface().is_some()
+            && (world.bodies[c.a].embedded.is_some() || world.bodies[c.b].embedded.is_some())
+    }) {
         Some(
-            "contact response = \"surface\" (the default: its search runs on the host, each GPU step waiting for the positions; --backend gpu runs it)",
+            "contact response = \"surface\" on a lattice made from a surface (its search runs on the host for such a lattice, each GPU step waiting for the positions; --backend gpu runs it)",
         )
     } else {
         None

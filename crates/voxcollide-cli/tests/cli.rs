@@ -419,8 +419,9 @@ fn settling_goes_on_past_the_schedule_until_the_bodies_rest() {
 #[test]
 fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     // docs/design.md §5: `host_waits_per_step` in a `--backend gpu` run's summary.json. The
-    // explicit step with the voxel model's contacts stays on the device (0); the surface
-    // contact reads the two bodies' positions back once a step (1); the implicit solve reads
+    // explicit step with the voxel model's contacts stays on the device (0), and so does the
+    // surface contact between bodies that show their own surface; with a lattice made from a
+    // surface it reads the two bodies' positions back once a step (1); the implicit solve reads
     // its scalars every few iterations (more than 0). A CPU run has no such key.
     let Some(_) = common::gpu() else { return };
     let dir = std::env::temp_dir().join(format!("voxcollide-waits-{}", std::process::id()));
@@ -449,7 +450,14 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
         s.get("host_waits_per_step").map(|w| w.as_f64().unwrap())
     };
     assert_eq!(waits("penalty", scene("penalty", "explicit"), "gpu"), Some(0.0), "the voxel model's step");
-    assert_eq!(waits("surface", scene("surface", "explicit"), "gpu"), Some(1.0), "the surface contact's");
+    assert_eq!(waits("surface", scene("surface", "explicit"), "gpu"), Some(0.0), "the surface contact's");
+    // A lattice made from a surface (a soft ball under the rigid one): its contact searches on
+    // the host, over the positions read back once a step.
+    let carried = scene("surface", "explicit")
+        .replace("shape = { box = [20, 20, 6] }", "shape = { sphere = 8 }\nposition = [0, 0, -5]")
+        .replace("below = { z = -2.9 }", "below = { z = -11 }");
+    assert!(carried.contains("sphere = 8"), "{carried}");
+    assert_eq!(waits("carried", carried, "gpu"), Some(1.0), "a carried surface's contact");
     let implicit = waits("implicit", scene("penalty", "implicit"), "gpu").unwrap();
     assert!(implicit >= 1.0, "the implicit solve reads its scalars: {implicit}");
     assert_eq!(

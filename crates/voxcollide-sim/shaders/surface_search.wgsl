@@ -3,8 +3,9 @@
 // voxel model. The partner's points are binned by the core's passes (its `Params`, `State`,
 // slot starts and sorted points, `voxcollide::GpuCollision::record_binning`, composed from its
 // `common.wgsl`), and each probe walks the 3×3×3 block of voxels about its own to the triangles
-// at the points binned there. A voxel is at least the cutoff plus the surface's longest edge, so
-// every triangle within the cutoff has a corner in the block. Then the push as the CPU's
+// at the points binned there that lie within `near` of it (the cutoff plus 1.5 times the surface's
+// longest edge as given). A voxel is at least `near`, so every triangle within the cutoff has a
+// corner that near, binned in the block. Then the push as the CPU's
 // `Side::hit` finds it (src/contact/surface.rs): the nearest feature's pseudo-normal, the signed
 // distance, the direction. Every float operation is written in the CPU's order (glam's `Vec3`
 // methods spelled out), so that both give the same bits.
@@ -19,9 +20,10 @@ struct Search {
     reach: f32,
     gap: f32,
     margin: f32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    near: f32,          // the cutoff plus STRETCH times the longest edge: a triangle within the
+                        // cutoff has a corner this near
+    stretched: f32,     // STRETCH times the longest edge: no triangle is nearer than a corner less this
+    voxel: f32,         // the binning's: every point this near is binned in the block
 }
 
 struct SurfaceHit {
@@ -30,7 +32,8 @@ struct SurfaceHit {
     entry: vec4<f32>,   // in: xyz the way the probe was pushed out at the last step (0: none)
     triangle: u32,      // the nearest triangle within the cutoff (NONE: none)
     found: u32,         // 1: pushed, or listed within the margin; 0: not
-    _pad0: u32,
+    clear: f32,         // how far the probe and the partner may still move before it could be
+                        // pushed (above 0: not searched; `Side::clear` on the CPU)
     _pad1: u32,
 }
 
@@ -171,12 +174,6 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
     return vec4<f32>(1.0 - v - w, v, w, bitcast<f32>(FACE));
 }
 
-// Whether voxel u (w = 1: in the grid) lies in the 3×3×3 block from lo.
-fn in_block(u: vec4<u32>, lo: vec3<i32>) -> bool {
-    let q = vec3<i32>(u.xyz) - lo;
-    return u.w == 1u && all(q >= vec3<i32>(0)) && all(q <= vec3<i32>(2));
-}
-
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = item_index(gid, nwg);
@@ -185,12 +182,27 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     }
     let p = probes[k].xyz;
     let entry = hits[k].entry.xyz;
+    // Farther from any push than the bodies have moved since it was measured: not searched.
+    if hits[k].clear > 0.0 {
+        var skipped = SurfaceHit();
+        skipped.entry = hits[k].entry;
+        skipped.triangle = NONE;
+        skipped.clear = hits[k].clear;
+        hits[k] = skipped;
+        return;
+    }
     let origin = state.origin.xyz;
     var found = false;
     var best_d2 = 0.0;
     var best_t = NONE;
     var best = vec4<f32>(0.0);
     var bound = search.cutoff * search.cutoff;
+    let near2 = search.near * search.near;
+    // A lower bound of the distance to every triangle (`Side::hits`' `lower`): those passed over
+    // or measured, those with a corner in the block but none near (a corner less the longest
+    // edge stretched), and those with no corner in the block (a voxel less that).
+    let far = max(search.voxel - search.stretched, 0.0);
+    var lower = far * far;
     let v = voxel_of(p, origin);
     if v.w == 1u {
         let lo = vec3<i32>(v.xyz) - vec3<i32>(1);
@@ -205,8 +217,16 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                     let s = slot_of(vec3<u32>(q));
                     for (var e = starts[s]; e < starts[s + 1u]; e++) {
                         let i = sorted[e].w;
-                        // A hashed slot holds other voxels' points too.
-                        if any(voxel_of(point(i), origin).xyz != vec3<u32>(q)) {
+                        // A hashed slot holds other voxels' points too; and a point farther
+                        // than `near` is no corner of a triangle within the cutoff.
+                        let pi = point(i);
+                        if any(voxel_of(pi, origin).xyz != vec3<u32>(q)) {
+                            continue;
+                        }
+                        let di2 = dist2(pi, p);
+                        if di2 > near2 {
+                            let d = max(sqrt(di2) - search.stretched, 0.0);
+                            lower = min(lower, d * d);
                             continue;
                         }
                         for (var a = topology[search.off_at + i]; a < topology[search.off_at + i + 1u]; a++) {
@@ -214,24 +234,33 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                             let c0 = point(corner_of(t, 0u));
                             let c1 = point(corner_of(t, 1u));
                             let c2 = point(corner_of(t, 2u));
-                            // Each triangle once: at its first corner in the block.
+                            // Each triangle once: at its first corner that near (in the block,
+                            // since `near` is at most a voxel).
                             var first = corner_of(t, 2u);
-                            if in_block(voxel_of(c0, origin), lo) {
+                            if dist2(c0, p) <= near2 {
                                 first = corner_of(t, 0u);
-                            } else if in_block(voxel_of(c1, origin), lo) {
+                            } else if dist2(c1, p) <= near2 {
                                 first = corner_of(t, 1u);
                             }
                             if first != i {
                                 continue;
                             }
+                            // (A triangle with a corner not finite is never one: the CPU's
+                            // lists leave it out.)
+                            if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
+                                continue;
+                            }
                             let box_lo = min(min(c0, c1), c2);
                             let box_hi = max(max(c0, c1), c2);
                             let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
-                            if dot3(out, out) > bound {
+                            let box_d2 = dot3(out, out);
+                            if box_d2 > bound {
+                                lower = min(lower, box_d2);
                                 continue;
                             }
-                            // Facing away from the way it came in: the far side.
+                            // Facing away from the way it came in: the far side (still a bound).
                             if any(entry != vec3<f32>(0.0)) && dot3(face_normal(t), entry) < 0.0 {
+                                lower = min(lower, box_d2);
                                 continue;
                             }
                             let near = closest_on_triangle(p, c0, c1, c2);
@@ -240,6 +269,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                             }
                             let qn = near.x * c0 + near.y * c1 + near.z * c2;
                             let d2 = dist2(p, qn);
+                            lower = min(lower, d2);
                             if d2 <= bound && (!found || d2 < best_d2 || (d2 == best_d2 && t < best_t)) {
                                 found = true;
                                 best_d2 = d2;
@@ -256,6 +286,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     var hit = SurfaceHit();
     hit.entry = hits[k].entry;
     hit.triangle = best_t;
+    // (Clearances are shaved by a thousandth, so that rounding never skips a push; a probe
+    // outside the grid is searched again at the next step.)
+    if !found && v.w == 1u {
+        hit.clear = (sqrt(lower) - search.cutoff) * 0.999;
+    }
     if found {
         // The push (`Side::hit`): the sign from the nearest feature's pseudo-normal.
         let t = best_t;
@@ -287,6 +322,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                 hit.normal = vec4<f32>(normal, search.gap - s);
                 hit.found = 1u;
             }
+        }
+        // Outside beyond the gap (and the margin): no push until it comes within it.
+        let near_gm = search.gap + search.margin;
+        if hit.found == 0u && s >= near_gm {
+            hit.clear = (s - near_gm) * 0.999;
         }
     }
     hits[k] = hit;

@@ -19,6 +19,9 @@ fn every_simulation_shader_validates() {
     // The surface contact's search, after the core's common part.
     let search = [voxcollide::gpu::shaders::COMMON, voxcollide_sim::gpu::surface::SURFACE_SEARCH].concat();
     wgsl::validate("surface_search", &search, &["main"]);
+    use voxcollide_sim::gpu::surface::{SURFACE_FORCES, SURFACE_FORCES_ENTRIES, SURFACE_GATHER};
+    wgsl::validate("surface_forces", SURFACE_FORCES, &SURFACE_FORCES_ENTRIES);
+    wgsl::validate("surface_gather", SURFACE_GATHER, &["main"]);
 }
 
 #[test]

@@ -140,3 +140,45 @@ fn the_device_finds_the_pushes_out_of_a_scanned_skin_as_the_cpu_does() {
     let pushed = agree(&ctx, penalty, &probes, &skin.positions, &skin.mesh, &[]);
     assert!(pushed > 500, "only {pushed} of {} probes pushed", probes.len());
 }
+
+/// The search on the device reaches 1.5 times a surface's longest edge as given: a surface
+/// stretched past that could have a contact missed, and the contact says so at the next frame
+/// instead of stepping on (docs/contacts.md, "The rule it rests on").
+#[test]
+fn a_surface_stretched_past_what_the_search_reaches_stops_the_run_by_name() {
+    use voxcollide::wgpu::util::DeviceExt as _;
+    use voxcollide_sim::build::build_world;
+    use voxcollide_sim::gpu::surface::DeviceSurface;
+    use voxcollide_sim::scene_file::SceneFile;
+    let Some(ctx) = adapter::gpu() else { return };
+    let text = include_str!("../../../scenes/indentation.toml")
+        .replace("[time]", "[time]\nintegrator = \"explicit\"");
+    let built = build_world(&SceneFile::parse("indentation.toml", &text).unwrap()).unwrap();
+    let (a, b) = (&built.world.bodies[1], &built.world.bodies[0]);
+    let penalty = built.world.contacts[0].surface().unwrap();
+    let mut contact = DeviceSurface::new(&ctx, penalty, a, b).unwrap();
+    let device = ctx.device();
+    let upload = |points: &[Vec3]| {
+        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
+        device.create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
+            label: Some("test points"),
+            contents: bytemuck::cast_slice(&padded),
+            usage: voxcollide::wgpu::BufferUsages::STORAGE | voxcollide::wgpu::BufferUsages::COPY_DST,
+        })
+    };
+    let (pa, pb) = (upload(&a.pos), upload(&b.pos));
+    let step = |contact: &mut DeviceSurface| {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        contact.record(&mut encoder, ctx.queue(), &pa, &pb).unwrap();
+        ctx.queue().submit([encoder.finish()]);
+        contact.read()
+    };
+    step(&mut contact).unwrap();
+    // The ball blown up to twice its size about its centre: its edges twice as long.
+    let centre = a.pos.iter().copied().sum::<Vec3>() / a.pos.len() as f32;
+    let blown: Vec<[f32; 4]> =
+        a.pos.iter().map(|p| (centre + 2.0 * (*p - centre)).extend(1.0).to_array()).collect();
+    ctx.queue().write_buffer(&pa, 0, bytemuck::cast_slice(&blown));
+    let e = step(&mut contact).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("stretched") && e.contains("--backend cpu"), "{e}");
+}

@@ -1,11 +1,14 @@
 //! The contacts of a [`GpuWorld`](super::GpuWorld), each by its model: the voxel model's
-//! collision passes (through the embedding API, recorded into the step's encoder), or a surface
-//! contact found on the host, its forces uploaded for the `forces` pass. The GPU world's twin of
+//! collision passes (through the embedding API, recorded into the step's encoder); a surface
+//! contact stepped wholly on the device ([`DeviceSurface`]: under the explicit integrator,
+//! between bodies that show their own surface); or else a surface contact found on the host,
+//! its forces uploaded for the `forces` pass. The GPU world's twin of
 //! [`crate::contact::CpuContacts`].
 
 use glam::Vec4;
 use wgpu::{Buffer, BufferUsages};
 
+use super::surface::DeviceSurface;
 use crate::body::MassSpring;
 use crate::contact::{ContactModel, ContactPair, Coupling, SurfaceContact, SurfaceForces, SurfaceStats};
 use voxcollide::error::Error;
@@ -16,6 +19,8 @@ use voxcollide::report::ContactReport;
 pub(super) enum DeviceContact {
     /// The voxel model's collision passes (through the embedding API).
     Voxel(Box<GpuCollision>),
+    /// A surface contact stepped on the device, nothing read back.
+    Device(Box<DeviceSurface>),
     /// A surface contact, found on the host.
     Surface(Box<HostSurface>),
 }
@@ -32,7 +37,8 @@ pub(super) struct HostSurface {
 }
 
 impl DeviceContact {
-    /// The contact `pair` of `bodies` on `ctx`'s device.
+    /// The contact `pair` of `bodies` on `ctx`'s device; a surface contact between bodies that
+    /// show their own surface steps there whole under the `explicit` integrator.
     ///
     /// # Errors
     /// The contact errors of [`GpuCollision::new`] and [`SurfaceContact::new`]; [`Error::Gpu`]
@@ -41,12 +47,19 @@ impl DeviceContact {
         ctx: &GpuContext,
         pair: &ContactPair,
         bodies: &[MassSpring],
+        explicit: bool,
     ) -> Result<DeviceContact, Error> {
         let device = ctx.device();
         match pair.model {
             ContactModel::Voxel(response) => GpuCollision::new(ctx, pair.grid, pair.params)
                 .and_then(|g| g.with_response(response))
                 .map(|g| DeviceContact::Voxel(Box::new(g))),
+            ContactModel::Surface(penalty)
+                if explicit && bodies[pair.a].embedded.is_none() && bodies[pair.b].embedded.is_none() =>
+            {
+                DeviceSurface::new(ctx, penalty, &bodies[pair.a], &bodies[pair.b])
+                    .map(|d| DeviceContact::Device(Box::new(d)))
+            }
             ContactModel::Surface(penalty) => {
                 let (a, b) = (&bodies[pair.a], &bodies[pair.b]);
                 let contact = SurfaceContact::new(penalty, a, b)?;
@@ -91,6 +104,7 @@ impl DeviceContact {
     ) -> Result<(), Error> {
         match self {
             DeviceContact::Voxel(collision) => collision.record(encoder, a_pos, a_n, b_pos, b_n),
+            DeviceContact::Device(d) => d.record(encoder, queue, a_pos, b_pos),
             DeviceContact::Surface(s) => {
                 s.stats = s.contact.step(a, b, &mut s.forces);
                 let padded = |f: &[glam::Vec3]| -> Vec<Vec4> { f.iter().map(|f| f.extend(0.0)).collect() };
@@ -112,6 +126,7 @@ impl DeviceContact {
                     Error::Gpu { message: "collision force buffers missing after a recorded step".into() }
                 })
             }
+            DeviceContact::Device(d) => Ok(d.force_buffer(as_a)),
             DeviceContact::Surface(s) => Ok(if as_a { &s.force_a } else { &s.force_b }),
         }
     }
@@ -120,6 +135,7 @@ impl DeviceContact {
     pub(super) fn surface_stats(&self) -> SurfaceStats {
         match self {
             DeviceContact::Voxel(_) => SurfaceStats::default(),
+            DeviceContact::Device(d) => d.stats(),
             DeviceContact::Surface(s) => s.stats,
         }
     }
@@ -132,6 +148,17 @@ impl DeviceContact {
     pub(super) fn read_report(&mut self, pair: &ContactPair, a_len: usize) -> Result<ContactReport, Error> {
         match self {
             DeviceContact::Voxel(collision) => collision.read_report(),
+            DeviceContact::Device(d) => {
+                let (force_a, force_b, colliding_b) = d.read()?;
+                Ok(ContactReport {
+                    force_a,
+                    force_b,
+                    colliding_b,
+                    binned_a: a_len as u32,
+                    discarded_a: 0,
+                    grid_center: pair.grid.center(),
+                })
+            }
             DeviceContact::Surface(s) => Ok(ContactReport {
                 force_a: s.forces.force_a.clone(),
                 force_b: s.forces.force_b.clone(),
@@ -154,7 +181,7 @@ impl DeviceContact {
                     .map(|p| Coupling::of_push(p, pair, s.contact.penalty.stiffness))
                     .collect(),
             ),
-            DeviceContact::Voxel(_) => None,
+            DeviceContact::Voxel(_) | DeviceContact::Device(_) => None,
         }
     }
 }

@@ -5,14 +5,17 @@
 //! instead, which read back a few numbers (has the solve converged, how far would a vertex
 //! move) where the host must decide.
 //!
-//! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact)) steps here with its search
-//! on the host: each step reads back the positions of the two bodies, finds the pushes as the
-//! CPU world does (the same code over the same positions), and uploads the two force buffers
-//! that the `forces` pass reads as it reads a collision's: under the explicit integrator, the
-//! CPU's bits. Under the implicit one the pushes are also uploaded as couplings
-//! ([`crate::integrator::implicit::Coupling`]) that join the two bodies in the device's one solve
-//! ([`crate::gpu::implicit`]), and the inelastic impulses after the step are the host's. Its
-//! nearest-triangle search has no WGSL passes yet (docs/integrator.md, "On the GPU").
+//! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact))
+//! steps here wholly on the device under the explicit integrator between bodies that show their
+//! own surface ([`surface::DeviceSurface`]: each side's search through the voxel model, and the
+//! passes after it, to the CPU's bits, nothing read back). Otherwise (a lattice made from a
+//! surface, or the implicit integrator) its search is on the host: each step reads back the
+//! positions of the two bodies, finds the pushes as the CPU world does (the same code over the
+//! same positions), and uploads the two force buffers that the `forces` pass reads as it reads
+//! a collision's (explicit: the CPU's bits). Under the implicit one the pushes are also uploaded
+//! as couplings ([`crate::integrator::implicit::Coupling`]) that join the two bodies in the
+//! device's one solve ([`crate::gpu::implicit`]), and the inelastic impulses after the step are
+//! the host's (docs/contacts.md, "The search on the device").
 
 mod contact;
 pub mod implicit;
@@ -324,7 +327,9 @@ impl GpuWorld {
         let collisions = world
             .contacts
             .iter()
-            .map(|c| DeviceContact::new(ctx, c, &world.bodies))
+            .map(|c| {
+                DeviceContact::new(ctx, c, &world.bodies, matches!(world.integrator, Integrator::Explicit))
+            })
             .collect::<Result<Vec<_>, _>>()?;
         let on_host = collisions.iter().any(DeviceContact::on_host);
         use Slot::{Read, ReadWrite, Uniform};
@@ -467,9 +472,10 @@ impl GpuWorld {
 
     /// How many times the steps so far waited for the device to hand data back to the host
     /// (a buffer mapped for reading), frames ([`sync`](Self::sync)) excluded. 0 where every
-    /// step stays on the device: the explicit integrator with the voxel model's contacts. A
-    /// surface contact's search on the host reads positions back once a step, and the implicit
-    /// solve reads its few scalars every few iterations.
+    /// step stays on the device: the explicit integrator with the voxel model's contacts, or
+    /// with surface contacts between bodies that show their own surface. A surface contact's
+    /// search on the host reads positions back once a step, and the implicit solve reads its
+    /// few scalars every few iterations.
     #[must_use]
     pub fn host_waits(&self) -> u64 {
         self.host_waits

@@ -10,10 +10,13 @@
 //! of two above it: the core's grids take no other), so every triangle within the cutoff has
 //! a corner in the block while no edge has stretched by more than that.
 //!
-//! **What is not on the device yet.** This is the search alone. The step's forces, the
-//! winding-number confirmation of doubtful hits and the entry kept from step to step still run
-//! on the host ([`crate::gpu::GpuWorld`] reads the positions back for them); the search is
-//! checked against the CPU's on the same positions (`tests/surface_search.rs`).
+//! **The explicit step on the device** ([`DeviceSurface`]): both sides' searches, then each
+//! side's clearances, the inside test of doubtful hits and the way in kept for the next step,
+//! and each vertex's force summed in the CPU's order (`shaders/surface_forces.wgsl`,
+//! `shaders/surface_gather.wgsl`), with nothing read back. A lattice made from a surface, and
+//! the implicit integrator's couplings, still search on the host ([`crate::gpu::GpuWorld`]).
+//! The search is held to the CPU's on the same positions (`tests/surface_search.rs`), and the
+//! step to the CPU world's bits (`tests/simulation.rs`).
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
@@ -49,7 +52,9 @@ struct GpuSearch {
     reach: f32,
     gap: f32,
     margin: f32,
-    _pad: [u32; 3],
+    near: f32,
+    stretched: f32,
+    voxel: f32,
 }
 
 /// One probe's result. Keep in sync with `SurfaceHit` in `shaders/surface_search.wgsl`.
@@ -61,7 +66,8 @@ struct GpuHit {
     entry: [f32; 4],
     triangle: u32,
     found: u32,
-    _pad: [u32; 2],
+    clear: f32,
+    _pad: u32,
 }
 
 /// The search of one side of a surface contact (one body's points probing the other's
@@ -75,6 +81,13 @@ pub struct SurfaceSearch {
     hits: Buffer,
     n_probes: u32,
     n_partner: u32,
+    /// The partner's triangles, as `topology` begins.
+    corners: Vec<[u32; 3]>,
+    /// Where in `topology` the per-point triangle lists begin (CSR offsets, then the lists).
+    off_at: u32,
+    adj_at: u32,
+    /// [`STRETCH`] times the longest edge as given: the longest an edge may grow.
+    stretched: f32,
     /// The bind group, and the buffers it was made over (the probes', the partner's, and the
     /// binning's starts).
     group: Option<([Buffer; 3], wgpu::BindGroup)>,
@@ -115,7 +128,8 @@ impl SurfaceSearch {
             .filter(|l| l.is_finite())
             .fold(0.0f32, f32::max);
         // (The core's grids take a power of two.)
-        let voxel = 2f32.powi((cutoff + STRETCH * longest).log2().ceil() as i32);
+        let near = cutoff + STRETCH * longest;
+        let voxel = 2f32.powi(near.log2().ceil() as i32);
         let (lo, hi) = partner
             .iter()
             .filter(|p| p.is_finite())
@@ -152,7 +166,9 @@ impl SurfaceSearch {
             reach: penalty.reach,
             gap: penalty.gap,
             margin: penalty.margin,
-            _pad: [0; 3],
+            near,
+            stretched: STRETCH * longest,
+            voxel,
         };
         let source = [voxcollide::gpu::shaders::COMMON, SURFACE_SEARCH].concat();
         scoped(device, || {
@@ -196,6 +212,10 @@ impl SurfaceSearch {
                 ),
                 n_probes: n_probes as u32,
                 n_partner: partner.len() as u32,
+                corners: mesh.triangles.clone(),
+                off_at,
+                adj_at,
+                stretched: STRETCH * longest,
                 group: None,
             }
         })
@@ -302,10 +322,443 @@ impl SurfaceSearch {
             .collect())
     }
 
+    /// The buffer of the partner's surface (its triangles' corners from word 0), as the passes
+    /// after the search read it.
+    pub(crate) fn topology_buffer(&self) -> &Buffer {
+        &self.topology
+    }
+
+    /// The partner's triangles.
+    pub(crate) fn corners(&self) -> &[[u32; 3]] {
+        &self.corners
+    }
+
     /// The voxel of the binning: the power of two at or above the cutoff plus [`STRETCH`] times
     /// the longest edge.
     #[must_use]
     pub fn voxel_size(&self) -> f32 {
         self.binning.grid().voxel_size()
+    }
+}
+
+/// The passes after the search (`shaders/surface_forces.wgsl`), composed with
+/// `sim_common.wgsl`; entry points `partner_moved`, `age`, `confirm`, `count`, `scan`,
+/// `scatter`.
+pub const SURFACE_FORCES: &str =
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_forces.wgsl"));
+/// The forces on one body's vertices (`shaders/surface_gather.wgsl`), composed with
+/// `sim_common.wgsl`.
+pub const SURFACE_GATHER: &str =
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_gather.wgsl"));
+/// The entry points of [`SURFACE_FORCES`], in the order a side runs them (the search between
+/// `age` and `confirm`).
+pub const SURFACE_FORCES_ENTRIES: [&str; 6] = ["partner_moved", "age", "confirm", "count", "scan", "scatter"];
+
+/// A side's uniform. Keep in sync with `Side` in `shaders/surface_forces.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct GpuSide {
+    n_probes: u32,
+    n_partner: u32,
+    first: u32,
+    moved_at: u32,
+    inside_at: u32,
+    count_at: u32,
+    cursor_at: u32,
+    keys_at: u32,
+    stiffness: f32,
+    gap: f32,
+    reach: f32,
+    n_triangles: u32,
+    off_at: u32,
+    adj_at: u32,
+    _pad: [u32; 2],
+}
+
+/// A body's gather uniform. Keep in sync with `Gather` in `shaders/surface_gather.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct GpuGather {
+    n: u32,
+    own_first: u32,
+    starts_at: u32,
+    keys_at: u32,
+    stiffness: f32,
+    _pad: [u32; 3],
+}
+
+/// What [`DeviceSurface::read`] reads back: the forces on `a` and on `b`, and the vertices of
+/// `b` in contact.
+pub type ReadBack = (Vec<Vec3>, Vec<Vec3>, Vec<u32>);
+
+/// One side of a [`DeviceSurface`]: its search and what the passes after it keep.
+#[derive(Debug)]
+struct DeviceSide {
+    search: SurfaceSearch,
+    side: GpuSide,
+    uniform: Buffer,
+    /// The probes' positions at the last step, then the partner's.
+    prev: Buffer,
+    /// See `scratch` in `shaders/surface_forces.wgsl`.
+    scratch: Buffer,
+    /// See `status` there: the partner's longest squared edge over the run.
+    status: Buffer,
+    /// Per pass of [`SURFACE_FORCES_ENTRIES`], its bind group, and the position buffers they
+    /// were made over.
+    group: Option<([Buffer; 2], Vec<wgpu::BindGroup>)>,
+}
+
+/// The pipelines of a [`DeviceSurface`].
+#[derive(Debug)]
+struct SurfaceKernels {
+    /// [`SURFACE_FORCES_ENTRIES`]'s, in order.
+    side: Vec<Kernel>,
+    gather: Kernel,
+}
+
+/// A surface contact stepped wholly on the device, for two bodies that each show their own
+/// surface ([`crate::body::Embedding`]: none) under the explicit integrator: both sides'
+/// searches ([`SurfaceSearch`]), the passes after them, and each body's forces, in buffers the
+/// `forces` pass reads, with nothing read back. The same forces as
+/// [`SurfaceContact::step`](crate::contact::SurfaceContact::step), to the bit, but where the
+/// inside test of a doubtful hit lands within rounding of one half (the device sums its winding
+/// number in `f32` over every triangle, the CPU in `f64` through a hierarchy).
+#[derive(Debug)]
+pub struct DeviceSurface {
+    /// `b`'s points probing `a`'s surface, then `a`'s probing `b`'s.
+    sides: [DeviceSide; 2],
+    kernels: SurfaceKernels,
+    /// Per body (`a`, `b`): the gather's uniform, its free flags, its forces, its bind group.
+    gather: [(Buffer, Buffer, Buffer); 2],
+    gather_groups: Option<[wgpu::BindGroup; 2]>,
+    steps: u64,
+    max_per_dim: u32,
+    /// What the last read found.
+    stats: std::cell::Cell<crate::contact::SurfaceStats>,
+}
+
+impl DeviceSurface {
+    /// The contact `penalty` between bodies `a` and `b` as they are now.
+    ///
+    /// # Errors
+    /// [`Error::Invalid`] for a body that carries a surface, an empty one or a bad `penalty`;
+    /// [`Error::Gpu`] when the device refuses a pipeline or a buffer.
+    pub fn new(
+        ctx: &GpuContext,
+        penalty: SurfacePenalty,
+        a: &crate::body::MassSpring,
+        b: &crate::body::MassSpring,
+    ) -> Result<DeviceSurface, Error> {
+        if a.embedded.is_some() || b.embedded.is_some() {
+            return Err(Error::Invalid {
+                what: "surface contact on the device",
+                value: "a lattice that carries a surface".into(),
+                rule:
+                    "only bodies that show their own surface step their surface contact on the device so far"
+                        .into(),
+            });
+        }
+        let device = ctx.device();
+        let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
+        let side = |probing: &crate::body::MassSpring,
+                    partner: &crate::body::MassSpring|
+         -> Result<DeviceSide, Error> {
+            let search = SurfaceSearch::new(ctx, penalty, &partner.surface, &partner.pos, probing.len())?;
+            let (np, nq) = (probing.len() as u32, partner.len() as u32);
+            let count_at = 1 + 2 * np;
+            let cursor_at = count_at + nq + 1;
+            let keys_at = cursor_at + nq;
+            let side = GpuSide {
+                n_probes: np,
+                n_partner: nq,
+                first: 1,
+                moved_at: 1,
+                inside_at: 1 + np,
+                count_at,
+                cursor_at,
+                keys_at,
+                stiffness: penalty.stiffness,
+                gap: penalty.gap,
+                reach: penalty.reach,
+                n_triangles: partner.surface.triangles.len() as u32,
+                off_at: search.off_at,
+                adj_at: search.adj_at,
+                _pad: [0; 2],
+            };
+            scoped(device, || {
+                use wgpu::util::DeviceExt as _;
+                let zeros = |label: &str, bytes: u64| {
+                    device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some(label),
+                        size: bytes.max(16),
+                        usage: storage,
+                        mapped_at_creation: false,
+                    })
+                };
+                DeviceSide {
+                    search,
+                    side,
+                    uniform: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some("sim surface side"),
+                        contents: bytemuck::bytes_of(&side),
+                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                    }),
+                    prev: zeros("sim surface prev", 16 * u64::from(np + nq)),
+                    scratch: zeros("sim surface scratch", 4 * u64::from(keys_at + 3 * np)),
+                    status: zeros("sim surface status", 16),
+                    group: None,
+                }
+            })
+        };
+        let sides = [side(b, a)?, side(a, b)?];
+        let kernels = scoped(device, || {
+            let side_slots = [
+                Slot::Uniform,
+                Slot::Read,
+                Slot::Read,
+                Slot::ReadWrite,
+                Slot::ReadWrite,
+                Slot::ReadWrite,
+                Slot::Read,
+                Slot::ReadWrite,
+            ];
+            SurfaceKernels {
+                side: SURFACE_FORCES_ENTRIES
+                    .iter()
+                    .map(|entry| {
+                        Kernel::entry(device, "sim surface forces", SURFACE_FORCES, &side_slots, entry)
+                    })
+                    .collect(),
+                gather: Kernel::new(
+                    device,
+                    "sim surface gather",
+                    SURFACE_GATHER,
+                    &[Slot::Uniform, Slot::Read, Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
+                ),
+            }
+        })?;
+        // Body a's reactions are the first side's (b probing a), b's the second's.
+        let gather = |k: usize, body: &crate::body::MassSpring| {
+            let other = &sides[k].side;
+            let uniform = GpuGather {
+                n: body.len() as u32,
+                own_first: u32::from(k == 1),
+                starts_at: other.count_at,
+                keys_at: other.keys_at,
+                stiffness: penalty.stiffness,
+                _pad: [0; 3],
+            };
+            let free: Vec<u32> = body.mode.iter().map(|m| u32::from(*m == crate::body::Mode::Free)).collect();
+            scoped(device, || {
+                use wgpu::util::DeviceExt as _;
+                let init = |label: &str, contents: &[u8], usage: BufferUsages| {
+                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                        label: Some(label),
+                        contents,
+                        usage,
+                    })
+                };
+                (
+                    init("sim surface gather", bytemuck::bytes_of(&uniform), BufferUsages::UNIFORM),
+                    init("sim surface free", bytemuck::cast_slice(&free), BufferUsages::STORAGE),
+                    init(
+                        "sim surface contact forces",
+                        bytemuck::cast_slice(&vec![[0f32; 4]; body.len()]),
+                        storage,
+                    ),
+                )
+            })
+        };
+        let gather = [gather(0, a)?, gather(1, b)?];
+        Ok(DeviceSurface {
+            sides,
+            kernels,
+            gather,
+            gather_groups: None,
+            steps: 0,
+            max_per_dim: device.limits().max_compute_workgroups_per_dimension,
+            stats: std::cell::Cell::default(),
+        })
+    }
+
+    /// Records one step of the contact into `encoder` over the bodies' position buffers (`a`
+    /// then `b`, `vec4<f32>` each); the forces are in [`force_buffer`](Self::force_buffer) once
+    /// it is submitted.
+    ///
+    /// # Errors
+    /// The searches' recording errors; [`Error::Gpu`] when the device refuses a bind group.
+    pub fn record(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        queue: &wgpu::Queue,
+        a: &Buffer,
+        b: &Buffer,
+    ) -> Result<(), Error> {
+        let device = self.sides[0].search.binning.context().device().clone();
+        let first = self.steps == 0;
+        for (s, side) in self.sides.iter_mut().enumerate() {
+            let (probes, partner) = if s == 0 { (b, a) } else { (a, b) };
+            if side.side.first != u32::from(first) {
+                side.side.first = u32::from(first);
+                queue.write_buffer(&side.uniform, 0, bytemuck::bytes_of(&side.side));
+            }
+            let keys = [probes.clone(), partner.clone()];
+            if side.group.as_ref().is_none_or(|(k, _)| *k != keys) {
+                let buffers = [
+                    &side.uniform,
+                    probes,
+                    partner,
+                    &side.prev,
+                    &side.scratch,
+                    side.search.hits_buffer(),
+                    side.search.topology_buffer(),
+                    &side.status,
+                ];
+                let group = scoped(&device, || {
+                    self.kernels.side.iter().map(|k| k.bind(&device, &buffers)).collect()
+                })?;
+                side.group = Some((keys, group));
+                self.gather_groups = None;
+            }
+            let Some((_, group)) = side.group.as_ref() else { unreachable!("bound above") };
+            let g = &side.side;
+            encoder.clear_buffer(&side.scratch, 0, Some(4));
+            encoder.clear_buffer(
+                &side.scratch,
+                4 * u64::from(g.count_at),
+                Some(4 * u64::from(g.keys_at - g.count_at)),
+            );
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("sim surface age"),
+                    timestamp_writes: None,
+                });
+                self.kernels.side[0].dispatch(&mut pass, &group[0], g.n_partner, self.max_per_dim);
+                self.kernels.side[1].dispatch(&mut pass, &group[1], g.n_probes, self.max_per_dim);
+            }
+            side.search.record(encoder, probes, partner)?;
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("sim surface confirm"),
+                timestamp_writes: None,
+            });
+            self.kernels.side[2].dispatch(&mut pass, &group[2], g.n_probes, self.max_per_dim);
+            self.kernels.side[3].dispatch(&mut pass, &group[3], g.n_probes, self.max_per_dim);
+            self.kernels.side[4].dispatch_one(&mut pass, &group[4]);
+            self.kernels.side[5].dispatch(&mut pass, &group[5], g.n_probes, self.max_per_dim);
+        }
+        if self.gather_groups.is_none() {
+            let [s0, s1] = &self.sides;
+            let bind = |k: usize| {
+                let (own, other) = if k == 0 { (s1, s0) } else { (s0, s1) };
+                let (uniform, free, force) = &self.gather[k];
+                self.kernels.gather.bind(
+                    &device,
+                    &[
+                        uniform,
+                        own.search.hits_buffer(),
+                        other.search.hits_buffer(),
+                        &other.scratch,
+                        free,
+                        force,
+                    ],
+                )
+            };
+            self.gather_groups = Some(scoped(&device, || [bind(0), bind(1)])?);
+        }
+        let Some(groups) = self.gather_groups.as_ref() else { unreachable!("bound above") };
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("sim surface gather"),
+            timestamp_writes: None,
+        });
+        for (k, group) in groups.iter().enumerate() {
+            let n = self.sides[k].side.n_partner;
+            self.kernels.gather.dispatch(&mut pass, group, n, self.max_per_dim);
+        }
+        drop(pass);
+        self.steps += 1;
+        Ok(())
+    }
+
+    /// The forces on `a` (`as_a`) or on `b`, one `vec4<f32>` per vertex (w 0).
+    #[must_use]
+    pub fn force_buffer(&self, as_a: bool) -> &Buffer {
+        &self.gather[usize::from(!as_a)].2
+    }
+
+    /// The last step's forces on `a` and `b`, and the vertices of `b` in contact (ascending, as
+    /// [`SurfaceForces::touching_b`](crate::contact::SurfaceForces) gives them), read back;
+    /// what it found is kept for [`stats`](Self::stats). Blocks until the device is done.
+    ///
+    /// # Errors
+    /// [`Error::Gpu`] / [`Error::DeviceLost`] when the readback fails.
+    pub fn read(&self) -> Result<ReadBack, Error> {
+        let ctx = self.sides[0].search.binning.context();
+        let sizes = [self.sides[1].side.n_probes, self.sides[0].side.n_probes];
+        let bytes = read_buffers(
+            ctx,
+            &[
+                (&self.gather[0].2, 16 * u64::from(sizes[0])),
+                (&self.gather[1].2, 16 * u64::from(sizes[1])),
+                (self.sides[0].search.hits_buffer(), 64 * u64::from(sizes[1])),
+                (self.sides[1].search.hits_buffer(), 64 * u64::from(sizes[0])),
+                (&self.sides[0].status, 16),
+                (&self.sides[1].status, 16),
+            ],
+        )?;
+        // The search's rule: no edge longer than it allows, or a contact could be missed.
+        for (k, side) in self.sides.iter().enumerate() {
+            let longest = f32::from_bits(u32::from_le_bytes([
+                bytes[4 + k][0],
+                bytes[4 + k][1],
+                bytes[4 + k][2],
+                bytes[4 + k][3],
+            ]))
+            .sqrt();
+            if longest > side.search.stretched {
+                return Err(Error::Simulation {
+                    step: self.steps,
+                    message: format!(
+                        "the surface contact on the device: an edge of body {}'s surface stretched to {longest:.3}, beyond the {:.3} its search on the device reaches (1.5 times its longest edge as given), so a contact could be missed; run it with --backend cpu",
+                        if k == 0 { "a" } else { "b" },
+                        side.search.stretched
+                    ),
+                });
+            }
+        }
+        let forces = |b: &[u8]| -> Vec<Vec3> {
+            bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(b)
+                .iter()
+                .map(|f| Vec3::new(f[0], f[1], f[2]))
+                .collect()
+        };
+        let hits = |b: &[u8]| -> Vec<GpuHit> { bytemuck::pod_collect_to_vec(b) };
+        let (on_a, on_b) = (hits(&bytes[2]), hits(&bytes[3]));
+        let mut stats = crate::contact::SurfaceStats::default();
+        let mut touching = Vec::new();
+        let pushes = |h: &GpuHit| h.found == 1 && h.normal[3] > 0.0;
+        for (k, h) in on_a.iter().enumerate().filter(|(_, h)| pushes(h)) {
+            stats.b_pushed += 1;
+            stats.deepest = stats.deepest.max(h.normal[3]);
+            touching.push(k as u32);
+        }
+        let triangles = &self.sides[1].search;
+        let corners = triangles.corners();
+        for h in on_b.iter().filter(|h| pushes(h)) {
+            stats.a_pushed += 1;
+            stats.deepest = stats.deepest.max(h.normal[3]);
+            let t = corners[h.triangle as usize];
+            touching.extend((0..3).filter(|&c| h.weights[c] > 0.0).map(|c| t[c]));
+        }
+        touching.sort_unstable();
+        touching.dedup();
+        self.stats.set(stats);
+        Ok((forces(&bytes[0]), forces(&bytes[1]), touching))
+    }
+
+    /// What the step found at the last [`read`](Self::read) (a frame: the step does not read
+    /// it back).
+    #[must_use]
+    pub fn stats(&self) -> crate::contact::SurfaceStats {
+        self.stats.get()
     }
 }
