@@ -342,8 +342,8 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
     assert_eq!(one.candidates.len(), 3);
     assert_eq!(one.candidates, two.candidates);
     // And on the GPU (stepped there even on a software adapter): with the voxel model's
-    // penalty, and with the surface response (its search on the host, over the positions
-    // read back each step), the same as the CPU, to the bit.
+    // penalty, and with the surface response (wholly on the device, the shells' walks widening
+    // as they fill: docs/contacts.md), the same as the CPU, to the bit.
     if common::gpu().is_some() {
         let d5 = dir("surface-on-the-gpu");
         let gpu = run_on(&d5, &scene(12.0), three, Backend::Gpu, 1).unwrap();

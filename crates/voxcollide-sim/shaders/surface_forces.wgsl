@@ -25,10 +25,6 @@ struct Side {
     gap: f32,
     reach: f32,
     n_triangles: u32,    // the partner's
-    off_at: u32,         // in `topology`: per partner point, where its triangles start (CSR)
-    adj_at: u32,         // the triangles at each point
-    _pad0: u32,
-    _pad1: u32,
 }
 
 // The SurfaceHit of shaders/surface_search.wgsl.
@@ -52,9 +48,6 @@ struct Hit {
 @group(0) @binding(5) var<storage, read_write> hits: array<Hit>;
 // The partner's triangles (3 corners each) from word 0: the search's topology.
 @group(0) @binding(6) var<storage, read> topology: array<u32>;
-// [0]: the longest squared edge of the partner's surface over the run (f32 bits), which the
-// host holds to the search's rule at each frame.
-@group(0) @binding(7) var<storage, read_write> status: array<atomic<u32>, 4>;
 
 const PI: f32 = 3.14159265358979323846264338327950288;
 
@@ -78,19 +71,6 @@ fn partner_moved(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
         }
     }
     prev[side.n_probes + j] = q;
-    // The edges of the triangles whose first corner this is.
-    for (var a = topology[side.off_at + j]; a < topology[side.off_at + j + 1u]; a++) {
-        let t = topology[side.adj_at + a];
-        if topology[3u * t] != j {
-            continue;
-        }
-        let b = partner[topology[3u * t + 1u]].xyz;
-        let c = partner[topology[3u * t + 2u]].xyz;
-        let e2 = max(max(dot3(b - q.xyz, b - q.xyz), dot3(c - b, c - b)), dot3(q.xyz - c, q.xyz - c));
-        if bitcast<u32>(e2) <= 0x7f800000u {
-            atomicMax(&status[0], bitcast<u32>(e2));
-        }
-    }
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)

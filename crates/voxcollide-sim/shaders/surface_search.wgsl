@@ -2,10 +2,11 @@
 // probing point's nearest triangle of the partner's surface within the cutoff, found through the
 // voxel model. The partner's points are binned by the core's passes (its `Params`, `State`,
 // slot starts and sorted points, `voxcollide::GpuCollision::record_binning`, composed from its
-// `common.wgsl`), and each probe walks the 3×3×3 block of voxels about its own to the triangles
-// at the points binned there that lie within `near` of it (the cutoff plus 1.5 times the surface's
-// longest edge as given). A voxel is at least `near`, so every triangle within the cutoff has a
-// corner that near, binned in the block. Then the push as the CPU's
+// `common.wgsl`); `longest_edge` measures the surface's longest edge now; and each probe walks
+// the block of voxels about its own out to `near` (the cutoff plus that edge: every triangle
+// within the cutoff has a corner that near), k voxels each way (one, while the surface has not
+// stretched past the voxel it was binned for), to the triangles at the points binned there
+// that lie within `near` of it. Then the push as the CPU's
 // `Side::hit` finds it (src/contact/surface.rs): the nearest feature's pseudo-normal, the signed
 // distance, the direction. Every float operation is written in the CPU's order (glam's `Vec3`
 // methods spelled out), so that both give the same bits.
@@ -20,10 +21,9 @@ struct Search {
     reach: f32,
     gap: f32,
     margin: f32,
-    near: f32,          // the cutoff plus STRETCH times the longest edge: a triangle within the
-                        // cutoff has a corner this near
-    stretched: f32,     // STRETCH times the longest edge: no triangle is nearer than a corner less this
-    voxel: f32,         // the binning's: every point this near is binned in the block
+    voxel: f32,         // the binning's
+    n_triangles: u32,   // the partner's
+    n_partner: u32,     // the partner's points
 }
 
 struct SurfaceHit {
@@ -46,6 +46,10 @@ struct SurfaceHit {
 @group(0) @binding(6) var<storage, read> partner: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read> topology: array<u32>;
 @group(0) @binding(8) var<storage, read_write> hits: array<SurfaceHit>;
+// [0]: the squared longest edge of the partner's surface at this step (f32 bits), by
+// `longest_edge`; [1]: 1 once a step's binning left a point out (the partner grew past the grid,
+// or a point is not finite), kept for the host's next look.
+@group(0) @binding(9) var<storage, read_write> edge: array<atomic<u32>, 4>;
 
 const NONE: u32 = 0xffffffffu;
 // Where on a triangle its nearest point lies: the face, an edge (from corner e to e + 1), a corner.
@@ -177,6 +181,9 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = item_index(gid, nwg);
+    if k == 0u && atomicLoad(&state.binned) < search.n_partner {
+        atomicStore(&edge[1], 1u);
+    }
     if k >= search.n_probes {
         return;
     }
@@ -197,19 +204,27 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     var best_t = NONE;
     var best = vec4<f32>(0.0);
     var bound = search.cutoff * search.cutoff;
-    let near2 = search.near * search.near;
+    // The longest edge now: a triangle within the cutoff has a corner within `near`, and every
+    // point that near is binned within `reach` voxels of the probe's own, each way.
+    let longest = sqrt(bitcast<f32>(atomicLoad(&edge[0])));
+    let near = search.cutoff + longest;
+    let near2 = near * near;
+    // (At most the grid across: a surface stretched past all sense is walked whole.)
+    let across = f32(max(max(params.dims.x, params.dims.y), params.dims.z));
+    let reach = i32(clamp(ceil(near / search.voxel), 1.0, across));
     // A lower bound of the distance to every triangle (`Side::hits`' `lower`): those passed over
-    // or measured, those with a corner in the block but none near (a corner less the longest
-    // edge stretched), and those with no corner in the block (a voxel less that).
-    let far = max(search.voxel - search.stretched, 0.0);
+    // or measured, those with a corner in the block but none near (that corner's distance less
+    // the longest edge), and those with no corner in the block (`reach` voxels less that).
+    let far = max(f32(reach) * search.voxel - longest, 0.0);
     var lower = far * far;
     let v = voxel_of(p, origin);
     if v.w == 1u {
-        let lo = vec3<i32>(v.xyz) - vec3<i32>(1);
+        let lo = vec3<i32>(v.xyz) - vec3<i32>(reach);
         let dims = vec3<i32>(params.dims.xyz);
-        for (var z = 0; z < 3; z++) {
-            for (var y = 0; y < 3; y++) {
-                for (var x = 0; x < 3; x++) {
+        let side = 2 * reach + 1;
+        for (var z = 0; z < side; z++) {
+            for (var y = 0; y < side; y++) {
+                for (var x = 0; x < side; x++) {
                     let q = lo + vec3<i32>(x, y, z);
                     if any(q < vec3<i32>(0)) || any(q >= dims) {
                         continue;
@@ -225,7 +240,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                         }
                         let di2 = dist2(pi, p);
                         if di2 > near2 {
-                            let d = max(sqrt(di2) - search.stretched, 0.0);
+                            let d = max(sqrt(di2) - longest, 0.0);
                             lower = min(lower, d * d);
                             continue;
                         }
@@ -234,8 +249,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                             let c0 = point(corner_of(t, 0u));
                             let c1 = point(corner_of(t, 1u));
                             let c2 = point(corner_of(t, 2u));
-                            // Each triangle once: at its first corner that near (in the block,
-                            // since `near` is at most a voxel).
+                            // Each triangle once: at its first corner that near (in the block).
                             var first = corner_of(t, 2u);
                             if dist2(c0, p) <= near2 {
                                 first = corner_of(t, 0u);
@@ -330,4 +344,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         }
     }
     hits[k] = hit;
+}
+
+// The surface's longest edge now, squared, into `edge[0]` (cleared before): each triangle's
+// three edges. (One not finite is passed over: its triangle is never a candidate.)
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn longest_edge(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let t = item_index(gid, nwg);
+    if t >= search.n_triangles {
+        return;
+    }
+    let a = point(corner_of(t, 0u));
+    let b = point(corner_of(t, 1u));
+    let c = point(corner_of(t, 2u));
+    let e2 = max(max(dist2(b, a), dist2(c, b)), dist2(a, c));
+    if is_finite_f32(e2) {
+        atomicMax(&edge[0], bitcast<u32>(e2));
+    }
 }

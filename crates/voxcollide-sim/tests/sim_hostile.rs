@@ -205,3 +205,92 @@ fn nan_or_huge_positions_under_the_implicit_integrator_are_named_on_the_cpu_and_
         }
     }
 }
+
+/// A ball pressed into a block, explicit, the default surface contact: between a lattice's own
+/// surface and a rigid ball it steps wholly on the device (docs/contacts.md, "The search on the
+/// device").
+const PRESS: &str = r#"
+units = "mm"
+[time]
+integrator = "explicit"
+steps = 400
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [30, 30, 10] }
+spacing = 3
+material = { young_kpa = 10 }
+fixed = [{ below = { z = -4 } }]
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 6 }
+spacing = 3
+position = [0, 0, 11]
+motion = [{ t = 0.0, position = [0, 0, 11] }, { t = 0.01, position = [0, 0, 8] }]
+[[contact]]
+a = "ball"
+b = "block"
+"#;
+
+#[test]
+fn the_devices_surface_contact_meets_poisons_mid_run_with_a_named_error_or_a_finite_run() {
+    let Some(ctx) = common::gpu() else { return };
+    let built = voxcollide_sim::build::build_world(
+        &voxcollide_sim::scene_file::SceneFile::parse("press.toml", PRESS).unwrap(),
+    )
+    .unwrap();
+    let mut cpu = CpuWorld::new(built.world).unwrap();
+    for _ in 0..150 {
+        cpu.step().unwrap();
+    }
+    let s = cpu.surface_stats[0];
+    assert!(s.a_pushed + s.b_pushed > 0, "the two should be in contact: {s:?}");
+    for body in [0, 1] {
+        for value in POISONS {
+            let what = format!("body {body} value {value}");
+            let mut world = cpu.world.clone();
+            let b = &mut world.bodies[body];
+            let i = b.len() / 2;
+            b.pos[i].y = value;
+            let mut gpu = GpuWorld::new(&ctx, world).unwrap();
+            let mut result = Ok(());
+            for _ in 0..20 {
+                result = gpu.step();
+                assert!(result.is_ok(), "{what}: recording failed: {result:?}");
+            }
+            assert_eq!(gpu.host_waits(), 0, "{what}");
+            let synced = gpu.sync().map(|_| ());
+            if !value.is_finite() {
+                assert!(matches!(synced, Err(Error::Simulation { step: 1, .. })), "{what}: {synced:?}");
+            }
+            assert_named_or_finite(&what, synced.and(result), &gpu.world);
+        }
+    }
+}
+
+#[test]
+fn the_devices_surface_contact_with_nothing_to_find_steps_as_the_cpu_and_pushes_nothing() {
+    // The ball far above the block all along: every search comes back empty, and the bodies
+    // step to the CPU's bits, no force from the contact.
+    let Some(ctx) = common::gpu() else { return };
+    let far = PRESS.replace("[0, 0, 11]", "[0, 0, 80]").replace("[0, 0, 8]", "[0, 0, 70]");
+    assert_eq!(far.matches("[0, 0, 80]").count(), 2, "{far}");
+    let built = voxcollide_sim::build::build_world(
+        &voxcollide_sim::scene_file::SceneFile::parse("far.toml", &far).unwrap(),
+    )
+    .unwrap();
+    let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
+    let mut gpu = GpuWorld::new(&ctx, built.world).unwrap();
+    for _ in 0..50 {
+        cpu.step().unwrap();
+        gpu.step().unwrap();
+    }
+    let reports = gpu.sync().unwrap();
+    assert!(reports[0].force_a.iter().chain(&reports[0].force_b).all(|f| *f == Vec3::ZERO));
+    assert!(reports[0].colliding_b.is_empty());
+    for (c, g) in cpu.world.bodies.iter().zip(&gpu.world.bodies) {
+        assert_eq!(c.pos, g.pos);
+    }
+    assert_eq!(gpu.host_waits(), 0);
+}

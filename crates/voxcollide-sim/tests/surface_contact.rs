@@ -1,8 +1,9 @@
 //! Contacts measured to the partner's surface (`response = "surface"`, `SurfaceContact`): both
 //! sides pushed, where the voxel model pushes only one; the force continuous across the
 //! partner's edges and equal to the penalty's depth law; Newton's third law; the same bits on
-//! any number of threads; the same bits on the GPU world under the explicit integrator (the search
-//! on the host), and its refusal under the implicit one by name.
+//! any number of threads; the same bits on the GPU world under the explicit integrator (wholly on
+//! the device between bodies that show their own surface, the search on the host for a surface a
+//! lattice carries), and its refusal under the implicit one by name.
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
@@ -336,6 +337,48 @@ fn a_vertex_outside_a_folded_shell_is_not_taken_for_inside() {
     let mut contact = SurfaceContact::new(reach8, &shell, &inside).unwrap();
     let stats = contact.step(&shell, &inside, &mut out);
     assert!(stats.b_pushed > 0, "{stats:?}");
+}
+
+/// The device's twin of the folded shell above (`gpu::surface::DeviceSurface`, its winding
+/// number summed in WGSL): the vertex outside is not pushed, the one inside is.
+#[test]
+fn on_the_device_too_a_vertex_outside_a_folded_shell_is_not_taken_for_inside() {
+    use voxcollide::wgpu::util::DeviceExt as _;
+    use voxcollide_sim::gpu::surface::DeviceSurface;
+    let Some(ctx) = common::gpu() else { return };
+    let mut shell = ball(Vec3::new(0.0, 0.0, 0.0), 4.0);
+    let top = shell.surface.triangles.iter().position(|t| t.contains(&0)).unwrap();
+    shell.surface.triangles[top].swap(1, 2);
+    let [a, b, c] = shell.surface.triangles[top].map(|v| shell.pos[v as usize]);
+    let centre = (a + b + c) / 3.0;
+    let reach8 = SurfacePenalty { reach: 8.0, ..penalty() };
+    let device = ctx.device();
+    let upload = |points: &[Vec3]| {
+        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
+        device.create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
+            label: Some("test points"),
+            contents: bytemuck::cast_slice(&padded),
+            usage: voxcollide::wgpu::BufferUsages::STORAGE,
+        })
+    };
+    // Each probe against the shell, one step: the forces on the probe, and the stats.
+    let step = |probe: &MassSpring| {
+        let mut contact = DeviceSurface::new(&ctx, reach8, &shell, probe).unwrap();
+        let (pa, pb) = (upload(&shell.pos), upload(&probe.pos));
+        let mut encoder = device.create_command_encoder(&Default::default());
+        contact.record(&mut encoder, ctx.queue(), &pa, &pb).unwrap();
+        ctx.queue().submit([encoder.finish()]);
+        let (_, on_probe, _) = contact.read().unwrap();
+        (on_probe, contact.stats())
+    };
+    let (on_probe, stats) = step(&ball(centre + 1.2 * centre.normalize(), 0.2));
+    assert_eq!(stats.b_pushed, 0, "{stats:?}");
+    assert!(on_probe.iter().all(|f| *f == Vec3::ZERO));
+    let side = shell.surface.triangles.iter().position(|t| !t.contains(&0)).unwrap();
+    let [a, b, c] = shell.surface.triangles[side].map(|v| shell.pos[v as usize]);
+    let centre = (a + b + c) / 3.0;
+    let (on_probe, stats) = step(&ball(centre - 0.6 * centre.normalize(), 0.1));
+    assert!(stats.b_pushed > 0 && on_probe.iter().any(|f| *f != Vec3::ZERO), "{stats:?}");
 }
 
 /// A ball moving down at 1 unit/s, just touching a free block, and the world of the two with a

@@ -750,15 +750,8 @@ impl GpuWorld {
     /// [`Error::Simulation`] when a vertex blew up (naming the first step it was seen at, the
     /// body and the vertex), and the readback's device errors.
     pub fn sync(&mut self) -> Result<Vec<ContactReport>, Error> {
-        let reports = if self.step > 0 {
-            self.collisions
-                .iter_mut()
-                .zip(&self.world.contacts)
-                .map(|(c, pair)| c.read_report(pair, self.world.bodies[pair.a].len()))
-                .collect::<Result<Vec<_>, _>>()?
-        } else {
-            vec![ContactReport::default(); self.collisions.len()]
-        };
+        // The bodies first: a blow-up is named by its vertex before a contact says what it did
+        // to the contact (a surface stretched past its search's reach, say).
         for (k, gpu) in self.bodies.iter().enumerate() {
             let n = u64::from(gpu.n);
             let bytes = voxcollide::gpu::read_buffers(
@@ -780,7 +773,14 @@ impl GpuWorld {
             let fill: [f32; 4] = bytemuck::pod_read_unaligned(&bytes[3]);
             body.held_pressure = fill[2];
         }
-        Ok(reports)
+        if self.step == 0 {
+            return Ok(vec![ContactReport::default(); self.collisions.len()]);
+        }
+        self.collisions
+            .iter_mut()
+            .zip(&self.world.contacts)
+            .map(|(c, pair)| c.read_report(pair, self.world.bodies[pair.a].len()))
+            .collect()
     }
 }
 

@@ -5,10 +5,12 @@
 //! **The voxel model finds the candidates.** The partner's points are binned each step by the
 //! core's passes ([`GpuCollision::record_binning`]: its grid follows them, its counting sort
 //! lays them out by voxel slot), and each probe walks the 3×3×3 block of voxels about its own
-//! to the triangles at the points binned there (`shaders/surface_search.wgsl`). A voxel is at
-//! least the cutoff plus [`STRETCH`] times the surface's longest edge as it was given (the power
-//! of two above it: the core's grids take no other), so every triangle within the cutoff has
-//! a corner in the block while no edge has stretched by more than that.
+//! to the triangles at the points binned there (`shaders/surface_search.wgsl`). A triangle within
+//! the cutoff has a corner within the cutoff plus the surface's longest edge, which a pass
+//! measures each step; the walk reaches that far, one voxel each way while the surface has not
+//! stretched past the voxel it was binned for (the cutoff plus [`STRETCH`] times the longest
+//! edge as given, the power of two above it: the core's grids take no other), and further where
+//! it has (a filling implant's shell grows from its deflated start).
 //!
 //! **The explicit step on the device** ([`DeviceSurface`]): both sides' searches, then each
 //! side's clearances, the inside test of doubtful hits and the way in kept for the next step,
@@ -30,9 +32,8 @@ use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuContext, read_buffers, scoped};
 use voxcollide::{Anchor, ContactParams, Direction, GpuCollision, Search, VoxelGrid};
 
-/// How far the surface's edges may stretch beyond their length as given before a triangle
-/// within the cutoff could lie outside a probe's block: the voxel is the cutoff plus this times
-/// the longest edge.
+/// How far the surface's edges may stretch beyond their length as given before a probe walks
+/// more than one voxel each way: the voxel is the cutoff plus this times the longest edge.
 pub const STRETCH: f32 = 1.5;
 
 /// The search's pass; its shader is the core's `common.wgsl`
@@ -52,10 +53,24 @@ struct GpuSearch {
     reach: f32,
     gap: f32,
     margin: f32,
-    near: f32,
-    stretched: f32,
     voxel: f32,
+    n_triangles: u32,
+    n_partner: u32,
 }
+
+/// The search's bindings (both its passes').
+const SEARCH_SLOTS: [Slot; 10] = [
+    Slot::Uniform,
+    Slot::ReadWrite,
+    Slot::Read,
+    Slot::Read,
+    Slot::Uniform,
+    Slot::Read,
+    Slot::Read,
+    Slot::Read,
+    Slot::ReadWrite,
+    Slot::ReadWrite,
+];
 
 /// One probe's result. Keep in sync with `SurfaceHit` in `shaders/surface_search.wgsl`.
 #[repr(C)]
@@ -76,6 +91,10 @@ struct GpuHit {
 pub struct SurfaceSearch {
     binning: GpuCollision,
     kernel: Kernel,
+    /// The pass measuring the surface's longest edge first (`longest_edge`).
+    edge_kernel: Kernel,
+    /// Its answer (`edge` in the shader).
+    edge: Buffer,
     uniform: Buffer,
     topology: Buffer,
     hits: Buffer,
@@ -83,14 +102,9 @@ pub struct SurfaceSearch {
     n_partner: u32,
     /// The partner's triangles, as `topology` begins.
     corners: Vec<[u32; 3]>,
-    /// Where in `topology` the per-point triangle lists begin (CSR offsets, then the lists).
-    off_at: u32,
-    adj_at: u32,
-    /// [`STRETCH`] times the longest edge as given: the longest an edge may grow.
-    stretched: f32,
-    /// The bind group, and the buffers it was made over (the probes', the partner's, and the
-    /// binning's starts).
-    group: Option<([Buffer; 3], wgpu::BindGroup)>,
+    /// The bind groups (the search's, the longest edge's), and the buffers they were made
+    /// over (the probes', the partner's, and the binning's starts).
+    group: Option<([Buffer; 3], [wgpu::BindGroup; 2])>,
 }
 
 impl SurfaceSearch {
@@ -128,8 +142,7 @@ impl SurfaceSearch {
             .filter(|l| l.is_finite())
             .fold(0.0f32, f32::max);
         // (The core's grids take a power of two.)
-        let near = cutoff + STRETCH * longest;
-        let voxel = 2f32.powi(near.log2().ceil() as i32);
+        let voxel = 2f32.powi((cutoff + STRETCH * longest).log2().ceil() as i32);
         let (lo, hi) = partner
             .iter()
             .filter(|p| p.is_finite())
@@ -166,9 +179,9 @@ impl SurfaceSearch {
             reach: penalty.reach,
             gap: penalty.gap,
             margin: penalty.margin,
-            near,
-            stretched: STRETCH * longest,
             voxel,
+            n_triangles: mesh.triangles.len() as u32,
+            n_partner: partner.len() as u32,
         };
         let source = [voxcollide::gpu::shaders::COMMON, SURFACE_SEARCH].concat();
         scoped(device, || {
@@ -183,22 +196,20 @@ impl SurfaceSearch {
             let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
             SurfaceSearch {
                 binning,
-                kernel: Kernel::new(
+                kernel: Kernel::new(device, "sim surface search", &source, &SEARCH_SLOTS),
+                edge_kernel: Kernel::entry(
                     device,
-                    "sim surface search",
+                    "sim surface longest edge",
                     &source,
-                    &[
-                        Slot::Uniform,
-                        Slot::ReadWrite,
-                        Slot::Read,
-                        Slot::Read,
-                        Slot::Uniform,
-                        Slot::Read,
-                        Slot::Read,
-                        Slot::Read,
-                        Slot::ReadWrite,
-                    ],
+                    &SEARCH_SLOTS,
+                    "longest_edge",
                 ),
+                edge: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("sim surface longest edge"),
+                    size: 16,
+                    usage: storage,
+                    mapped_at_creation: false,
+                }),
                 uniform: init(
                     "sim surface search",
                     bytemuck::bytes_of(&search),
@@ -213,9 +224,6 @@ impl SurfaceSearch {
                 n_probes: n_probes as u32,
                 n_partner: partner.len() as u32,
                 corners: mesh.triangles.clone(),
-                off_at,
-                adj_at,
-                stretched: STRETCH * longest,
                 group: None,
             }
         })
@@ -254,30 +262,33 @@ impl SurfaceSearch {
         let keys = [probes.clone(), partner.clone(), starts.clone()];
         if self.group.as_ref().is_none_or(|(k, _)| *k != keys) {
             let device = self.binning.context().device().clone();
+            let buffers = [
+                params,
+                state,
+                starts,
+                sorted,
+                &self.uniform,
+                probes,
+                partner,
+                &self.topology,
+                &self.hits,
+                &self.edge,
+            ];
             let group = scoped(&device, || {
-                self.kernel.bind(
-                    &device,
-                    &[
-                        params,
-                        state,
-                        starts,
-                        sorted,
-                        &self.uniform,
-                        probes,
-                        partner,
-                        &self.topology,
-                        &self.hits,
-                    ],
-                )
+                [self.kernel.bind(&device, &buffers), self.edge_kernel.bind(&device, &buffers)]
             })?;
             self.group = Some((keys, group));
         }
-        let Some((_, group)) = self.group.as_ref() else { unreachable!("the bind group was just made") };
+        let Some((_, [group, edge_group])) = self.group.as_ref() else {
+            unreachable!("the bind group was just made")
+        };
         let max = self.binning.context().device().limits().max_compute_workgroups_per_dimension;
+        encoder.clear_buffer(&self.edge, 0, Some(4));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("sim surface search"),
             timestamp_writes: None,
         });
+        self.edge_kernel.dispatch(&mut pass, edge_group, self.corners.len() as u32, max);
         self.kernel.dispatch(&mut pass, group, self.n_probes, max);
         Ok(())
     }
@@ -305,9 +316,15 @@ impl SurfaceSearch {
     /// app has submitted a search. Blocks until the device is done.
     ///
     /// # Errors
-    /// [`Error::Gpu`] / [`Error::DeviceLost`] when the readback fails.
+    /// [`Error::Simulation`] once the partner has grown past the grid that bins it (twice its
+    /// size as set up): a push there could be missed; [`Error::Gpu`] / [`Error::DeviceLost`]
+    /// when the readback fails.
     pub fn read_hits(&self) -> Result<Vec<Option<SurfaceHit>>, Error> {
-        let bytes = read_buffers(self.binning.context(), &[(&self.hits, 64 * u64::from(self.n_probes))])?;
+        let bytes = read_buffers(
+            self.binning.context(),
+            &[(&self.hits, 64 * u64::from(self.n_probes)), (&self.edge, 16)],
+        )?;
+        self.check_binned(&bytes[1])?;
         let hits: &[GpuHit] = bytemuck::cast_slice(&bytes[0]);
         Ok(hits
             .iter()
@@ -320,6 +337,25 @@ impl SurfaceSearch {
                 })
             })
             .collect())
+    }
+
+    /// [`Error::Simulation`] where a step's binning left a point of the partner out since the
+    /// search was set up (`edge`'s second word as read back: the partner grew past the grid
+    /// that bins it, and a contact there could be missed).
+    fn check_binned(&self, edge: &[u8]) -> Result<(), Error> {
+        let flags: [u32; 4] = bytemuck::pod_read_unaligned(&edge[..16]);
+        if flags[1] == 0 {
+            return Ok(());
+        }
+        let grid = self.binning.grid();
+        Err(Error::Simulation {
+            step: 0,
+            message: format!(
+                "the surface contact on the device: the partner's surface grew past the grid its search bins it in ({:?} voxels of {}, twice its size as set up), and a contact there could be missed; run it with --backend cpu",
+                grid.dims().to_array(),
+                grid.voxel_size()
+            ),
+        })
     }
 
     /// The buffer of the partner's surface (its triangles' corners from word 0), as the passes
@@ -370,9 +406,6 @@ struct GpuSide {
     gap: f32,
     reach: f32,
     n_triangles: u32,
-    off_at: u32,
-    adj_at: u32,
-    _pad: [u32; 2],
 }
 
 /// A body's gather uniform. Keep in sync with `Gather` in `shaders/surface_gather.wgsl`.
@@ -401,8 +434,6 @@ struct DeviceSide {
     prev: Buffer,
     /// See `scratch` in `shaders/surface_forces.wgsl`.
     scratch: Buffer,
-    /// See `status` there: the partner's longest squared edge over the run.
-    status: Buffer,
     /// Per pass of [`SURFACE_FORCES_ENTRIES`], its bind group, and the position buffers they
     /// were made over.
     group: Option<([Buffer; 2], Vec<wgpu::BindGroup>)>,
@@ -481,9 +512,6 @@ impl DeviceSurface {
                 gap: penalty.gap,
                 reach: penalty.reach,
                 n_triangles: partner.surface.triangles.len() as u32,
-                off_at: search.off_at,
-                adj_at: search.adj_at,
-                _pad: [0; 2],
             };
             scoped(device, || {
                 use wgpu::util::DeviceExt as _;
@@ -505,7 +533,6 @@ impl DeviceSurface {
                     }),
                     prev: zeros("sim surface prev", 16 * u64::from(np + nq)),
                     scratch: zeros("sim surface scratch", 4 * u64::from(keys_at + 3 * np)),
-                    status: zeros("sim surface status", 16),
                     group: None,
                 }
             })
@@ -520,7 +547,6 @@ impl DeviceSurface {
                 Slot::ReadWrite,
                 Slot::ReadWrite,
                 Slot::Read,
-                Slot::ReadWrite,
             ];
             SurfaceKernels {
                 side: SURFACE_FORCES_ENTRIES
@@ -612,7 +638,6 @@ impl DeviceSurface {
                     &side.scratch,
                     side.search.hits_buffer(),
                     side.search.topology_buffer(),
-                    &side.status,
                 ];
                 let group = scoped(&device, || {
                     self.kernels.side.iter().map(|k| k.bind(&device, &buffers)).collect()
@@ -701,29 +726,15 @@ impl DeviceSurface {
                 (&self.gather[1].2, 16 * u64::from(sizes[1])),
                 (self.sides[0].search.hits_buffer(), 64 * u64::from(sizes[1])),
                 (self.sides[1].search.hits_buffer(), 64 * u64::from(sizes[0])),
-                (&self.sides[0].status, 16),
-                (&self.sides[1].status, 16),
+                (&self.sides[0].search.edge, 16),
+                (&self.sides[1].search.edge, 16),
             ],
         )?;
-        // The search's rule: no edge longer than it allows, or a contact could be missed.
-        for (k, side) in self.sides.iter().enumerate() {
-            let longest = f32::from_bits(u32::from_le_bytes([
-                bytes[4 + k][0],
-                bytes[4 + k][1],
-                bytes[4 + k][2],
-                bytes[4 + k][3],
-            ]))
-            .sqrt();
-            if longest > side.search.stretched {
-                return Err(Error::Simulation {
-                    step: self.steps,
-                    message: format!(
-                        "the surface contact on the device: an edge of body {}'s surface stretched to {longest:.3}, beyond the {:.3} its search on the device reaches (1.5 times its longest edge as given), so a contact could be missed; run it with --backend cpu",
-                        if k == 0 { "a" } else { "b" },
-                        side.search.stretched
-                    ),
-                });
-            }
+        for (side, edge) in self.sides.iter().zip(&bytes[4..]) {
+            side.search.check_binned(edge).map_err(|e| match e {
+                Error::Simulation { message, .. } => Error::Simulation { step: self.steps, message },
+                e => e,
+            })?;
         }
         let forces = |b: &[u8]| -> Vec<Vec3> {
             bytemuck::pod_collect_to_vec::<u8, [f32; 4]>(b)
