@@ -183,7 +183,7 @@ fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
     assert!(pushed > 300, "only {pushed} of {} probes pushed", probes.len());
     let differ = cpu.iter().zip(&gpu).filter(|(c, g)| c != g).count();
     assert_eq!(differ, 0, "{differ} of {} probes differ", probes.len());
-    // Grown past the grid that bins it (twice its size as set up, and a few voxels), its points
+    // Grown past the grid that bins it (twice its widest as set up, and a few voxels), its points
     // there go unbinned: the search says so by name instead of missing their pushes.
     let outgrown: Vec<Vec3> = ball.pos.iter().map(|p| 200.0 * *p).collect();
     let mut encoder = device.create_command_encoder(&Default::default());

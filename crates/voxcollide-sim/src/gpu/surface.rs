@@ -150,8 +150,11 @@ impl SurfaceSearch {
         if lo.cmpgt(hi).any() {
             return Err(empty("finite partner point"));
         }
-        // Room for the partner to grow to twice its size, and a block past each side.
-        let dims = ((2.0 * (hi - lo) / voxel).ceil() + Vec3::splat(4.0)).min(Vec3::splat(1e6)).as_uvec3();
+        // Room for the partner to grow to twice its size across its widest, every way (a shell
+        // deflated flat fills out in its thinnest direction), and a block past each side. The
+        // table is hashed, its memory the points', not the voxels'.
+        let across = (2.0 * (hi - lo).max_element() / voxel).ceil() + 4.0;
+        let dims = Vec3::splat(across.min(1e6)).as_uvec3();
         let grid = VoxelGrid::new(0.5 * (lo + hi), voxel, dims)?;
         let params = ContactParams {
             magnitude: 1.0,
@@ -317,7 +320,7 @@ impl SurfaceSearch {
     ///
     /// # Errors
     /// [`Error::Simulation`] once the partner has grown past the grid that bins it (twice its
-    /// size as set up): a push there could be missed; [`Error::Gpu`] / [`Error::DeviceLost`]
+    /// widest as set up, every way): a push there could be missed; [`Error::Gpu`] / [`Error::DeviceLost`]
     /// when the readback fails.
     pub fn read_hits(&self) -> Result<Vec<Option<SurfaceHit>>, Error> {
         let bytes = read_buffers(
@@ -351,7 +354,7 @@ impl SurfaceSearch {
         Err(Error::Simulation {
             step: 0,
             message: format!(
-                "the surface contact on the device: the partner's surface grew past the grid its search bins it in ({:?} voxels of {}, twice its size as set up), and a contact there could be missed; run it with --backend cpu",
+                "the surface contact on the device: the partner's surface grew past the grid its search bins it in ({:?} voxels of {}, twice its widest as set up), and a contact there could be missed; run it with --backend cpu",
                 grid.dims().to_array(),
                 grid.voxel_size()
             ),
