@@ -27,16 +27,6 @@ struct Side {
     n_triangles: u32,    // the partner's
 }
 
-// The SurfaceHit of shaders/surface_search.wgsl.
-struct Hit {
-    normal: vec4<f32>,
-    weights: vec4<f32>,
-    entry: vec4<f32>,
-    triangle: u32,
-    found: u32,
-    clear: f32,
-    _pad1: u32,
-}
 
 @group(0) @binding(0) var<uniform> side: Side;
 @group(0) @binding(1) var<storage, read> probes: array<vec4<f32>>;
@@ -45,7 +35,7 @@ struct Hit {
 @group(0) @binding(3) var<storage, read_write> prev: array<vec4<f32>>;
 // [0]: the partner's largest squared move (f32 bits); then the regions of `Side`.
 @group(0) @binding(4) var<storage, read_write> scratch: array<atomic<u32>>;
-@group(0) @binding(5) var<storage, read_write> hits: array<Hit>;
+@group(0) @binding(5) var<storage, read_write> hits: array<SurfaceHit>;
 // The partner's triangles (3 corners each) from word 0: the search's topology.
 @group(0) @binding(6) var<storage, read> topology: array<u32>;
 

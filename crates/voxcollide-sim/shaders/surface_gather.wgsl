@@ -16,26 +16,16 @@ struct Gather {
     _pad2: u32,
 }
 
-// The SurfaceHit of shaders/surface_search.wgsl.
-struct Hit {
-    normal: vec4<f32>,
-    weights: vec4<f32>,
-    entry: vec4<f32>,
-    triangle: u32,
-    found: u32,
-    clear: f32,
-    _pad1: u32,
-}
 
 @group(0) @binding(0) var<uniform> gather: Gather;
-@group(0) @binding(1) var<storage, read> own: array<Hit>;
-@group(0) @binding(2) var<storage, read> other: array<Hit>;
+@group(0) @binding(1) var<storage, read> own: array<SurfaceHit>;
+@group(0) @binding(2) var<storage, read> other: array<SurfaceHit>;
 @group(0) @binding(3) var<storage, read> lists: array<u32>;
 @group(0) @binding(4) var<storage, read> free: array<u32>;
 @group(0) @binding(5) var<storage, read_write> force: array<vec4<f32>>;
 
 // A push's force, `k · depth · n` (the scalar first, as the CPU's `p.stiffness * h.depth * h.normal`).
-fn push_force(h: Hit) -> vec3<f32> {
+fn push_force(h: SurfaceHit) -> vec3<f32> {
     return (gather.stiffness * h.normal.w) * h.normal.xyz;
 }
 

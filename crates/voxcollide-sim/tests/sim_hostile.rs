@@ -209,29 +209,7 @@ fn nan_or_huge_positions_under_the_implicit_integrator_are_named_on_the_cpu_and_
 /// A ball pressed into a block, explicit, the default surface contact: between a lattice's own
 /// surface and a rigid ball it steps wholly on the device (docs/contacts.md, "The search on the
 /// device").
-const PRESS: &str = r#"
-units = "mm"
-[time]
-integrator = "explicit"
-steps = 400
-[[body]]
-name = "block"
-kind = "soft"
-shape = { box = [30, 30, 10] }
-spacing = 3
-material = { young_kpa = 10 }
-fixed = [{ below = { z = -4 } }]
-[[body]]
-name = "ball"
-kind = "rigid"
-shape = { sphere = 6 }
-spacing = 3
-position = [0, 0, 11]
-motion = [{ t = 0.0, position = [0, 0, 11] }, { t = 0.01, position = [0, 0, 8] }]
-[[contact]]
-a = "ball"
-b = "block"
-"#;
+const PRESS: &str = include_str!("common/press.toml");
 
 #[test]
 fn the_devices_surface_contact_meets_poisons_mid_run_with_a_named_error_or_a_finite_run() {

@@ -105,29 +105,7 @@ fn the_push_is_continuous_across_the_partners_edges() {
 }
 
 /// A rigid ball pressed 3 mm into a soft block (a scene file, the default response).
-const PRESS: &str = r#"
-units = "mm"
-[time]
-integrator = "explicit"
-steps = 400
-[[body]]
-name = "block"
-kind = "soft"
-shape = { box = [30, 30, 10] }
-spacing = 3
-material = { young_kpa = 10 }
-fixed = [{ below = { z = -4 } }]
-[[body]]
-name = "ball"
-kind = "rigid"
-shape = { sphere = 6 }
-spacing = 3
-position = [0, 0, 11]
-motion = [{ t = 0.0, position = [0, 0, 11] }, { t = 0.01, position = [0, 0, 8] }]
-[[contact]]
-a = "ball"
-b = "block"
-"#;
+const PRESS: &str = include_str!("common/press.toml");
 
 #[test]
 fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {

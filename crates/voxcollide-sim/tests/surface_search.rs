@@ -15,6 +15,17 @@ use voxcollide_sim::contact::{SurfaceHit, SurfacePenalty, nearest_pushes};
 use voxcollide_sim::gpu::surface::SurfaceSearch;
 use voxcollide_sim::mesh::TriangleMesh;
 
+/// `points` in a storage buffer on `ctx`'s device, a `vec4<f32>` each (w 1).
+fn upload(ctx: &voxcollide::GpuContext, points: &[Vec3]) -> voxcollide::wgpu::Buffer {
+    use voxcollide::wgpu::util::DeviceExt as _;
+    let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
+    ctx.device().create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
+        label: Some("test points"),
+        contents: bytemuck::cast_slice(&padded),
+        usage: voxcollide::wgpu::BufferUsages::STORAGE | voxcollide::wgpu::BufferUsages::COPY_DST,
+    })
+}
+
 /// The device's pushes of `probes` against `mesh` over `partner`, the probes' ways in `entry`.
 fn on_device(
     ctx: &voxcollide::GpuContext,
@@ -24,17 +35,8 @@ fn on_device(
     mesh: &TriangleMesh,
     entry: &[Vec3],
 ) -> Vec<Option<SurfaceHit>> {
-    use voxcollide::wgpu::util::DeviceExt as _;
     let device = ctx.device();
-    let upload = |points: &[Vec3]| {
-        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
-        device.create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
-            label: Some("test points"),
-            contents: bytemuck::cast_slice(&padded),
-            usage: voxcollide::wgpu::BufferUsages::STORAGE,
-        })
-    };
-    let (probe_buffer, partner_buffer) = (upload(probes), upload(partner));
+    let (probe_buffer, partner_buffer) = (upload(ctx, probes), upload(ctx, partner));
     let mut search = SurfaceSearch::new(ctx, penalty, mesh, partner, probes.len()).unwrap();
     search.set_entry(ctx.queue(), entry);
     let mut encoder = device.create_command_encoder(&Default::default());
@@ -149,7 +151,6 @@ fn the_device_finds_the_pushes_out_of_a_scanned_skin_as_the_cpu_does() {
 /// walk kept to one voxel each way misses some (checked by hand: 64 of 20,644 probes differ).
 #[test]
 fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
-    use voxcollide::wgpu::util::DeviceExt as _;
     let Some(ctx) = adapter::gpu() else { return };
     let material = voxcollide_sim::Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
     let ball =
@@ -164,17 +165,9 @@ fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
     let cpu = nearest_pushes(&penalty, &probes, &grown, &ball.surface, &[]);
     // Set up on the ball as it was; searched on it grown.
     let device = ctx.device();
-    let upload = |points: &[Vec3]| {
-        let padded: Vec<[f32; 4]> = points.iter().map(|p| p.extend(1.0).to_array()).collect();
-        device.create_buffer_init(&voxcollide::wgpu::util::BufferInitDescriptor {
-            label: Some("test points"),
-            contents: bytemuck::cast_slice(&padded),
-            usage: voxcollide::wgpu::BufferUsages::STORAGE,
-        })
-    };
     let mut search = SurfaceSearch::new(&ctx, penalty, &ball.surface, &ball.pos, probes.len()).unwrap();
     assert_eq!(search.voxel_size(), 64.0);
-    let (probe_buffer, partner_buffer) = (upload(&probes), upload(&grown));
+    let (probe_buffer, partner_buffer) = (upload(&ctx, &probes), upload(&ctx, &grown));
     let mut encoder = device.create_command_encoder(&Default::default());
     search.record(&mut encoder, &probe_buffer, &partner_buffer).unwrap();
     ctx.queue().submit([encoder.finish()]);
@@ -187,7 +180,7 @@ fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
     // there go unbinned: the search says so by name instead of missing their pushes.
     let outgrown: Vec<Vec3> = ball.pos.iter().map(|p| 200.0 * *p).collect();
     let mut encoder = device.create_command_encoder(&Default::default());
-    let outgrown = upload(&outgrown);
+    let outgrown = upload(&ctx, &outgrown);
     search.record(&mut encoder, &probe_buffer, &outgrown).unwrap();
     ctx.queue().submit([encoder.finish()]);
     let e = search.read_hits().unwrap_err().to_string();

@@ -36,9 +36,12 @@ use voxcollide::{Anchor, ContactParams, Direction, GpuCollision, Search, VoxelGr
 /// more than one voxel each way: the voxel is the cutoff plus this times the longest edge.
 pub const STRETCH: f32 = 1.5;
 
-/// The search's pass; its shader is the core's `common.wgsl`
-/// ([`voxcollide::gpu::shaders::COMMON`]) followed by this.
-pub const SURFACE_SEARCH: &str = include_str!("../../shaders/surface_search.wgsl");
+/// The search's passes (`main`, `longest_edge`) and the result they write; its shader is the
+/// core's `common.wgsl` ([`voxcollide::gpu::shaders::COMMON`]) followed by this.
+pub const SURFACE_SEARCH: &str = concat!(
+    include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/surface_search.wgsl")
+);
 
 /// Its uniform. Keep in sync with `Search` in `shaders/surface_search.wgsl`.
 #[repr(C)]
@@ -72,7 +75,7 @@ const SEARCH_SLOTS: [Slot; 10] = [
     Slot::ReadWrite,
 ];
 
-/// One probe's result. Keep in sync with `SurfaceHit` in `shaders/surface_search.wgsl`.
+/// One probe's result. Keep in sync with `SurfaceHit` in `shaders/surface_hit.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 struct GpuHit {
@@ -383,12 +386,18 @@ impl SurfaceSearch {
 /// The passes after the search (`shaders/surface_forces.wgsl`), composed with
 /// `sim_common.wgsl`; entry points `partner_moved`, `age`, `confirm`, `count`, `scan`,
 /// `scatter`.
-pub const SURFACE_FORCES: &str =
-    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_forces.wgsl"));
+pub const SURFACE_FORCES: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/surface_forces.wgsl")
+);
 /// The forces on one body's vertices (`shaders/surface_gather.wgsl`), composed with
 /// `sim_common.wgsl`.
-pub const SURFACE_GATHER: &str =
-    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_gather.wgsl"));
+pub const SURFACE_GATHER: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/surface_gather.wgsl")
+);
 /// The entry points of [`SURFACE_FORCES`], in the order a side runs them (the search between
 /// `age` and `confirm`).
 pub const SURFACE_FORCES_ENTRIES: [&str; 6] = ["partner_moved", "age", "confirm", "count", "scan", "scatter"];

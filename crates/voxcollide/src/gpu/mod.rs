@@ -276,6 +276,17 @@ pub const PASSES: [&str; 14] = [
     "resolve",
 ];
 
+/// One dispatch of a step: its kernel, its bind group, and its items (`None`: one workgroup).
+type Pass<'a> = (&'a Kernel, &'a wgpu::BindGroup, Option<u32>);
+
+/// Records `step` into `pass`.
+fn dispatch(pass: &mut wgpu::ComputePass<'_>, (kernel, group, items): Pass<'_>, max_per_dim: u32) {
+    match items {
+        Some(items) => kernel.dispatch(pass, group, items, max_per_dim),
+        None => kernel.dispatch_one(pass, group),
+    }
+}
+
 /// Timestamp queries around each pass, and where they are resolved and read back.
 #[derive(Debug)]
 struct Profile {
@@ -531,18 +542,17 @@ impl GpuCollision {
             if sort_b { &bound.probe[usize::from(dense)] } else { &bound.probe_given[usize::from(dense)] };
         // B's sort, or nothing where B is probed as given.
         let b_items = |items: u32| Some(if sort_b { items } else { 0 });
-        let follow = self.params.anchor == Anchor::FollowA;
         // The step's dispatches in order (one invocation per item, or one workgroup): a fixed
         // array, so that recording allocates nothing of its own.
-        let passes: [(&Kernel, &wgpu::BindGroup, Option<u32>); PASSES.len()] = [
-            (&k.bounds, &bound.bounds, Some(if follow { n_a } else { 0 })),
-            (&k.frame, &bound.frame, None),
-            (&k.bin, &bound.bin, Some(n_a)),
-            // One workgroup per scan block, then one invocation per 4 slots.
-            (&k.scan, &bound.scan, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
-            (&k.scan_carry, &bound.scan_carry, None),
-            (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
-            (&k.sort, &bound.sort, Some(n_a)),
+        let [p0, p1, p2, p3, p4, p5, p6] = self.binning_passes(bound, n_a, slots);
+        let passes: [Pass<'_>; PASSES.len()] = [
+            p0,
+            p1,
+            p2,
+            p3,
+            p4,
+            p5,
+            p6,
             (&k.bin_b, &bound.bin_b, b_items(n_b)),
             (&k.scan, &bound.scan_b, b_items(scan_blocks(slots) * WORKGROUP_SIZE)),
             (&k.scan_carry, &bound.scan_carry_b, if sort_b { None } else { Some(0) }),
@@ -552,13 +562,7 @@ impl GpuCollision {
             (&k.resolve, &bound.resolve, Some(n_a)),
         ];
         let dispatch =
-            |pass: &mut wgpu::ComputePass<'_>,
-             (kernel, group, items): (&Kernel, &wgpu::BindGroup, Option<u32>)| {
-                match items {
-                    Some(items) => kernel.dispatch(pass, group, items, self.max_per_dim),
-                    None => kernel.dispatch_one(pass, group),
-                }
-            };
+            |pass: &mut wgpu::ComputePass<'_>, step: Pass<'_>| dispatch(pass, step, self.max_per_dim);
         match &self.profile {
             None => {
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -701,30 +705,34 @@ impl GpuCollision {
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         encoder.clear_buffer(&bufs.sort_a.count, 0, Some(4 * u64::from(scan_slots(slots))));
-        let k = &self.kernels;
-        let follow = self.params.anchor == Anchor::FollowA;
-        let passes: [(&Kernel, &wgpu::BindGroup, Option<u32>); 7] = [
-            (&k.bounds, &bound.bounds, Some(if follow { n_a } else { 0 })),
-            (&k.frame, &bound.frame, None),
-            (&k.bin, &bound.bin, Some(n_a)),
-            (&k.scan, &bound.scan, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
-            (&k.scan_carry, &bound.scan_carry, None),
-            (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
-            (&k.sort, &bound.sort, Some(n_a)),
-        ];
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("voxcollide binning"),
             timestamp_writes: None,
         });
-        for (kernel, group, items) in passes {
-            match items {
-                Some(items) => kernel.dispatch(&mut pass, group, items, self.max_per_dim),
-                None => kernel.dispatch_one(&mut pass, group),
-            }
+        for step in self.binning_passes(bound, n_a, slots) {
+            dispatch(&mut pass, step, self.max_per_dim);
         }
         drop(pass);
         self.dense = Some(dense);
         Ok(())
+    }
+
+    /// The first seven passes of a step, A's binning (the grid following A, A counted, scanned
+    /// and sorted by slot), as [`record`](Self::record) and
+    /// [`record_binning`](Self::record_binning) both dispatch them.
+    fn binning_passes<'s>(&'s self, bound: &'s Bound, n_a: u32, slots: u32) -> [Pass<'s>; 7] {
+        let k = &self.kernels;
+        let follow = self.params.anchor == Anchor::FollowA;
+        [
+            (&k.bounds, &bound.bounds, Some(if follow { n_a } else { 0 })),
+            (&k.frame, &bound.frame, None),
+            (&k.bin, &bound.bin, Some(n_a)),
+            // One workgroup per scan block, then one invocation per 4 slots.
+            (&k.scan, &bound.scan, Some(scan_blocks(slots) * WORKGROUP_SIZE)),
+            (&k.scan_carry, &bound.scan_carry, None),
+            (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
+            (&k.sort, &bound.sort, Some(n_a)),
+        ]
     }
 
     /// The uniform of the recorded steps (`Params` in `shaders/common.wgsl`); `None` before the
