@@ -32,6 +32,12 @@ use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuContext, read_buffers, scoped};
 use voxcollide::{Anchor, ContactParams, Direction, GpuCollision, Search, VoxelGrid};
 
+/// A device buffer of `label` holding `contents`, for `usage`.
+fn init(device: &wgpu::Device, label: &str, contents: &[u8], usage: BufferUsages) -> Buffer {
+    use wgpu::util::DeviceExt as _;
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
+}
+
 /// How far the surface's edges may stretch beyond their length as given before a probe walks
 /// more than one voxel each way: the voxel is the cutoff plus this times the longest edge.
 pub const STRETCH: f32 = 1.5;
@@ -191,14 +197,6 @@ impl SurfaceSearch {
         };
         let source = [voxcollide::gpu::shaders::COMMON, SURFACE_SEARCH].concat();
         scoped(device, || {
-            use wgpu::util::DeviceExt as _;
-            let init = |label: &str, contents: &[u8], usage: BufferUsages| {
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents,
-                    usage,
-                })
-            };
             let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
             SurfaceSearch {
                 binning,
@@ -217,12 +215,14 @@ impl SurfaceSearch {
                     mapped_at_creation: false,
                 }),
                 uniform: init(
+                    device,
                     "sim surface search",
                     bytemuck::bytes_of(&search),
                     BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 ),
-                topology: init("sim surface topology", bytemuck::cast_slice(&topology), storage),
+                topology: init(device, "sim surface topology", bytemuck::cast_slice(&topology), storage),
                 hits: init(
+                    device,
                     "sim surface hits",
                     bytemuck::cast_slice(&vec![GpuHit::default(); n_probes]),
                     storage,
@@ -526,7 +526,6 @@ impl DeviceSurface {
                 n_triangles: partner.surface.triangles.len() as u32,
             };
             scoped(device, || {
-                use wgpu::util::DeviceExt as _;
                 let zeros = |label: &str, bytes: u64| {
                     device.create_buffer(&wgpu::BufferDescriptor {
                         label: Some(label),
@@ -538,11 +537,12 @@ impl DeviceSurface {
                 DeviceSide {
                     search,
                     side,
-                    uniform: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some("sim surface side"),
-                        contents: bytemuck::bytes_of(&side),
-                        usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                    }),
+                    uniform: init(
+                        device,
+                        "sim surface side",
+                        bytemuck::bytes_of(&side),
+                        BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                    ),
                     prev: zeros("sim surface prev", 16 * u64::from(np + nq)),
                     scratch: zeros("sim surface scratch", 4 * u64::from(keys_at + 3 * np)),
                     group: None,
@@ -588,18 +588,11 @@ impl DeviceSurface {
             };
             let free: Vec<u32> = body.mode.iter().map(|m| u32::from(*m == crate::body::Mode::Free)).collect();
             scoped(device, || {
-                use wgpu::util::DeviceExt as _;
-                let init = |label: &str, contents: &[u8], usage: BufferUsages| {
-                    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                        label: Some(label),
-                        contents,
-                        usage,
-                    })
-                };
                 (
-                    init("sim surface gather", bytemuck::bytes_of(&uniform), BufferUsages::UNIFORM),
-                    init("sim surface free", bytemuck::cast_slice(&free), BufferUsages::STORAGE),
+                    init(device, "sim surface gather", bytemuck::bytes_of(&uniform), BufferUsages::UNIFORM),
+                    init(device, "sim surface free", bytemuck::cast_slice(&free), BufferUsages::STORAGE),
                     init(
+                        device,
                         "sim surface contact forces",
                         bytemuck::cast_slice(&vec![[0f32; 4]; body.len()]),
                         storage,
