@@ -98,6 +98,59 @@ fn parallel_follows_the_reference_step_by_step_on_the_moving_workload() {
     // The contacts change as B moves (a third of a voxel's worth of B leaves A's reach).
     assert!(counts.iter().all(|c| *c > 20_000), "{counts:?}");
     assert!(counts.first() != counts.last(), "{counts:?}");
+    // A still kept its order after the first step; B kept its own at the steps where none of
+    // its vertices crossed into another voxel (its jitter spreads the crossings over a few).
+    let [kept_a, kept_b] = parallel.orders_kept();
+    assert_eq!(kept_a, workload::MOVING_STEPS as u64 - 1);
+    assert!((5..kept_a).contains(&kept_b), "B kept its order at {kept_b} steps");
+}
+
+#[test]
+fn a_kept_order_of_a_moving_body_holds_only_while_its_vertices_keep_their_voxels() {
+    // B moves by less than its vertices' distance to a voxel's face: its order is kept, with
+    // its new positions. Then one vertex crosses into the next voxel, leaves the grid, becomes
+    // NaN and comes back, B gains a vertex, A moves: each but NaN sorts B again. Every step's
+    // report equals the reference's (with the positions left unrefreshed in the kept order,
+    // the second step differs).
+    let w = workload::lattice(20_000, 29).unwrap();
+    let (grid, params) = (w.grid, w.params);
+    let mut reference = CpuCollision::new(grid, params).unwrap();
+    let mut parallel = ParallelCpuCollision::new(grid, params).unwrap();
+    let mut report = ContactReport::default();
+    let (mut a, mut b) = (w.a.clone(), w.b.clone());
+    let mid = b.len() / 2 + 5;
+    let mut kept = Vec::new();
+    for k in 0..10 {
+        match k {
+            // Each vertex that stays within its voxel so (most of them, checked below).
+            1 | 2 => b.iter_mut().for_each(|p| {
+                let q = *p + Vec3::new(0.01, -0.01, 0.005);
+                if grid.voxel_of(q) == grid.voxel_of(*p) {
+                    *p = q;
+                }
+            }),
+            3 => b[mid].x += 1.0,
+            4 => b[mid].x = 1e9,
+            5 => b[mid].x = f32::NAN,
+            6 => b[mid] = w.b[mid],
+            7 => b.push(w.b[0] + Vec3::splat(0.05)),
+            8 => a[3].y += 0.01,
+            _ => {}
+        }
+        if k == 2 {
+            let moved = b.iter().zip(&w.b).filter(|(p, q)| p != q).count();
+            assert!(moved > b.len() * 3 / 4, "{moved}");
+        }
+        let expected = reference.step(&a, &b).unwrap();
+        let before = parallel.orders_kept()[1];
+        parallel.step_into(&a, &b, &mut report).unwrap();
+        assert!(expected == report, "step {k}");
+        kept.push(parallel.orders_kept()[1] > before);
+    }
+    // Steps 0, 3, 4 and 6 to 8 sort B again; 1, 2, 9 keep its order, and so does 5: a vertex
+    // outside the grid and then NaN is left out of the sort either way.
+    let expected = [false, true, true, false, false, true, false, false, false, true];
+    assert_eq!(kept, expected);
 }
 
 #[test]

@@ -7,6 +7,9 @@
 //!   probed in the same order, so neighbouring probes read neighbouring bins. The caller's
 //!   vertex order is touched only when a body is read in and its forces written out, which makes
 //!   the speed the same for any order.
+//! - A sort is kept from step to step where a new one would come out the same: A's while it
+//!   has not moved, bit for bit, and B's while each of its vertices stays in its slot
+//!   (`Kept`, `SortedBody::sort_keeping`).
 //! - Each vertex's slot is computed four at a time in SIMD lanes (`wide`), exactly as one by
 //!   one (`keys_of`), and so is each B vertex's block in the probe (`blocks_in_lanes`).
 //! - B is probed in parallel; each row of the 3×3×3 block is one contiguous scan (rows sit in
@@ -369,6 +372,8 @@ pub struct ParallelCpuCollision {
     phases: Option<[f64; PHASES.len()]>,
     /// A as last sorted ([`Kept`]): a still A keeps its order.
     kept: Kept,
+    /// Steps that kept A's order, and B's ([`ParallelCpuCollision::orders_kept`]).
+    orders_kept: [u64; 2],
     /// The contacts' response, and its force law.
     response: Response,
     law: ForceLaw,
@@ -403,6 +408,7 @@ impl ParallelCpuCollision {
             shares: Vec::new(),
             phases: None,
             kept: Kept::default(),
+            orders_kept: [0; 2],
             response: Response::Constant,
             law: ForceLaw::new(&params, Response::Constant, grid.voxel_size()),
         })
@@ -448,6 +454,15 @@ impl ParallelCpuCollision {
         self.phases.map(|t| std::array::from_fn(|k| (PHASES[k], t[k])))
     }
 
+    /// How many steps so far kept the order A was last sorted in, and how many B's: A's while
+    /// it has not moved, bit for bit; B's while, over A's table as kept, every B vertex stays in
+    /// the slot it was sorted into (docs/performance.md, "Moving bodies"). Either way the
+    /// reports are the same; a kept order saves the sort.
+    #[must_use]
+    pub fn orders_kept(&self) -> [u64; 2] {
+        self.orders_kept
+    }
+
     /// One step into `report`, reusing its vectors: once they have reached the bodies' sizes a
     /// step allocates nothing.
     ///
@@ -482,18 +497,23 @@ impl ParallelCpuCollision {
         // A that has not moved since the last step, bit for bit, is in the order it was
         // sorted in then (docs/design.md §7 lets a backend keep it): the step's grid follows
         // from A and the backend's own, which never changes.
-        let binned = match self.kept.binned {
-            Some(binned) if same_bits(&self.kept.a, a) => binned,
+        let (binned, same_table) = match self.kept.binned {
+            Some(binned) if same_bits(&self.kept.a, a) => (binned, true),
             _ => {
                 let binned = self.bin(&grid, a);
                 self.kept.keep(a, binned);
-                binned
+                (binned, false)
             }
         };
         lap(&mut self.phases);
+        // B keeps its order while every vertex stays in the slot it was sorted into, over a
+        // table that has not changed since (A kept: B was last sorted over A's table as it is).
         let (dense, hashed) = (self.bins.dense, self.bins.hashed);
         let slots = self.bins.a.start.len() - 1;
-        self.b.sort(b, slots, |p, k| keys_of(&grid, dense, hashed, p, k));
+        let (_, kept_b) =
+            self.b.sort_keeping(b, slots, same_table, |p, k| keys_of(&grid, dense, hashed, p, k));
+        self.orders_kept[1] += u64::from(kept_b);
+        self.orders_kept[0] += u64::from(same_table);
         lap(&mut self.phases);
         // A's totals fit 32-bit accumulators when no total can leave i32: a B vertex adds at
         // most one count to an A vertex, of at most 65537 (|force| ≤ magnitude), and only B's

@@ -69,6 +69,9 @@ pub(super) struct SortedBody {
     /// buckets, and vertices per part (no buckets: one counting sort, `sorted_at` then holding
     /// each vertex's sorted position).
     shape: (u32, usize, usize),
+    /// A step's slots, computed before it is known whether the last order can be kept
+    /// ([`SortedBody::sort_keeping`]).
+    fresh: Vec<u32>,
 }
 
 /// The most slots a body sorted in one part is sorted over in one counting sort
@@ -238,6 +241,62 @@ impl SortedBody {
         }
         self.start[slots] = sorted as u32;
         sorted as u32
+    }
+
+    /// [`sort`](Self::sort), keeping the last sort's order where it would come out the same:
+    /// when `same_table` (the last sort was over the same table) and every vertex's slot is
+    /// the one it had then. The sort's order follows from the slots alone (it is stable, and
+    /// its parts depend only on the body's size and the thread count), so the kept order is
+    /// the one a new sort would make, record for record: only the positions are new, gathered
+    /// into it. A body at rest, or moving within its voxels, is then sorted once; the first
+    /// vertex that changes slot sorts it again, with the slots already computed. Returns how
+    /// many were sorted, and whether the order was kept.
+    pub fn sort_keeping(
+        &mut self,
+        points: &[Vec3],
+        slots: usize,
+        same_table: bool,
+        keys_of: impl Fn(&[Vec3], &mut [u32]) + Sync,
+    ) -> (u32, bool) {
+        let n = points.len();
+        if !same_table || self.key.len() != n || self.start.len() != slots + 1 {
+            return (self.sort(points, slots, keys_of), false);
+        }
+        let mut fresh = std::mem::take(&mut self.fresh);
+        fresh.resize(n, u32::MAX);
+        let size = chunk(n);
+        // Every part computes its slots (no stop at the first difference: the sort below
+        // takes them all).
+        let changed: usize = fresh
+            .par_chunks_mut(size)
+            .zip(points.par_chunks(size))
+            .zip(self.key.par_chunks(size))
+            .map(|((fresh, points), key)| {
+                keys_of(points, fresh);
+                usize::from(fresh != key)
+            })
+            .sum();
+        let same = changed == 0;
+        let sorted = if same {
+            let size = chunk(self.rec.len());
+            self.rec.par_chunks_mut(size).for_each(|rec| {
+                for r in rec {
+                    r.p = points[r.i as usize];
+                }
+            });
+            self.rec.len() as u32
+        } else {
+            // The slots are known: each part of the sort copies its own from `fresh`, found
+            // by where its slice of `points` starts.
+            // (The sort hands out subslices of `points`.)
+            let (fresh, base) = (&fresh, points.as_ptr() as usize);
+            self.sort(points, slots, |p, k| {
+                let at = (p.as_ptr() as usize - base) / size_of::<Vec3>();
+                k.copy_from_slice(&fresh[at..at + p.len()]);
+            })
+        };
+        self.fresh = fresh;
+        (sorted, same)
     }
 
     /// A body small enough to sort on one thread, over a table small enough that its counts stay
@@ -443,6 +502,44 @@ impl<'a, T: Copy> Scatter<'a, T> {
 mod tests {
     use super::*;
     use crate::workload::SplitMix64;
+
+    #[test]
+    fn a_kept_order_is_the_order_a_new_sort_makes() {
+        // In one part and in several: the body moved within its slots keeps its order with its
+        // new positions; one vertex changed slot (or the table changed) sorts it again, from
+        // the slots already computed. Either way the result is a new sort's, record for record.
+        for (n, slots) in [(20_000, 5_000), (150_000, 1 << 20), (100_000, 3_000)] {
+            let slot_of = |p: &Vec3| (SplitMix64::new(p.y as u64).next_u64() % slots as u64) as u32;
+            let keys = |p: &[Vec3], k: &mut [u32]| {
+                for (p, k) in p.iter().zip(k) {
+                    *k = slot_of(p);
+                }
+            };
+            let mut points: Vec<Vec3> = (0..n).map(|i| Vec3::new(0.0, i as f32, 0.0)).collect();
+            let mut kept = SortedBody::default();
+            assert_eq!(kept.sort_keeping(&points, slots, true, keys), (n as u32, false));
+            for (step, same_table, keeps) in
+                [(1, true, true), (2, true, false), (3, false, false), (4, true, true)]
+            {
+                // The slot follows y alone: x moves within it.
+                points.iter_mut().for_each(|p| p.x += 0.5);
+                if step == 2 {
+                    points[n * 2 / 3].y = (n + 7) as f32;
+                }
+                assert_eq!(kept.sort_keeping(&points, slots, same_table, keys), (n as u32, keeps), "n {n}");
+                let mut new = SortedBody::default();
+                new.sort(&points, slots, keys);
+                assert!(
+                    kept.rec == new.rec && kept.start == new.start && kept.key == new.key,
+                    "n {n} step {step}"
+                );
+                assert_eq!(
+                    (kept.sorted_at.as_slice(), kept.max_per_slot, kept.shape, kept.in_order),
+                    (new.sorted_at.as_slice(), new.max_per_slot, new.shape, new.in_order)
+                );
+            }
+        }
+    }
 
     #[test]
     fn sorts_stably_and_unsorts_back() {
