@@ -14,7 +14,7 @@ use base64::Engine;
 use glam::{DVec3, Vec3};
 use serde::{Deserialize, Serialize};
 use voxcollide::{ContactReport, Error};
-use voxcollide_sim::build::build_world;
+use voxcollide_sim::build::{Recoveries, build_world, build_world_reusing};
 use voxcollide_sim::catalogue::{Candidate, Catalogue};
 use voxcollide_sim::geometry::ClosedSurface;
 use voxcollide_sim::scene_file::{Axis, BodyKind, BodySpec, Ease, Geometry, Inflate, SceneFile, Shape};
@@ -480,12 +480,15 @@ pub fn compare(
     // The lowest tissue vertex at rest (the scene as given, its compared body not filled):
     // each candidate starts flat in the room between its base and that. Placed on a
     // patient's chest wall, the tissue lies on the wall: there is no room.
+    // Her unloaded shape is recovered once (the first build), and every later build of her
+    // reuses it.
+    let recoveries = Recoveries::default();
     let floor_of_tissue = if placed {
         0.0
     } else {
         let mut unfilled = scene.clone();
         unfilled.bodies[body].inflate = None;
-        let given = build_world(&unfilled)?;
+        let given = build_world_reusing(&unfilled, &recoveries)?;
         tissue
             .iter()
             .flat_map(|&t| given.world.bodies[t].rest_pos.iter().map(|p| f64::from(p.z)))
@@ -505,14 +508,14 @@ pub fn compare(
         let fit = (floor_of_tissue.is_finite() && hi > lo)
             .then(|| (hi - lo, (floor_of_tissue - lo).max(0.0), tissue_spacing));
         let s = with_candidate(&scene, body, c, Some(volume), fit);
-        let built = build_world(&s).map_err(named)?;
+        let built = build_world_reusing(&s, &recoveries).map_err(named)?;
         runs.push((c, volume, s, built));
     }
 
     // Her unoperated shape in the posture asked for, where the scan was taken in another:
     // each tissue body given as measured under another gravity, settled under the scene's
     // (docs/design.md §15: the operated shape beside the unoperated one, in that posture).
-    let unoperated = unoperated_in_posture(&scene, body, &tissue, note)?;
+    let unoperated = unoperated_in_posture(&scene, body, &tissue, &recoveries, note)?;
 
     std::fs::create_dir_all(&config.out).map_err(|e| io(&config.out, e))?;
     let (ctx, _) = crate::backend::context(config.backend, true, note)?;
@@ -1149,6 +1152,7 @@ fn unoperated_in_posture(
     scene: &SceneFile,
     body: usize,
     tissue: &[usize],
+    recoveries: &Recoveries,
     note: &mut dyn FnMut(&str),
 ) -> Result<Vec<Option<Vec<Vec3>>>, Error> {
     let mut out = vec![None; scene.bodies.len()];
@@ -1163,7 +1167,7 @@ fn unoperated_in_posture(
     s.bodies[body].place = None;
     s.bodies[body].inflate = None;
     s.contacts.retain(|c| c.a != body && c.b != body);
-    let built = build_world(&s)?;
+    let built = build_world_reusing(&s, recoveries)?;
     let g = voxcollide_sim::build::gravity(&s);
     for t in posed {
         let mut b = built.world.bodies[t].clone();

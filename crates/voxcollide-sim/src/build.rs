@@ -1281,6 +1281,52 @@ fn contact_pair(
 /// The errors of reading its meshes ([`Error::Mesh`]), of making its bodies
 /// ([`Error::Invalid`] naming the body), and [`Error::SceneFile`] for a shape not built yet.
 pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
+    build_world_reusing(file, &Recoveries::default())
+}
+
+/// The unloaded shapes that builds have recovered ([`crate::reference::unload`]), for later
+/// builds of the same bodies to reuse ([`build_world_reusing`]): `voxcollide compare` builds
+/// one world per candidate implant around the same patient, whose recovery is the same each
+/// time and took the most of each build (a body as scanned at a 6 mm spacing: several static
+/// solves).
+#[derive(Debug, Default)]
+pub struct Recoveries {
+    found: std::sync::Mutex<Vec<Recovery>>,
+}
+
+/// A body as its unloaded shape was recovered: what it was built from, and the body after.
+#[derive(Debug)]
+struct Recovery {
+    path: std::path::PathBuf,
+    units: crate::scene_file::Units,
+    spec: BodySpec,
+    body: MassSpring,
+    recovered: crate::reference::Recovered,
+}
+
+impl Recoveries {
+    /// How many bodies' unloaded shapes are kept.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.found.lock().map_or(0, |f| f.len())
+    }
+
+    /// Whether none is.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// [`build_world`], taking each body's unloaded shape from `recoveries` where an earlier build
+/// recovered it for the same body (the same [`BodySpec`], in a file at the same path in the
+/// same units: a body is built from those alone, and its recovery is deterministic, so the
+/// world is the one [`build_world`] builds, bit for bit), and keeping there the ones it
+/// recovers itself.
+///
+/// # Errors
+/// As [`build_world`].
+pub fn build_world_reusing(file: &SceneFile, recoveries: &Recoveries) -> Result<Built, Error> {
     let s = file.metres();
     let mut bodies = Vec::with_capacity(file.bodies.len());
     let mut notes = Vec::with_capacity(file.bodies.len());
@@ -1300,10 +1346,34 @@ pub fn build_world(file: &SceneFile) -> Result<Built, Error> {
     // is sized from it (docs/design.md §13).
     for (k, spec) in file.bodies.iter().enumerate() {
         let Some(g) = spec.reference else { continue };
-        let g = (DVec3::from_array(g) / s).as_vec3();
-        let recovered = crate::reference::unload(&mut bodies[k], g).map_err(|e| {
-            file.body_error(k, "reference", format!("recovering the unloaded shape failed: {e}"))
-        })?;
+        let same = |r: &Recovery| r.path == file.path && r.units == file.units && r.spec == *spec;
+        let found = recoveries
+            .found
+            .lock()
+            .ok()
+            .and_then(|f| f.iter().find(|r| same(r)).map(|r| (r.body.clone(), r.recovered)));
+        let recovered = match found {
+            Some((body, recovered)) => {
+                bodies[k] = body;
+                recovered
+            }
+            None => {
+                let g = (DVec3::from_array(g) / s).as_vec3();
+                let recovered = crate::reference::unload(&mut bodies[k], g).map_err(|e| {
+                    file.body_error(k, "reference", format!("recovering the unloaded shape failed: {e}"))
+                })?;
+                if let Ok(mut f) = recoveries.found.lock() {
+                    f.push(Recovery {
+                        path: file.path.clone(),
+                        units: file.units,
+                        spec: spec.clone(),
+                        body: bodies[k].clone(),
+                        recovered,
+                    });
+                }
+                recovered
+            }
+        };
         notes[k].reference = Some(recovered);
     }
     // Landmarks: each moved onto its body's outer surface, no farther than twice its spacing.

@@ -7,7 +7,7 @@
 mod common;
 
 use voxcollide::glam::Vec3;
-use voxcollide_sim::build::{Built, build_world};
+use voxcollide_sim::build::{Built, Recoveries, build_world, build_world_reusing};
 use voxcollide_sim::reference::{self, set_rest_shape};
 use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{CpuWorld, MassSpring, Mode, simulation};
@@ -166,6 +166,53 @@ fixed = [{{ below = {{ z = 1 }} }}]
 {reference}"#
     );
     build_world(&SceneFile::parse("mound.toml", &text).unwrap()).unwrap()
+}
+
+/// The mound's scene text, as [`mound`] builds it, scanned standing, at `spacing`.
+fn mound_scanned(spacing: u32) -> SceneFile {
+    let text = format!(
+        r#"
+units = "mm"
+[time]
+integrator = "implicit"
+[world]
+gravity = [0, 0, -9.81]
+[[body]]
+name = "breast"
+kind = "soft"
+shape = {{ ellipsoid = [60, 55, 45] }}
+spacing = {spacing}
+material = {{ model = "neo-hookean", young_kpa = 3, poisson = 0.45, density = 1000, damping = 0.5 }}
+fixed = [{{ below = {{ z = 1 }} }}]
+reference = {{ gravity = [0, -9.81, 0] }}
+"#
+    );
+    SceneFile::parse("mound.toml", &text).unwrap()
+}
+
+#[test]
+fn a_recovered_shape_is_reused_only_for_the_same_body() {
+    // `voxcollide compare` builds one world per candidate around the same scanned patient:
+    // her unloaded shape is recovered by the first build and reused by the others, which
+    // then build the same world, bit for bit. Another body (another spacing) recovers its own.
+    let recoveries = Recoveries::default();
+    let alone = build_world(&mound_scanned(9)).unwrap();
+    let first = build_world_reusing(&mound_scanned(9), &recoveries).unwrap();
+    assert_eq!(recoveries.len(), 1);
+    let again = build_world_reusing(&mound_scanned(9), &recoveries).unwrap();
+    assert_eq!(recoveries.len(), 1, "the same body recovered again");
+    for built in [&first, &again] {
+        let (b, a) = (&built.world.bodies[0], &alone.world.bodies[0]);
+        assert!(b.pos == a.pos && b.rest_pos == a.rest_pos && b.started == a.started);
+        assert_eq!(built.notes[0].reference, alone.notes[0].reference);
+    }
+    assert!(
+        alone.world.bodies[0].rest_pos != alone.world.bodies[0].pos,
+        "the scan is loaded: its rest shape differs"
+    );
+    let other = build_world_reusing(&mound_scanned(10), &recoveries).unwrap();
+    assert_eq!(recoveries.len(), 2);
+    assert!(other.world.bodies[0].pos.len() != first.world.bodies[0].pos.len());
 }
 
 /// The mound's base is its chest wall (z = 0, held) and its apex points +z, as a patient's
