@@ -6,6 +6,9 @@
 @group(0) @binding(1) var<storage, read> count: array<vec4<u32>>;
 @group(0) @binding(2) var<storage, read_write> start: array<vec4<u32>>;
 @group(0) @binding(3) var<storage, read_write> partial: array<u32>;
+@group(0) @binding(4) var<storage, read> changed: array<u32>;
+
+var<workgroup> resort: u32;
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(
@@ -13,6 +16,13 @@ fn main(
     @builtin(num_workgroups) nwg: vec3<u32>,
     @builtin(local_invocation_index) lid: u32,
 ) {
+    // A body whose slots are all as they were keeps its order (bin.wgsl): nothing to scan.
+    if lid == 0u {
+        resort = changed[0];
+    }
+    if workgroupUniformLoad(&resort) == 0u {
+        return;
+    }
     let block = wid.x + wid.y * nwg.x;
     let live = block < scan_blocks();
     let quads = SCAN_PER_INVOCATION / 4u;

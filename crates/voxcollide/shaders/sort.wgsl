@@ -10,6 +10,7 @@
 @group(0) @binding(2) var<storage, read> pos: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read_write> cursor: array<atomic<u32>>;
 @group(0) @binding(4) var<storage, read_write> sorted: array<vec4<u32>>; // (position bits, index)
+@group(0) @binding(5) var<storage, read> changed: array<u32>;
 
 // 0: body A (params.n_a vertices); 1: body B (params.n_b).
 override BODY: u32 = 0u;
@@ -17,7 +18,8 @@ override BODY: u32 = 0u;
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let i = item_index(gid, nwg);
-    if i >= select(params.n_a, params.n_b, BODY == 1u) {
+    // Kept order (bin.wgsl): gather.wgsl brings the positions instead.
+    if i >= select(params.n_a, params.n_b, BODY == 1u) || changed[0] == 0u {
         return;
     }
     let p = pos[i].xyz;

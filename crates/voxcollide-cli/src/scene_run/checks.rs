@@ -169,7 +169,7 @@ fn through(
         )
     } else {
         format!(
-            "{n} of {name}'s vertices came through {tissue} at step {step} (frame {frame}): no tissue covers them along the chest wall's normal, the implant shows through her skin"
+            "{n} of {name}'s vertices came through {tissue} at step {step} (frame {frame}): no tissue covers them along the chest wall's normal, the implant shows through her skin (where her tissue is only a spacing or two thick, a coarse lattice can let through an implant that a finer one holds: run it again at a finer `spacing` before ruling it out, docs/patient.md)"
         )
     };
     if first {

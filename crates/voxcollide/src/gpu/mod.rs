@@ -1,11 +1,15 @@
 //! The GPU backend: WGSL compute passes on wgpu (docs/design.md §3), checked against the CPU reference.
 //!
-//! A step is fourteen passes recorded into one command encoder — bounds (FollowA only), frame, a
-//! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort), the same of B by
-//! A's slots (bin_b … sort_b, so that the probe's speed does not depend on B's order; skipped
-//! where B is probed as it comes in, [`GpuCollision::set_sort_b`]), probe, resolve —
+//! A step is sixteen passes recorded into one command encoder — bounds (FollowA only), frame, a
+//! counting sort of A by voxel slot (bin, scan, scan_carry, scan_add, sort, gather), the same of
+//! B by A's slots (bin_b … gather_b, so that the probe's speed does not depend on B's order;
+//! skipped where B is probed as it comes in, [`GpuCollision::set_sort_b`]), probe, resolve —
 //! with every intermediate in device buffers that are created once and reused while the sizes
-//! fit. [`GpuCollision::record`] is the embedding API (the app's buffers and
+//! fit. A body keeps its last order while every vertex stays in the slot it was sorted into:
+//! `bin` compares each vertex's slot with the one it kept and flags a change; without one the
+//! scans and the sort return at once and `gather` brings the new positions into the kept order
+//! (no readback: the device decides), which is an order the sort could have made from the same
+//! slots. New sizes or a new table sort again. [`GpuCollision::record`] is the embedding API (the app's buffers and
 //! encoder, nothing read back); [`Collision::step`] uploads, records, submits and reads back.
 //!
 //! For an app's (or a crate's) own compute passes beside the collision's, on the same device:
@@ -58,6 +62,15 @@ pub(crate) type KernelKey = (u32, u32);
 /// The kernels built on one device, by [`KernelKey`].
 pub(crate) type KernelCache = Vec<(KernelKey, std::sync::Arc<Kernels>)>;
 
+/// The bindings of `bin.wgsl`: params, state, positions, counts, kept slots, changed.
+const BIN_SLOTS: &[Slot] =
+    &[Slot::Uniform, Slot::ReadWrite, Slot::Read, Slot::ReadWrite, Slot::ReadWrite, Slot::ReadWrite];
+/// Of `sort.wgsl`: params, state, positions, cursors, sorted, changed.
+const SORT_SLOTS: &[Slot] =
+    &[Slot::Uniform, Slot::ReadWrite, Slot::Read, Slot::ReadWrite, Slot::ReadWrite, Slot::Read];
+/// Of `gather.wgsl`: params, state, positions, sorted, changed.
+const GATHER_SLOTS: &[Slot] = &[Slot::Uniform, Slot::ReadWrite, Slot::Read, Slot::ReadWrite, Slot::Read];
+
 /// The kernels of a step.
 #[derive(Debug)]
 pub(crate) struct Kernels {
@@ -68,8 +81,10 @@ pub(crate) struct Kernels {
     scan_carry: Kernel,
     scan_add: Kernel,
     sort: Kernel,
+    gather: Kernel,
     bin_b: Kernel,
     sort_b: Kernel,
+    gather_b: Kernel,
     probe_hashed: Kernel,
     probe_dense: Kernel,
     /// The probes of B as given (`SORTED_B = false`): [`GpuCollision::set_sort_b`].
@@ -99,43 +114,46 @@ impl Kernels {
         Kernels {
             bounds: Kernel::new(device, "voxcollide bounds", shaders::BOUNDS, &[Uniform, ReadWrite, Read]),
             frame: Kernel::new(device, "voxcollide frame", shaders::FRAME, &[Uniform, ReadWrite]),
-            bin: Kernel::new(device, "voxcollide bin", shaders::BIN, &[Uniform, ReadWrite, Read, ReadWrite]),
+            bin: Kernel::new(device, "voxcollide bin", shaders::BIN, BIN_SLOTS),
             scan: Kernel::new(
                 device,
                 "voxcollide scan",
                 shaders::SCAN,
-                &[Uniform, Read, ReadWrite, ReadWrite],
+                &[Uniform, Read, ReadWrite, ReadWrite, Read],
             ),
             scan_carry: Kernel::new(
                 device,
                 "voxcollide scan_carry",
                 shaders::SCAN_CARRY,
-                &[Uniform, ReadWrite],
+                &[Uniform, ReadWrite, Read],
             ),
             scan_add: Kernel::new(
                 device,
                 "voxcollide scan_add",
                 shaders::SCAN_ADD,
-                &[Uniform, ReadWrite, Read, ReadWrite],
+                &[Uniform, ReadWrite, Read, ReadWrite, Read],
             ),
-            sort: Kernel::new(
-                device,
-                "voxcollide sort",
-                shaders::SORT,
-                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
-            ),
+            sort: Kernel::new(device, "voxcollide sort", shaders::SORT, SORT_SLOTS),
+            gather: Kernel::new(device, "voxcollide gather", shaders::GATHER, GATHER_SLOTS),
             bin_b: Kernel::with_constants(
                 device,
                 "voxcollide bin_b",
                 shaders::BIN,
-                &[Uniform, ReadWrite, Read, ReadWrite],
+                BIN_SLOTS,
                 &[("BODY", 1.0)],
             ),
             sort_b: Kernel::with_constants(
                 device,
                 "voxcollide sort_b",
                 shaders::SORT,
-                &[Uniform, ReadWrite, Read, ReadWrite, ReadWrite],
+                SORT_SLOTS,
+                &[("BODY", 1.0)],
+            ),
+            gather_b: Kernel::with_constants(
+                device,
+                "voxcollide gather_b",
+                shaders::GATHER,
+                GATHER_SLOTS,
                 &[("BODY", 1.0)],
             ),
             probe_hashed: probe(false, true),
@@ -181,6 +199,10 @@ struct SortBuffers {
     partial: Buffer,
     cursor: Buffer,
     sorted: Buffer,
+    /// Per vertex: its slot at the last step (+ 1; 0xFFFFFFFF outside the grid, 0 never
+    /// binned), and whether any differs this step (one word): `shaders/bin.wgsl`.
+    keys: Buffer,
+    changed: Buffer,
 }
 
 impl SortBuffers {
@@ -197,6 +219,8 @@ impl SortBuffers {
             ),
             cursor: make(&format!("voxcollide cursor{tag}"), per_slot),
             sorted: make(&format!("voxcollide sorted{tag}"), VEC4 * vertices),
+            keys: make(&format!("voxcollide keys{tag}"), 4 * vertices),
+            changed: make(&format!("voxcollide changed{tag}"), 16),
         }
     }
 }
@@ -245,11 +269,13 @@ struct Bound {
     scan_carry: wgpu::BindGroup,
     scan_add: wgpu::BindGroup,
     sort: wgpu::BindGroup,
+    gather: wgpu::BindGroup,
     bin_b: wgpu::BindGroup,
     scan_b: wgpu::BindGroup,
     scan_carry_b: wgpu::BindGroup,
     scan_add_b: wgpu::BindGroup,
     sort_b: wgpu::BindGroup,
+    gather_b: wgpu::BindGroup,
     /// Hashed, dense.
     probe: [wgpu::BindGroup; 2],
     /// The probes of B as given, which read B's own positions.
@@ -259,7 +285,7 @@ struct Bound {
 
 /// The passes of a step, in the order they run (`bounds` runs under `Anchor::FollowA` only), as
 /// [`GpuCollision::pass_times`] names them.
-pub const PASSES: [&str; 14] = [
+pub const PASSES: [&str; 16] = [
     "bounds",
     "frame",
     "bin",
@@ -267,11 +293,13 @@ pub const PASSES: [&str; 14] = [
     "scan_carry",
     "scan_add",
     "sort",
+    "gather",
     "bin_b",
     "scan_b",
     "scan_carry_b",
     "scan_add_b",
     "sort_b",
+    "gather_b",
     "probe",
     "resolve",
 ];
@@ -354,6 +382,10 @@ pub struct GpuCollision {
     profile: Option<Profile>,
     /// Whether B is sorted by A's slots before the probe ([`set_sort_b`](Self::set_sort_b)).
     sort_b: bool,
+    /// Per body (A, B): the vertices, slots and kind of table its kept slots (`keys` in
+    /// [`SortBuffers`]) were binned for; `None`: not binned since its buffers were made. A body
+    /// binned for others is sorted again whatever its slots ([`GpuCollision::force_sort`]).
+    sorted_for: [Option<(u32, u32, bool)>; 2],
     // For `step()`: the uploaded positions, the readback buffer and a conversion scratch.
     upload: Option<(Buffer, Buffer)>,
     staging: Option<Buffer>,
@@ -394,6 +426,7 @@ impl GpuCollision {
             recorded: None,
             dense: None,
             bind_group_builds: 0,
+            sorted_for: [None; 2],
             profile: None,
             sort_b: sorts_b_by_default(ctx),
             upload: None,
@@ -524,6 +557,13 @@ impl GpuCollision {
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         for sort in [&bufs.sort_a, &bufs.sort_b] {
             encoder.clear_buffer(&sort.count, 0, Some(4 * u64::from(scan_slots(slots))));
+            encoder.clear_buffer(&sort.changed, 0, None);
+        }
+        Self::force_sort(&mut self.sorted_for[0], encoder, &bufs.sort_a, (n_a, slots, dense));
+        if self.sort_b {
+            Self::force_sort(&mut self.sorted_for[1], encoder, &bufs.sort_b, (n_b, slots, dense));
+        } else {
+            self.sorted_for[1] = None;
         }
         // The probe writes the forces of B's vertices in the grid and the resolve those of A's;
         // the others stay zero.
@@ -544,7 +584,7 @@ impl GpuCollision {
         let b_items = |items: u32| Some(if sort_b { items } else { 0 });
         // The step's dispatches in order (one invocation per item, or one workgroup): a fixed
         // array, so that recording allocates nothing of its own.
-        let [p0, p1, p2, p3, p4, p5, p6] = self.binning_passes(bound, n_a, slots);
+        let [p0, p1, p2, p3, p4, p5, p6, p7] = self.binning_passes(bound, n_a, slots);
         let passes: [Pass<'_>; PASSES.len()] = [
             p0,
             p1,
@@ -553,11 +593,13 @@ impl GpuCollision {
             p4,
             p5,
             p6,
+            p7,
             (&k.bin_b, &bound.bin_b, b_items(n_b)),
             (&k.scan, &bound.scan_b, b_items(scan_blocks(slots) * WORKGROUP_SIZE)),
             (&k.scan_carry, &bound.scan_carry_b, if sort_b { None } else { Some(0) }),
             (&k.scan_add, &bound.scan_add_b, b_items(scan_slots(slots) / 4)),
             (&k.sort_b, &bound.sort_b, b_items(n_b)),
+            (&k.gather_b, &bound.gather_b, b_items(n_b)),
             (probe, probe_group, Some(n_b)),
             (&k.resolve, &bound.resolve, Some(n_a)),
         ];
@@ -618,6 +660,7 @@ impl GpuCollision {
                 .map_or((n_a, n_b, slots), |x| (x.cap_a.max(n_a), x.cap_b.max(n_b), x.cap_slots.max(slots)));
             self.buffers = Some(scoped(&device, || Buffers::new(&device, cap_a, cap_b, cap_slots))?);
             self.bound = None;
+            self.sorted_for = [None; 2];
         }
         let Some(bufs) = self.buffers.as_ref() else { unreachable!("buffers were just made") };
 
@@ -637,16 +680,28 @@ impl GpuCollision {
                 b: b.clone(),
                 bounds: k.bounds.bind(&device, &[&bufs.params, &bufs.state, a]),
                 frame: k.frame.bind(&device, &[&bufs.params, &bufs.state]),
-                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &sa.count]),
-                scan: k.scan.bind(&device, &[&bufs.params, &sa.count, &sa.start, &sa.partial]),
-                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &sa.partial]),
-                scan_add: k.scan_add.bind(&device, &[&bufs.params, &sa.start, &sa.partial, &sa.cursor]),
-                sort: k.sort.bind(&device, &[&bufs.params, &bufs.state, a, &sa.cursor, &sa.sorted]),
-                bin_b: k.bin_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.count]),
-                scan_b: k.scan.bind(&device, &[&bufs.params, &sb.count, &sb.start, &sb.partial]),
-                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &sb.partial]),
-                scan_add_b: k.scan_add.bind(&device, &[&bufs.params, &sb.start, &sb.partial, &sb.cursor]),
-                sort_b: k.sort_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.cursor, &sb.sorted]),
+                bin: k.bin.bind(&device, &[&bufs.params, &bufs.state, a, &sa.count, &sa.keys, &sa.changed]),
+                scan: k.scan.bind(&device, &[&bufs.params, &sa.count, &sa.start, &sa.partial, &sa.changed]),
+                scan_carry: k.scan_carry.bind(&device, &[&bufs.params, &sa.partial, &sa.changed]),
+                scan_add: k
+                    .scan_add
+                    .bind(&device, &[&bufs.params, &sa.start, &sa.partial, &sa.cursor, &sa.changed]),
+                sort: k
+                    .sort
+                    .bind(&device, &[&bufs.params, &bufs.state, a, &sa.cursor, &sa.sorted, &sa.changed]),
+                gather: k.gather.bind(&device, &[&bufs.params, &bufs.state, a, &sa.sorted, &sa.changed]),
+                bin_b: k
+                    .bin_b
+                    .bind(&device, &[&bufs.params, &bufs.state, b, &sb.count, &sb.keys, &sb.changed]),
+                scan_b: k.scan.bind(&device, &[&bufs.params, &sb.count, &sb.start, &sb.partial, &sb.changed]),
+                scan_carry_b: k.scan_carry.bind(&device, &[&bufs.params, &sb.partial, &sb.changed]),
+                scan_add_b: k
+                    .scan_add
+                    .bind(&device, &[&bufs.params, &sb.start, &sb.partial, &sb.cursor, &sb.changed]),
+                sort_b: k
+                    .sort_b
+                    .bind(&device, &[&bufs.params, &bufs.state, b, &sb.cursor, &sb.sorted, &sb.changed]),
+                gather_b: k.gather_b.bind(&device, &[&bufs.params, &bufs.state, b, &sb.sorted, &sb.changed]),
                 probe: [&k.probe_hashed, &k.probe_dense].map(|probe| {
                     probe.bind(
                         &device,
@@ -705,6 +760,8 @@ impl GpuCollision {
         let cleared = GpuState::CLEARED;
         encoder.clear_buffer(&bufs.state, cleared.start, Some(cleared.end - cleared.start));
         encoder.clear_buffer(&bufs.sort_a.count, 0, Some(4 * u64::from(scan_slots(slots))));
+        encoder.clear_buffer(&bufs.sort_a.changed, 0, None);
+        Self::force_sort(&mut self.sorted_for[0], encoder, &bufs.sort_a, (n_a, slots, dense));
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("voxcollide binning"),
             timestamp_writes: None,
@@ -717,10 +774,26 @@ impl GpuCollision {
         Ok(())
     }
 
-    /// The first seven passes of a step, A's binning (the grid following A, A counted, scanned
-    /// and sorted by slot), as [`record`](Self::record) and
-    /// [`record_binning`](Self::record_binning) both dispatch them.
-    fn binning_passes<'s>(&'s self, bound: &'s Bound, n_a: u32, slots: u32) -> [Pass<'s>; 7] {
+    /// A body's kept slots cleared (`0`, which no slot is kept as, so that every vertex reads as
+    /// changed and the body is sorted again) where it was last binned for other sizes or another
+    /// table than `now` (vertices, slots, dense): a kept order is only one the sort could make
+    /// for the same vertices over the same slots.
+    fn force_sort(
+        sorted_for: &mut Option<(u32, u32, bool)>,
+        encoder: &mut CommandEncoder,
+        sort: &SortBuffers,
+        now: (u32, u32, bool),
+    ) {
+        if *sorted_for != Some(now) {
+            encoder.clear_buffer(&sort.keys, 0, None);
+            *sorted_for = Some(now);
+        }
+    }
+
+    /// The first eight passes of a step, A's binning (the grid following A, A counted, scanned
+    /// and sorted by slot, or its kept order brought up to date), as [`record`](Self::record)
+    /// and [`record_binning`](Self::record_binning) both dispatch them.
+    fn binning_passes<'s>(&'s self, bound: &'s Bound, n_a: u32, slots: u32) -> [Pass<'s>; 8] {
         let k = &self.kernels;
         let follow = self.params.anchor == Anchor::FollowA;
         [
@@ -732,6 +805,7 @@ impl GpuCollision {
             (&k.scan_carry, &bound.scan_carry, None),
             (&k.scan_add, &bound.scan_add, Some(scan_slots(slots) / 4)),
             (&k.sort, &bound.sort, Some(n_a)),
+            (&k.gather, &bound.gather, Some(n_a)),
         ]
     }
 

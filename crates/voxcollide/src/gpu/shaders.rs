@@ -2,7 +2,7 @@
 //! (the two prefix-sum passes also share `scan_common.wgsl`).
 
 /// `(name, composed source)` of every pass, in the order a step runs them.
-pub const SHADERS: [(&str, &str); 9] = [
+pub const SHADERS: [(&str, &str); 10] = [
     ("bounds", BOUNDS),
     ("frame", FRAME),
     ("bin", BIN),
@@ -10,6 +10,7 @@ pub const SHADERS: [(&str, &str); 9] = [
     ("scan_carry", SCAN_CARRY),
     ("scan_add", SCAN_ADD),
     ("sort", SORT),
+    ("gather", GATHER),
     ("probe", PROBE),
     ("resolve", RESOLVE),
 ];
@@ -41,6 +42,9 @@ pub const SCAN_ADD: &str =
 /// Pass 2e: A's vertices in slot order.
 pub const SORT: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/sort.wgsl"));
+/// Pass 2f: a body that kept its order, its new positions gathered into it.
+pub const GATHER: &str =
+    concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/gather.wgsl"));
 /// Pass 3: B probes the sorted vertices of its voxels; forces.
 pub const PROBE: &str =
     concat!(include_str!("../../shaders/common.wgsl"), include_str!("../../shaders/probe.wgsl"));
