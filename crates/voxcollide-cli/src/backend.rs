@@ -51,6 +51,7 @@ pub fn context(
 /// each GPU step wait for the positions (between bodies that show their own surface the
 /// explicit step's contact runs wholly on the device, docs/contacts.md); and
 /// always for a curved chest wall (an implant placed on a patient), which only the CPU holds.
+/// (On a software adapter any surface contact steps on the CPU too: [`place`].)
 /// `--backend gpu` steps every world on the device: both integrators, springs or
 /// `"neo-hookean"` tetrahedra, and every contact response.
 pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
@@ -73,6 +74,12 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
         None
     }
 }
+
+/// Why a surface contact steps on the CPU under `--backend auto` where the adapter is a
+/// software one, though its explicit step runs wholly on the device: there its two dozen
+/// dispatches a step cost more than the CPU's whole step (docs/performance.md, "The surface
+/// contact on a software adapter").
+const SURFACE_ON_SOFTWARE: &str = "on which the surface contact steps slower than on the CPU (lavapipe stepped scenes/breast-implant.toml, made explicit, at 52 steps/s against the CPU's 1,130)";
 
 /// What a software adapter (lavapipe, WARP) does for a command under `--backend auto`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -133,9 +140,15 @@ pub(crate) fn place(
             ));
             false
         }
-        (Backend::Auto, Some(_)) => match cpu_first(&world) {
+        (Backend::Auto, Some(name)) => match cpu_first(&world) {
             Some(why) => {
                 note(&format!("{why} steps on the CPU, on every core (the GPU draws the pictures)"));
+                false
+            }
+            None if is_software && world.contacts.iter().any(|c| c.surface().is_some()) => {
+                note(&format!(
+                    "{name} is a software adapter, {SURFACE_ON_SOFTWARE}: stepping on the CPU (--backend gpu steps on it)"
+                ));
                 false
             }
             None => true,

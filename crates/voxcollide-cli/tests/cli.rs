@@ -451,6 +451,21 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     };
     assert_eq!(waits("penalty", scene("penalty", "explicit"), "gpu"), Some(0.0), "the voxel model's step");
     assert_eq!(waits("surface", scene("surface", "explicit"), "gpu"), Some(0.0), "the surface contact's");
+    // Under --backend auto a software adapter (lavapipe in CI) leaves the surface contact to
+    // the CPU, which is faster there; the voxel model's steps on the adapter.
+    let software = common::gpu().is_some_and(|ctx| {
+        ctx.adapter_info().is_some_and(|i| i.device_type == voxcollide::wgpu::DeviceType::Cpu)
+    });
+    let on = |name: &str| {
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(dir.join(name).join("summary.json")).unwrap())
+                .unwrap();
+        s["backend"].as_str().unwrap().to_string()
+    };
+    waits("auto-surface", scene("surface", "explicit"), "auto");
+    waits("auto-penalty", scene("penalty", "explicit"), "auto");
+    let expected = if software { "cpu" } else { "gpu" };
+    assert_eq!((on("auto-surface").as_str(), on("auto-penalty").as_str()), (expected, "gpu"));
     // A lattice made from a surface (a soft ball under the rigid one): its contact searches on
     // the host, over the positions read back once a step.
     let carried = scene("surface", "explicit")

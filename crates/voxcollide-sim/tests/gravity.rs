@@ -148,6 +148,11 @@ fixed = [{ below = { z = -14 } }]
 /// A breast-like mound: a half-ellipsoid of tissue (E = 3 kPa, ν = 0.45) on a held chest wall
 /// (its base, z = 0), as a scene in millimetres.
 fn mound(reference: Option<[f64; 3]>, gravity: [f64; 3]) -> Built {
+    build_world(&mound_scene(reference, gravity, 7)).unwrap()
+}
+
+/// The scene of [`mound`], at `spacing`.
+fn mound_scene(reference: Option<[f64; 3]>, gravity: [f64; 3], spacing: u32) -> SceneFile {
     let reference = reference.map_or(String::new(), |g| format!("reference = {{ gravity = {g:?} }}\n"));
     let text = format!(
         r#"
@@ -160,34 +165,17 @@ gravity = {gravity:?}
 name = "breast"
 kind = "soft"
 shape = {{ ellipsoid = [60, 55, 45] }}
-spacing = 7
+spacing = {spacing}
 material = {{ model = "neo-hookean", young_kpa = 3, poisson = 0.45, density = 1000, damping = 0.5 }}
 fixed = [{{ below = {{ z = 1 }} }}]
 {reference}"#
     );
-    build_world(&SceneFile::parse("mound.toml", &text).unwrap()).unwrap()
+    SceneFile::parse("mound.toml", &text).unwrap()
 }
 
-/// The mound's scene text, as [`mound`] builds it, scanned standing, at `spacing`.
+/// The mound scanned standing and seen lying, at `spacing`.
 fn mound_scanned(spacing: u32) -> SceneFile {
-    let text = format!(
-        r#"
-units = "mm"
-[time]
-integrator = "implicit"
-[world]
-gravity = [0, 0, -9.81]
-[[body]]
-name = "breast"
-kind = "soft"
-shape = {{ ellipsoid = [60, 55, 45] }}
-spacing = {spacing}
-material = {{ model = "neo-hookean", young_kpa = 3, poisson = 0.45, density = 1000, damping = 0.5 }}
-fixed = [{{ below = {{ z = 1 }} }}]
-reference = {{ gravity = [0, -9.81, 0] }}
-"#
-    );
-    SceneFile::parse("mound.toml", &text).unwrap()
+    mound_scene(Some(STANDING), [0.0, 0.0, -9.81], spacing)
 }
 
 #[test]
