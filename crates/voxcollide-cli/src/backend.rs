@@ -61,7 +61,7 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
         )
     } else if world.integrator != Integrator::Explicit {
         Some(
-            "[time] integrator = \"implicit\" (its WGSL passes wait on the device every 8 iterations: --backend gpu runs them)",
+            "[time] integrator = \"implicit\" (its WGSL solve waits on the device a few times a step: --backend gpu runs it)",
         )
     } else if world.contacts.iter().any(|c| {
         c.surface().is_some()

@@ -158,7 +158,7 @@ fn the_gpu_backend_steps_the_implicit_integrator_to_the_cpus_rest() {
     // Under --backend auto the implicit integrator steps on the CPU, and says why.
     let auto = run_on(&d, "auto", &scene, "auto");
     let said = String::from_utf8_lossy(&auto.stdout).into_owned() + &String::from_utf8_lossy(&auto.stderr);
-    assert!(auto.status.success() && said.contains("--backend gpu runs them"), "{said}");
+    assert!(auto.status.success() && said.contains("--backend gpu runs it"), "{said}");
     assert_eq!(read("auto")["backend"], "cpu");
 }
 

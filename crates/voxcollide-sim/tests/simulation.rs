@@ -159,3 +159,27 @@ fn an_implicit_world_keeps_its_own_time_residual_and_parts_on_either_backend() {
         assert!(world.bodies.iter().all(|b| b.pos.iter().all(|p| p.is_finite())));
     }
 }
+
+#[test]
+fn an_implicit_solve_reads_back_about_once_whatever_its_iterations() {
+    // The device stops a solve itself, and the host records as many iterations as the last
+    // solve took before its first readback (`Setup::expect` in src/gpu/implicit.rs): a step
+    // waits for its positions, its solve, its farthest move and (when pushed) its impulses'
+    // velocities, but not once per batch of 8 iterations.
+    let Some(ctx) = common::gpu() else { return };
+    let mut gpu = voxcollide_sim::GpuWorld::new(&ctx, world("implicit")).unwrap();
+    let mut rows = Vec::new();
+    for _ in 0..60 {
+        let before = gpu.host_waits();
+        gpu.step().unwrap();
+        let iterations = gpu.stats().map_or(0, |s| s[0].iterations);
+        rows.push((iterations, gpu.host_waits() - before));
+    }
+    // Steps of 24 to 40 iterations (mostly one round of the contact's active set; a second
+    // round reads once more): read batch by batch, each would wait 3 to 5 times for its solve
+    // alone, 6 to 8 in all.
+    let steady: Vec<_> = rows.iter().filter(|(i, _)| (24..=40).contains(i)).collect();
+    let few = steady.iter().filter(|(_, w)| *w <= 5).count();
+    assert!(steady.len() >= 20 && few * 10 >= steady.len() * 9, "(iterations, waits) per step: {rows:?}");
+    assert!(steady.iter().all(|(_, w)| *w <= 6), "(iterations, waits) per step: {rows:?}");
+}

@@ -288,6 +288,9 @@ struct Implicit {
     couplings: Option<Couplings>,
     /// The last step's `h` (0: none yet), whose answer the next solve starts from.
     guess_h: f32,
+    /// The iterations the last solve's first round took (0: none yet), which the next one's
+    /// first readback waits for ([`Setup::expect`](crate::gpu::implicit::Setup)).
+    last_iterations: u32,
     dt_scale: f32,
     accelerate_to: f32,
     residual: Residual,
@@ -411,6 +414,7 @@ impl GpuWorld {
                     (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n))
                 },
                 guess_h: 0.0,
+                last_iterations: 0,
                 dt_scale: 1.0,
                 accelerate_to: 1.0,
                 residual: Residual { quiet: world.quiet_force(), ..Residual::default() },
@@ -804,6 +808,7 @@ impl Stepper for GpuWorld {
             guess_scale: if imp.guess_h > 0.0 { h / imp.guess_h } else { 0.0 },
             tolerance: settings.tolerance,
             max_iterations: settings.max_iterations,
+            expect: imp.last_iterations,
         };
         // The surface contacts' pushes, found on the host by `record`, as couplings.
         if let Some(couplings) = imp.couplings.as_mut() {
@@ -837,6 +842,7 @@ impl Stepper for GpuWorld {
             self.max_per_dim,
         )?;
         imp.guess_h = h;
+        imp.last_iterations = solved.first().map_or(0, |s| s.first_round);
         let farthest = solved.iter().map(|s| s.farthest).fold(0.0, f32::max);
         let scale = if farthest > settings.max_move { settings.max_move / farthest } else { 1.0 };
         let taken = !(settings.split_far && scale < 1.0);
