@@ -9,7 +9,8 @@
 //! rows held, and the same update. The passes run without a readback except where the host
 //! must decide: once per batch of [`BATCH`] iterations (has the solve converged?; the first
 //! readback only after as many iterations as the last solve took, `Setup::expect`), once at the
-//! end (how far would the farthest vertex move?), and with a surface contact once per round
+//! end (how far would the farthest vertex move? read with the solve's last scalars where there
+//! is no surface contact), and with a surface contact once per round
 //! (did the set of couplings in the gap change?), once for the flags the solve kept, and the
 //! coupled bodies' velocities for the impulses, written back.
 //!
@@ -616,19 +617,31 @@ pub(crate) fn solve(
         // Batches before the first readback: in the first round, as many as the last solve
         // suggests ([`Setup::expect`]).
         let mut ahead = if round == 1 { setup.expect.div_ceil(BATCH).max(1) } else { 1 };
-        loop {
+        // Without couplings the farthest move rides along with each readback of the solve
+        // (it reads the solve's answer and writes only its own scratch), so that a step waits
+        // once for both; with them, the arrival test must see the final answer alone.
+        let far_along = couplings.is_none();
+        let last = loop {
             for _ in 0..ahead {
                 record(&mut encoder, kernels, bodies, couplings, &batch, max_per_dim);
                 recorded += BATCH;
             }
             ahead = 1;
+            if far_along {
+                record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
+            }
             queue.submit([encoder.finish()]);
-            let (joint, _, _) = read_scalars(ctx, sums, None)?;
+            let (joint, own, _) = read_scalars(ctx, sums, None)?;
             encoder = new_encoder();
             // (The cap is the solve's own, checked on the device; this only stops the host.)
             if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
-                break;
+                break (joint, own);
             }
+        };
+        if far_along {
+            iterations += last.0[S_ITERATIONS] as u32;
+            first_round = iterations;
+            break last;
         }
         record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
         queue.submit([encoder.finish()]);
