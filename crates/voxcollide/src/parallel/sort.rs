@@ -98,7 +98,8 @@ fn bucket_bits(slots: usize) -> u32 {
 
 impl SortedBody {
     /// Sorts `points` by their slots among `slots`, which `keys_of(points, keys)` writes for
-    /// a run of them (`u32::MAX`: left out). Returns how many were sorted.
+    /// a run of them (`u32::MAX`: left out), or leaves as `key` already holds them
+    /// ([`sort_keeping`](Self::sort_keeping)). Returns how many were sorted.
     pub fn sort(
         &mut self,
         points: &[Vec3],
@@ -286,14 +287,9 @@ impl SortedBody {
             });
             self.rec.len() as u32
         } else {
-            // The slots are known: each part of the sort copies its own from `fresh`, found
-            // by where its slice of `points` starts.
-            // (The sort hands out subslices of `points`.)
-            let (fresh, base) = (&fresh, points.as_ptr() as usize);
-            self.sort(points, slots, |p, k| {
-                let at = (p.as_ptr() as usize - base) / size_of::<Vec3>();
-                k.copy_from_slice(&fresh[at..at + p.len()]);
-            })
+            // The slots are known: they become the body's, and the sort takes them as they are.
+            std::mem::swap(&mut self.key, &mut fresh);
+            self.sort(points, slots, |_, _| {})
         };
         self.fresh = fresh;
         (sorted, same)
