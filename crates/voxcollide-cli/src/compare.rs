@@ -112,6 +112,12 @@ pub struct CandidateResult {
     pub target_volume_ml: f64,
     /// Steps run.
     pub steps: u64,
+    /// Where its run blew up (a vertex not finite, or moving a tenth of the scene in one step):
+    /// the step it was seen at. Such a candidate did not hold (`held` false, `failure` says
+    /// what blew up), its run stopped there, and its numbers are zero: there is no end to
+    /// measure.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blew_up_at_step: Option<u64>,
     /// Its run's folder, relative to the output folder.
     pub folder: String,
     /// Its pictures (front and side), relative to the output folder; none without an adapter.
@@ -720,7 +726,7 @@ fn run_candidate(
         Backend::Cpu => (None, "no adapter used: --backend cpu, no pictures"),
         _ => (ctx, "no adapter"),
     };
-    let summary = run_scene_on(
+    let ran = run_scene_on(
         run_ctx,
         without,
         &s,
@@ -744,7 +750,14 @@ fn run_candidate(
             }
             Ok(())
         },
-    )?;
+    );
+    let summary = match ran {
+        Ok(summary) => summary,
+        // A candidate whose run blew up failed, and the others still run: its error is about
+        // this implant in this patient, not about the comparison.
+        Err(Error::Simulation { step, message }) => return Ok(blown_up(result, step, &message)),
+        Err(e) => return Err(e),
+    };
     result.volume_ml = summary.bodies[body].volume_ml.unwrap_or(0.0);
     result.placed.clone_from(&summary.bodies[body].placed);
     result.landmarks.clone_from(&summary.landmarks);
@@ -772,6 +785,26 @@ fn run_candidate(
     result.unfinished = unfinished(&result);
     result.finished = result.unfinished.is_none();
     Ok(result)
+}
+
+/// `result` as the candidate whose run blew up at `step`, `message` saying what blew up:
+/// failed and unfinished, with nothing measured and no pictures (not even its metrics over
+/// time: the frames before a blow-up already show it going).
+fn blown_up(result: CandidateResult, step: u64, message: &str) -> CandidateResult {
+    CandidateResult {
+        name: result.name,
+        manufacturer: result.manufacturer,
+        line: result.line,
+        target_volume_ml: result.target_volume_ml,
+        folder: result.folder,
+        held: false,
+        failure: Some(format!("its run blew up at step {step}: {message}")),
+        finished: false,
+        unfinished: Some(format!("its run stopped at step {step}, where it blew up")),
+        steps: step,
+        blew_up_at_step: Some(step),
+        ..CandidateResult::default()
+    }
 }
 
 /// How far from its own volume a candidate's shell may end, relative, and still be finished.
@@ -1213,6 +1246,19 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
     ])
     .map_err(|e| io(&path, e))?;
     for c in &comparison.candidates {
+        if let Some(step) = c.blew_up_at_step {
+            // Nothing measured: the measures' cells are empty, not zero.
+            let mut record = vec![String::new(); 19];
+            record[0].clone_from(&c.name);
+            record[12] = c.settled.to_string();
+            record[13] = step.to_string();
+            record[14] = c.held.to_string();
+            record[15] = c.failure.clone().unwrap_or_default();
+            record[16] = c.finished.to_string();
+            record[17] = c.unfinished.clone().unwrap_or_default();
+            csv.write_record(&record).map_err(|e| io(&path, e))?;
+            continue;
+        }
         csv.write_record([
             c.name.clone(),
             format!("{:.1}", c.volume_ml),
@@ -1466,7 +1512,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
         if !made.is_empty() {
             figures += &format!("<p class=\"made\">{}</p>\n", escape(&made.join(", ")));
         }
-        if !c.held {
+        if c.blew_up_at_step.is_some() {
+            figures += &format!(
+                "<p class=\"failed\"><strong>FAILED — not a result:</strong> {}. Its run stopped there: there is no shape to show.</p>\n",
+                escape(c.failure.as_deref().unwrap_or("its run blew up"))
+            );
+        } else if !c.held {
             figures += &format!(
                 "<p class=\"failed\"><strong>FAILED — not a result:</strong> {}. Its pictures show where the run went wrong.</p>\n",
                 escape(c.failure.as_deref().unwrap_or("a contact did not hold"))
@@ -1477,7 +1528,7 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
                 escape(why)
             );
         }
-        if c.pictures.is_empty() {
+        if c.pictures.is_empty() && c.blew_up_at_step.is_none() {
             figures += "<p>No pictures: no adapter to draw them on.</p>\n";
         }
         for p in &c.pictures {
@@ -1528,7 +1579,7 @@ th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; 
                 String::new()
             } else {
                 format!(
-                    "<p class=\"failed\" id=\"failed\"><strong>{} of {} candidates FAILED</strong> ({}): a contact did not hold, so their numbers are not an answer. Their rows say why.</p>\n",
+                    "<p class=\"failed\" id=\"failed\"><strong>{} of {} candidates FAILED</strong> ({}): a contact did not hold or a run blew up, so their numbers are not an answer. Their rows say why.</p>\n",
                     failed.len(),
                     comparison.candidates.len(),
                     failed.join(", ")

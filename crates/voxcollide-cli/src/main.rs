@@ -724,6 +724,10 @@ fn compare(args: &CompareArgs) -> ExitCode {
                 "result"
             );
             for r in &c.candidates {
+                if let Some(step) = r.blew_up_at_step {
+                    println!("{:<w$} FAILED: its run blew up at step {step}", r.name);
+                    continue;
+                }
                 println!(
                     "{:<w$} {:>9.1} {:>10.2} {:>12.2} {:>10.2} {:>12.0} {:>8} {:>10}",
                     r.name,

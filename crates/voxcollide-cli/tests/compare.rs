@@ -363,6 +363,56 @@ fn candidates_run_at_once_measure_what_they_measure_one_by_one() {
 }
 
 #[test]
+fn a_candidate_that_blows_up_fails_and_the_others_still_run() {
+    // Past the stability bound (the scene's own dt is 1.8e-4 s, half the bound) the 400 mL
+    // candidate's fill blows its run up within a few dozen steps, and the 100 mL one's does
+    // not. The comparison goes on with the others, one at a time and two at a time, and says
+    // which one blew up and where, with no measures and no pictures for it.
+    let fast = scene(3.0)
+        .replace("duration = 0.3", "duration = 0.3\ndt = 4.8e-4")
+        .replace("max_steps = 4000", "max_steps = 600");
+    let two = r#"
+[[candidate]]
+name = "round 400 mL"
+shape = { implant = { volume_ml = 400, base_mm = 115, projection_mm = 40 } }
+
+[[candidate]]
+name = "small 100 mL"
+shape = { implant = { volume_ml = 100, base_mm = 80, projection_mm = 30 } }
+"#;
+    for jobs in [1, 2] {
+        let d = dir(&format!("blown-up-{jobs}"));
+        let c = run_on(&d, &fast, two, Backend::Cpu, jobs).unwrap();
+        let (big, small) = (&c.candidates[0], &c.candidates[1]);
+        let step = big.blew_up_at_step.expect("the 400 mL candidate blew up");
+        assert!(step > 0 && step < 600 && big.steps == step, "{big:?}");
+        assert!(!big.held && !big.finished && !big.is_result());
+        let failure = big.failure.as_deref().unwrap();
+        assert!(
+            failure.contains(&format!("blew up at step {step}")) && failure.contains("implant"),
+            "{failure}"
+        );
+        assert!(big.pictures.is_empty() && big.history.is_empty() && big.volume_ml == 0.0);
+        // The other ran to its end.
+        assert_eq!(small.blew_up_at_step, None);
+        assert!(small.held && small.steps == 600, "{small:?}");
+        assert!((small.volume_ml - 100.0).abs() < 10.0, "{}", small.volume_ml);
+        // Its files say so: the JSON, the CSV's empty measures, and the report's row.
+        let json = std::fs::read_to_string(d.join("out/compare.json")).unwrap();
+        assert!(json.contains(&format!("\"blew_up_at_step\": {step}")), "{json}");
+        let csv = std::fs::read_to_string(d.join("out/compare.csv")).unwrap();
+        let row = csv.lines().find(|l| l.starts_with("round 400 mL")).unwrap();
+        assert!(
+            row.starts_with("round 400 mL,,,") && row.contains(&format!(",false,{step},false,")),
+            "{row}"
+        );
+        let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
+        assert!(html.contains("no shape to show") && html.contains("1 of 2 candidates FAILED"));
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+}
+
+#[test]
 fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
     let d = dir("errors");
     let bad = format!(
