@@ -15,6 +15,12 @@ use crate::contact::ContactModel;
 pub use crate::contact::ContactPair;
 pub use crate::integrator::Integrator;
 
+/// A blow-up's likely cause under the explicit integrator.
+const EXPLICIT_CAUSE: &str = "a time step above the integrator's stability bound, a penalty magnitude too large for the bodies' stiffness, or a degenerate body";
+
+/// A blow-up's likely cause under the implicit integrator, which has no stability bound.
+const IMPLICIT_CAUSE: &str = "a body crushed or turned inside out, past where the step's linearisation holds (as after a contact failed and one body came through another), a penalty magnitude too large for the bodies' stiffness, or a degenerate body";
+
 /// Each body's inputs at a step: `inputs(step)[k]` for body `k`.
 pub type Schedule = Arc<dyn Fn(u64) -> Vec<StepInputs> + Send + Sync>;
 
@@ -31,7 +37,8 @@ pub struct World {
     pub v_max: f32,
     /// Each body's inputs (time step, drive, pressure, floor) at each step.
     pub schedule: Schedule,
-    /// What a blow-up's error names as its likely cause (see [`with_cause`](Self::with_cause)).
+    /// What a blow-up's error names as its likely cause under the explicit integrator (see
+    /// [`with_cause`](Self::with_cause)); the implicit one names its own.
     pub likely_cause: String,
     /// How the bodies move from step to step.
     pub integrator: Integrator,
@@ -99,9 +106,7 @@ impl World {
             contacts,
             v_max,
             schedule,
-            likely_cause: "a time step above the integrator's stability bound, a penalty magnitude \
-                           too large for the bodies' stiffness, or a degenerate body"
-                .into(),
+            likely_cause: EXPLICIT_CAUSE.into(),
             integrator: Integrator::Explicit,
             pockets: Vec::new(),
         })
@@ -122,9 +127,14 @@ impl World {
     /// The error for a blow-up of body `k` seen at `step`: `what` happened, and the likely cause.
     #[must_use]
     pub fn blow_up(&self, step: u64, k: usize, what: &str) -> Error {
+        // The implicit integrator has no stability bound to blame.
+        let cause = match self.integrator {
+            Integrator::Implicit(_) => IMPLICIT_CAUSE,
+            Integrator::Explicit => &self.likely_cause,
+        };
         Error::Simulation {
             step,
-            message: format!("{}: {what}; likely cause: {}", self.names[k], self.likely_cause),
+            message: format!("{}: {what}; likely cause: {cause}", self.names[k]),
         }
     }
 

@@ -81,6 +81,24 @@ fn nan_or_huge_positions_mid_run_stop_the_cpu_run_with_a_named_error() {
 }
 
 #[test]
+fn a_blow_up_names_the_cause_its_integrator_makes_likely() {
+    // The implicit integrator has no stability bound: its blow-up does not blame the time step.
+    for implicit in [false, true] {
+        let mut scene = mid_run(Kind::Implant, 30);
+        poison(&mut scene, true, f32::NAN);
+        let mut world = scene.world().unwrap();
+        if implicit {
+            world = world.with_integrator(Integrator::Implicit(ImplicitSettings::default()));
+        }
+        let Err(Error::Simulation { message, .. }) = CpuWorld::new(world).unwrap().step() else {
+            panic!("implicit {implicit}: a NaN went unseen")
+        };
+        assert_eq!(message.contains("stability bound"), !implicit, "{message}");
+        assert_eq!(message.contains("turned inside out"), implicit, "{message}");
+    }
+}
+
+#[test]
 fn nan_or_huge_positions_mid_run_stop_the_gpu_run_with_a_named_error() {
     let Some(ctx) = common::gpu() else { return };
     for kind in [Kind::Cylinder, Kind::Implant] {

@@ -158,7 +158,7 @@ pub fn run_scene_on(
         let (residual, now) = (run.residual().map(|r| r.relative()), simulated_time(&*run, done, built.dt));
         // How finely the positions resolve the residual, past the schedule (two force sums).
         let floor = if residual.is_some() && done >= schedule.planned { run.residual_floor() } else { None };
-        let (world, reports) = run.frame()?;
+        let (world, reports) = run.frame().map_err(|e| after_failures(e, &summary))?;
         summary::measure(world, &mut summary);
         checks.check(world, &reports, &mut summary, done, frame, true, note)?;
         let verdict = rest.judge(
@@ -192,13 +192,31 @@ pub fn run_scene_on(
             run.accelerate(SETTLE_ACCELERATION);
         }
         frame += 1;
-        schedule.step_to(&mut *run, target, (&mut checks, &mut summary, frame), progress, note)?;
+        schedule
+            .step_to(&mut *run, target, (&mut checks, &mut summary, frame), progress, note)
+            .map_err(|e| after_failures(e, &summary))?;
     }
 
     // Summary.
     summary::totals(&mut summary, &*run, schedule.done, schedule.seconds);
     summary::write(&config.out, &mut summary)?;
     Ok(summary)
+}
+
+/// A blow-up `e` with what went wrong before it: the contacts that had already failed (a body
+/// come through another is a likely cause of a blow-up, and the first thing to fix).
+fn after_failures(e: Error, summary: &FileSummary) -> Error {
+    let before: Vec<String> = summary
+        .contacts
+        .iter()
+        .filter_map(|c| c.failure.as_ref().map(|f| format!("contact {} – {} had not held: {f}", c.a, c.b)))
+        .collect();
+    match e {
+        Error::Simulation { step, message } if !before.is_empty() => {
+            Error::Simulation { step, message: format!("{message}; before it, {}", before.join("; ")) }
+        }
+        e => e,
+    }
 }
 
 /// Says what building the world found (remarks on each body, each unloaded shape recovered),
@@ -336,5 +354,34 @@ impl Schedule {
         }
         self.seconds += started.elapsed().as_secs_f64();
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_blow_up_after_a_failed_contact_names_that_failure() {
+        let blow_up = || Error::Simulation { step: 124, message: "breast: vertex 944 moves at 7.9e3".into() };
+        let mut summary = FileSummary::default();
+        summary.contacts.push(summary::ContactSummary {
+            a: "implant".into(),
+            b: "breast".into(),
+            ..Default::default()
+        });
+        // While every contact held, the blow-up is as it was.
+        assert_eq!(after_failures(blow_up(), &summary), blow_up());
+        summary.contacts[0].failure = Some("1 of implant's vertices came through breast at step 99".into());
+        let Error::Simulation { step, message } = after_failures(blow_up(), &summary) else { panic!() };
+        assert_eq!(step, 124);
+        assert!(
+            message.starts_with("breast: vertex 944")
+                && message.contains("before it, contact implant – breast had not held: 1 of implant's vertices came through breast at step 99"),
+            "{message}"
+        );
+        // Other errors are left alone.
+        let io = Error::Io { path: "x".into(), message: "y".into() };
+        assert_eq!(after_failures(io.clone(), &summary), io);
     }
 }
