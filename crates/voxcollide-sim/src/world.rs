@@ -132,10 +132,7 @@ impl World {
             Integrator::Implicit(_) => IMPLICIT_CAUSE,
             Integrator::Explicit => &self.likely_cause,
         };
-        Error::Simulation {
-            step,
-            message: format!("{}: {what}; likely cause: {cause}", self.names[k]),
-        }
+        Error::Simulation { step, message: format!("{}: {what}; likely cause: {cause}", self.names[k]) }
     }
 
     /// The inputs of every body at `step`.

@@ -131,8 +131,28 @@ impl Material for Springs {
                 ((u, [across, along]), [h * h * across, h * h * along + h * m.spring_damping])
             })
             .unzip();
-        Box::new(LinearSprings { direction, stiffness, system })
+        // `A`'s rows as the products read them: each vertex's springs in adjacency order, with
+        // the neighbour, the spring's share and its direction side by side.
+        let rows = body
+            .adjacency
+            .par_iter()
+            .with_min_len(PAR_CHUNK)
+            .map(|&[j, s]| {
+                let ([a, b], n) = (system[s as usize], direction[s as usize]);
+                Row { n: n.to_array(), a, b, j }
+            })
+            .collect();
+        Box::new(LinearSprings { direction, stiffness, system, rows })
     }
+}
+
+/// A spring in a vertex's row of `A`: the block `a·I + b·nnᵀ` coupling it to vertex `j`.
+#[derive(Clone, Copy, Debug)]
+struct Row {
+    n: [f32; 3],
+    a: f32,
+    b: f32,
+    j: u32,
 }
 
 /// The springs' linearisation. Each spring's block is `a·I + b·uuᵀ` with `u` its direction,
@@ -145,6 +165,10 @@ struct LinearSprings {
     stiffness: Vec<[f32; 2]>,
     /// Per spring: its share of `A`, `h²·H + h·c·uuᵀ`.
     system: Vec<[f32; 2]>,
+    /// `system` and `direction` per entry of the body's adjacency: the rows of `A` in the
+    /// order a product reads them (a product streams through them, rather than look up each
+    /// spring; 2026-12-06).
+    rows: Vec<Row>,
 }
 
 impl Linearised for LinearSprings {
@@ -158,11 +182,18 @@ impl Linearised for LinearSprings {
         r: &mut Vec3,
     ) {
         let ui = u[i];
-        let blocks = if stiff_only { &self.stiffness } else { &self.system };
-        for &[j, s] in &body.adjacency[body.offsets[i] as usize..body.offsets[i + 1] as usize] {
-            let d = ui - u[j as usize];
-            let ([a, b], n) = (blocks[s as usize], self.direction[s as usize]);
-            *r += a * d + (b * n.dot(d)) * n;
+        let row = body.offsets[i] as usize..body.offsets[i + 1] as usize;
+        if stiff_only {
+            for &[j, s] in &body.adjacency[row] {
+                let d = ui - u[j as usize];
+                let ([a, b], n) = (self.stiffness[s as usize], self.direction[s as usize]);
+                *r += a * d + (b * n.dot(d)) * n;
+            }
+        } else {
+            for &Row { n, a, b, j } in &self.rows[row] {
+                let (d, n) = (ui - u[j as usize], Vec3::from_array(n));
+                *r += a * d + (b * n.dot(d)) * n;
+            }
         }
     }
 
