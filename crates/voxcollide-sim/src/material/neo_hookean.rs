@@ -67,15 +67,27 @@ pub struct Elements {
     frames: Frames,
 }
 
-/// The frames the last assembly's decompositions ended in, one per tetrahedron: a cache of
-/// work, not part of the material, so two bodies with the same elements are equal whatever
-/// their caches hold, and a clone starts with a copy of its original's.
+/// The frames the last assembly's decompositions ended in, one per tetrahedron, and the room
+/// its blocks were written in: a cache of work, not part of the material, so two bodies with
+/// the same elements are equal whatever their caches hold, and a clone starts with a copy of
+/// its original's frames.
 #[derive(Debug, Default)]
-struct Frames(std::sync::Mutex<Vec<Mat3>>);
+struct Frames(std::sync::Mutex<Cache>);
+
+/// What [`Frames`] keeps.
+#[derive(Debug, Default)]
+struct Cache {
+    /// Per tetrahedron, the frame its last decomposition ended in.
+    frames: Vec<Mat3>,
+    /// Per tetrahedron, room for its sixteen blocks ([`Elements::assemble`]): every one is
+    /// written before it is read, so it is kept, not cleared, from one assembly to the next.
+    blocks: Vec<[Mat3; 16]>,
+}
 
 impl Clone for Frames {
     fn clone(&self) -> Frames {
-        Frames(std::sync::Mutex::new(self.0.lock().map_or_else(|e| e.into_inner().clone(), |f| f.clone())))
+        let frames = self.0.lock().map_or_else(|e| e.into_inner().frames.clone(), |c| c.frames.clone());
+        Frames(std::sync::Mutex::new(Cache { frames, blocks: Vec::new() }))
     }
 }
 
@@ -360,17 +372,17 @@ impl Elements {
         // Each tetrahedron's blocks written where they are kept, from its stiffness made there
         // and then: no list of stiffnesses, and no copy of the blocks (a tenth of a solve's
         // time on the patient, 2026-12-06).
-        let mut per_tet = vec![[Mat3::ZERO; 16]; self.tets.len()];
-        {
-            let mut frames = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-            let fresh = self.frames_ready(&mut frames);
-            per_tet
-                .par_iter_mut()
-                .zip(frames.par_iter_mut())
-                .enumerate()
-                .with_min_len(1024)
-                .for_each(|(k, (out, frame))| self.stiffness_from(pos, k, frame, fresh).blocks_into(out));
-        }
+        let mut cache = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let Cache { frames, blocks: per_tet } = &mut *cache;
+        let fresh = self.frames_ready(frames);
+        per_tet.resize(self.tets.len(), [Mat3::ZERO; 16]);
+        per_tet
+            .par_iter_mut()
+            .zip(frames.par_iter_mut())
+            .enumerate()
+            .with_min_len(1024)
+            .for_each(|(k, (out, frame))| self.stiffness_from(pos, k, frame, fresh).blocks_into(out));
+        let per_tet = &*per_tet;
         let p = &self.pattern;
         let mut blocks = vec![Mat3::ZERO; p.columns.len()];
         let mut rows: Vec<&mut [Mat3]> = Vec::with_capacity(p.offsets.len());
@@ -748,8 +760,8 @@ impl Elements {
     /// from the axes).
     #[cfg(test)]
     fn stiffnesses_warm(&self, pos: &[Vec3]) -> Vec<TetStiffness> {
-        let mut frames = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-        self.stiffnesses_in(pos, &mut frames)
+        let mut cache = self.frames.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        self.stiffnesses_in(pos, &mut cache.frames)
     }
 
     /// The stiffnesses, each decomposition started from its frame in `frames` (from the axes
