@@ -161,6 +161,35 @@ fn an_implicit_world_keeps_its_own_time_residual_and_parts_on_either_backend() {
 }
 
 #[test]
+fn an_implicit_step_before_its_surface_contact_touches_waits_for_its_solve_once() {
+    // The ball held 20 mm over the block: the surface contact has no coupling yet, so the
+    // farthest move rides with the solve's readback. A step waits for the positions (the
+    // host's search) and for its solve, twice in all, not three times.
+    let Some(ctx) = common::gpu() else { return };
+    let text = include_str!("../../../scenes/indentation.toml")
+        .replace("[time]", "[time]\nintegrator = \"implicit\"")
+        .replace("position = [0, 0, 14]", "position = [0, 0, 34]")
+        .replace("{ t = 0.2, position = [0, 0, 10] }", "{ t = 0.2, position = [0, 0, 34] }");
+    let built = build_world(&SceneFile::parse("indentation.toml", &text).unwrap()).unwrap();
+    let mut gpu = voxcollide_sim::GpuWorld::new(&ctx, built.world.clone()).unwrap();
+    let mut cpu = voxcollide_sim::CpuWorld::new(built.world).unwrap();
+    let before = gpu.host_waits();
+    for _ in 0..20 {
+        gpu.step().unwrap();
+        cpu.step().unwrap();
+    }
+    let waits = gpu.host_waits() - before;
+    assert!(waits <= 2 * 20, "{waits} waits in 20 steps");
+    // The same answer as the CPU's, to the solve's tolerance.
+    let (gw, _) = Simulation::frame(&mut gpu).unwrap();
+    let block = &gw.bodies[0];
+    let moved = block.pos.iter().zip(block.start()).map(|(p, r)| p.distance(*r)).fold(0.0, f32::max);
+    let apart =
+        block.pos.iter().zip(&cpu.world.bodies[0].pos).map(|(g, c)| g.distance(*c)).fold(0.0, f32::max);
+    assert!(apart <= 1e-2 * moved.max(1e-3), "gpu and cpu {apart} apart, moved {moved}");
+}
+
+#[test]
 fn an_implicit_solve_reads_back_about_once_whatever_its_iterations() {
     // The device stops a solve itself, and the host records as many iterations as the last
     // solve took before its first readback (`Setup::expect` in src/gpu/implicit.rs): a step

@@ -617,10 +617,12 @@ pub(crate) fn solve(
         // Batches before the first readback: in the first round, as many as the last solve
         // suggests ([`Setup::expect`]).
         let mut ahead = if round == 1 { setup.expect.div_ceil(BATCH).max(1) } else { 1 };
-        // Without couplings the farthest move rides along with each readback of the solve
-        // (it reads the solve's answer and writes only its own scratch), so that a step waits
-        // once for both; with them, the arrival test must see the final answer alone.
-        let far_along = couplings.is_none();
+        // Without couplings (none in the world, or none this step: bodies with a surface
+        // contact not yet near) the farthest move rides along with each readback of the solve
+        // (it reads the solve's answer and writes only its own scratch, and the couplings'
+        // gathers only zeros), so that a step waits once for both; with them, the arrival test
+        // must see the final answer alone.
+        let far_along = couplings.is_none_or(|c| c.host.is_empty());
         let last = loop {
             for _ in 0..ahead {
                 record(&mut encoder, kernels, bodies, couplings, &batch, max_per_dim);
