@@ -158,7 +158,7 @@ pub fn run_scene_on(
         let (residual, now) = (run.residual().map(|r| r.relative()), simulated_time(&*run, done, built.dt));
         // How finely the positions resolve the residual, past the schedule (two force sums).
         let floor = if residual.is_some() && done >= schedule.planned { run.residual_floor() } else { None };
-        let (world, reports) = run.frame().map_err(|e| after_failures(e, &summary))?;
+        let (world, reports) = run.frame().map_err(|e| after_failures(e, &summary, &built.notes))?;
         summary::measure(world, &mut summary);
         checks.check(world, &reports, &mut summary, done, frame, true, note)?;
         let verdict = rest.judge(
@@ -194,7 +194,7 @@ pub fn run_scene_on(
         frame += 1;
         schedule
             .step_to(&mut *run, target, (&mut checks, &mut summary, frame), progress, note)
-            .map_err(|e| after_failures(e, &summary))?;
+            .map_err(|e| after_failures(e, &summary, &built.notes))?;
     }
 
     // Summary.
@@ -204,13 +204,21 @@ pub fn run_scene_on(
 }
 
 /// A blow-up `e` with what went wrong before it: the contacts that had already failed (a body
-/// come through another is a likely cause of a blow-up, and the first thing to fix).
-fn after_failures(e: Error, summary: &FileSummary) -> Error {
-    let before: Vec<String> = summary
+/// come through another is a likely cause of a blow-up, and the first thing to fix), and what
+/// building the world warned of (`notes`: tissue too thin for its lattice over an implant's
+/// rim, say).
+fn after_failures(e: Error, summary: &FileSummary, notes: &[voxcollide_sim::build::BodyNote]) -> Error {
+    let mut before: Vec<String> = summary
         .contacts
         .iter()
         .filter_map(|c| c.failure.as_ref().map(|f| format!("contact {} – {} had not held: {f}", c.a, c.b)))
         .collect();
+    before.extend(notes.iter().flat_map(|n| {
+        n.remarks
+            .iter()
+            .filter_map(|r| r.strip_prefix("warning: "))
+            .map(move |r| format!("the build had warned: {}: {r}", n.name))
+    }));
     match e {
         Error::Simulation { step, message } if !before.is_empty() => {
             Error::Simulation { step, message: format!("{message}; before it, {}", before.join("; ")) }
@@ -370,18 +378,22 @@ mod tests {
             b: "breast".into(),
             ..Default::default()
         });
-        // While every contact held, the blow-up is as it was.
-        assert_eq!(after_failures(blow_up(), &summary), blow_up());
+        let mut notes = vec![voxcollide_sim::build::BodyNote::new("implant", 100)];
+        notes[0].remarks.push("its base moved 12 mm".into());
+        // While every contact held, and the build warned of nothing, the blow-up is as it was.
+        assert_eq!(after_failures(blow_up(), &summary, &notes), blow_up());
         summary.contacts[0].failure = Some("1 of implant's vertices came through breast at step 99".into());
-        let Error::Simulation { step, message } = after_failures(blow_up(), &summary) else { panic!() };
+        notes[0].remarks.push("warning: \"breast\" is 5.3 mm thick over the implant's rim".into());
+        let Error::Simulation { step, message } = after_failures(blow_up(), &summary, &notes) else {
+            panic!()
+        };
         assert_eq!(step, 124);
-        assert!(
-            message.starts_with("breast: vertex 944")
-                && message.contains("before it, contact implant – breast had not held: 1 of implant's vertices came through breast at step 99"),
-            "{message}"
+        assert_eq!(
+            message,
+            "breast: vertex 944 moves at 7.9e3; before it, contact implant – breast had not held: 1 of implant's vertices came through breast at step 99; the build had warned: implant: \"breast\" is 5.3 mm thick over the implant's rim"
         );
         // Other errors are left alone.
         let io = Error::Io { path: "x".into(), message: "y".into() };
-        assert_eq!(after_failures(io.clone(), &summary), io);
+        assert_eq!(after_failures(io.clone(), &summary, &notes), io);
     }
 }
