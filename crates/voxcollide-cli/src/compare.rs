@@ -1246,32 +1246,21 @@ fn write_outputs(comparison: &Comparison, out: &Path) -> Result<(), Error> {
     ])
     .map_err(|e| io(&path, e))?;
     for c in &comparison.candidates {
-        if let Some(step) = c.blew_up_at_step {
-            // Nothing measured: the measures' cells are empty, not zero.
-            let mut record = vec![String::new(); 19];
-            record[0].clone_from(&c.name);
-            record[12] = c.settled.to_string();
-            record[13] = step.to_string();
-            record[14] = c.held.to_string();
-            record[15] = c.failure.clone().unwrap_or_default();
-            record[16] = c.finished.to_string();
-            record[17] = c.unfinished.clone().unwrap_or_default();
-            csv.write_record(&record).map_err(|e| io(&path, e))?;
-            continue;
-        }
+        // A run that blew up measured nothing: its measures' cells are empty, not zero.
+        let m = |cell: String| if c.blew_up_at_step.is_none() { cell } else { String::new() };
         csv.write_record([
             c.name.clone(),
-            format!("{:.1}", c.volume_ml),
-            format!("{:.3}", c.apex_lift),
-            format!("{:.3}", c.max_tissue_displacement),
-            format!("{:.3}", c.mean_tissue_displacement),
-            format!("{:.4}", c.max_tissue_strain),
-            format!("{:.3}", c.implant_pressure_kpa),
-            format!("{:.3}", c.peak_contact_pressure_kpa),
-            format!("{:.3}", c.mean_contact_pressure_kpa),
-            format!("{:.1}", c.contact_area),
-            format!("{:.3}", c.max_penetration),
-            format!("{:.1}", c.footprint_area),
+            m(format!("{:.1}", c.volume_ml)),
+            m(format!("{:.3}", c.apex_lift)),
+            m(format!("{:.3}", c.max_tissue_displacement)),
+            m(format!("{:.3}", c.mean_tissue_displacement)),
+            m(format!("{:.4}", c.max_tissue_strain)),
+            m(format!("{:.3}", c.implant_pressure_kpa)),
+            m(format!("{:.3}", c.peak_contact_pressure_kpa)),
+            m(format!("{:.3}", c.mean_contact_pressure_kpa)),
+            m(format!("{:.1}", c.contact_area)),
+            m(format!("{:.3}", c.max_penetration)),
+            m(format!("{:.1}", c.footprint_area)),
             c.settled.to_string(),
             c.steps.to_string(),
             c.held.to_string(),
