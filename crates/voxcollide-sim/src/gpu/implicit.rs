@@ -92,6 +92,9 @@ pub const COUPLE: &str = concat!(
     include_str!("../../shaders/implicit_slots.wgsl"),
     include_str!("../../shaders/couple.wgsl")
 );
+/// The couplings' inelastic impulses' WGSL, after the step's update.
+pub const COUPLE_IMPULSE: &str =
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/couple_impulse.wgsl"));
 /// The couplings' gather pass's WGSL.
 pub const COUPLE_GATHER: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
@@ -784,6 +787,9 @@ struct Gather {
 pub(crate) struct Couplings {
     relative: Vec<Kernel>,
     gather: Kernel,
+    /// The inelastic impulses after the update, and per contact its bind group.
+    impulse: Kernel,
+    impulse_groups: Vec<wgpu::BindGroup>,
     pairs: Vec<CoupledPair>,
     /// Per contact: its parameters, and per mode its bind group.
     params: Vec<Buffer>,
@@ -865,9 +871,17 @@ impl Couplings {
                 }
             })
             .collect();
+        let impulse = Kernel::new(
+            device,
+            "voxcollide coupling impulses",
+            COUPLE_IMPULSE,
+            &[Uniform, Read, Read, Read, Read, Read, ReadWrite, ReadWrite],
+        );
         Couplings {
             relative,
             gather,
+            impulse,
+            impulse_groups: Vec::new(),
             pairs,
             params,
             relative_groups: Vec::new(),
@@ -901,7 +915,7 @@ impl Couplings {
         queue: &wgpu::Queue,
         bodies: &[crate::body::MassSpring],
         implicit: &[ImplicitBody],
-        vel: &[&Buffer],
+        (vel, info): (&[&Buffer], &[&Buffer]),
         per_contact: Vec<Vec<crate::integrator::implicit::Coupling>>,
         h: f32,
     ) {
@@ -975,7 +989,7 @@ impl Couplings {
             }
         }
         if !self.bound {
-            self.bind(device, implicit, vel);
+            self.bind(device, implicit, (vel, info));
         }
         queue.write_buffer(&self.couplings, 0, bytemuck::cast_slice(&records));
         queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(&flat));
@@ -1011,7 +1025,12 @@ impl Couplings {
         }
     }
 
-    fn bind(&mut self, device: &wgpu::Device, implicit: &[ImplicitBody], vel: &[&Buffer]) {
+    fn bind(
+        &mut self,
+        device: &wgpu::Device,
+        implicit: &[ImplicitBody],
+        (vel, info): (&[&Buffer], &[&Buffer]),
+    ) {
         self.relative_groups = self
             .pairs
             .iter()
@@ -1037,6 +1056,26 @@ impl Couplings {
                         )
                     })
                     .collect()
+            })
+            .collect();
+        self.impulse_groups = self
+            .pairs
+            .iter()
+            .zip(&self.params)
+            .map(|(p, params)| {
+                self.impulse.bind(
+                    device,
+                    &[
+                        params,
+                        &self.couplings,
+                        &self.entries,
+                        info[p.a],
+                        info[p.b],
+                        &self.active,
+                        vel[p.a],
+                        vel[p.b],
+                    ],
+                )
             })
             .collect();
         self.gather_groups = self
@@ -1078,17 +1117,14 @@ impl Couplings {
         &self.host
     }
 
-    /// Which couplings the solve kept, read back with `also` in one readback (their bytes
-    /// returned in order).
-    pub(crate) fn kept(
-        &self,
-        ctx: &voxcollide::GpuContext,
-        also: &[(&Buffer, u64)],
-    ) -> Result<(Vec<bool>, Vec<Vec<u8>>), Error> {
-        let mut parts = vec![(&self.active, 4 * self.host.len().max(1) as u64)];
-        parts.extend_from_slice(also);
-        let mut bytes = voxcollide::gpu::read_buffers(ctx, &parts)?;
-        let flags: Vec<u32> = bytemuck::pod_collect_to_vec(&bytes.remove(0));
-        Ok((flags.iter().take(self.host.len()).map(|f| *f != 0).collect(), bytes))
+    /// Records the inelastic impulses of the couplings pushed now that the solve kept
+    /// (`shaders/couple_impulse.wgsl`, the CPU's `inelastic_impulses`): each contact's in one
+    /// invocation, in coupling order, the contacts in order. Nothing is read back.
+    pub(crate) fn record_impulses(&self, pass: &mut wgpu::ComputePass<'_>) {
+        for (group, &(_, count)) in self.impulse_groups.iter().zip(&self.ranges) {
+            if count > 0 {
+                self.impulse.dispatch_one(pass, group);
+            }
+        }
     }
 }

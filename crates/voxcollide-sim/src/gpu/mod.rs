@@ -819,12 +819,13 @@ impl Stepper for GpuWorld {
                 .filter_map(|(c, pair)| c.couplings(pair))
                 .collect();
             let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
+            let info: Vec<&Buffer> = self.bodies.iter().map(|b| &b.info).collect();
             couplings.upload(
                 self.ctx.device(),
                 self.ctx.queue(),
                 &self.world.bodies,
                 &imp.bodies,
-                &vel,
+                (&vel, &info),
                 per_contact,
                 h,
             );
@@ -858,36 +859,21 @@ impl Stepper for GpuWorld {
                 self.max_per_dim,
             );
             // A surface contact's push is inelastic: the impulses between the pairs the solve
-            // kept that separate, in coupling order, on the host (the CPU's own code), over
-            // the velocities read back.
-            // (Only a coupling pushed now can take one: then the flags and the coupled
-            // bodies' velocities come back in one readback.)
+            // kept that separate, in coupling order, on the device (the CPU's own rule,
+            // `shaders/couple_impulse.wgsl`), after the update. Only a coupling pushed now
+            // can take one.
             if let Some(c) = imp.couplings.as_ref().filter(|c| c.couplings().iter().any(|k| k.depth > 0.0)) {
-                let couplings = c.couplings();
-                let mut which: Vec<usize> =
-                    couplings.iter().flat_map(|k| [k.body, k.partner]).map(|k| k as usize).collect();
-                which.sort_unstable();
-                which.dedup();
-                let parts: Vec<(&Buffer, u64)> =
-                    which.iter().map(|&k| (&self.bodies[k].vel, 16 * u64::from(self.bodies[k].n))).collect();
-                let (active, bytes) = c.kept(&self.ctx, &parts)?;
-                if couplings.iter().zip(&active).any(|(k, a)| *a && k.depth > 0.0) {
-                    for (&k, bytes) in which.iter().zip(&bytes) {
-                        let vel: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
-                        self.world.bodies[k].vel = vel.iter().map(|v| v.truncate()).collect();
-                    }
-                    crate::integrator::implicit::inelastic_impulses(
-                        &mut self.world.bodies,
-                        couplings,
-                        &active,
-                    );
-                    for &k in &which {
-                        let body = &self.world.bodies[k];
-                        let vel: Vec<Vec4> =
-                            body.vel.iter().zip(&body.inv_mass).map(|(v, m)| v.extend(*m)).collect();
-                        self.ctx.queue().write_buffer(&self.bodies[k].vel, 0, bytemuck::cast_slice(&vel));
-                    }
+                let mut encoder = self.ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("voxcollide implicit impulses"),
+                });
+                {
+                    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                        label: Some("voxcollide implicit impulses"),
+                        timestamp_writes: None,
+                    });
+                    c.record_impulses(&mut pass);
                 }
+                self.ctx.queue().submit([encoder.finish()]);
             }
         }
         imp.stats = crate::gpu::implicit::stats(&solved, scale, taken);
