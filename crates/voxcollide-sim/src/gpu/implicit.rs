@@ -25,7 +25,8 @@
 //! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
 //! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
 //! again from its answer while the set of couplings it ends within the gap changes (at most four
-//! rounds), and the inelastic impulses after the step are the host's, as on the CPU.
+//! rounds), and the inelastic impulses after the step run on the device in coupling order
+//! (`shaders/couple_impulse.wgsl`), by the CPU's rule.
 //!
 //! **What differs from the CPU.** The dot products are `f32` trees per workgroup on the device,
 //! `f64` chunk sums on the CPU, so the two agree to the solve's tolerance, not bit for bit. A

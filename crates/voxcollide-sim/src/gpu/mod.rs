@@ -14,8 +14,9 @@
 //! same positions), and uploads the two force buffers that the `forces` pass reads as it reads
 //! a collision's (explicit: the CPU's bits). Under the implicit one the pushes are also uploaded
 //! as couplings ([`crate::integrator::implicit::Coupling`]) that join the two bodies in the
-//! device's one solve ([`crate::gpu::implicit`]), and the inelastic impulses after the step are
-//! the host's (docs/contacts.md, "The search on the device").
+//! device's one solve ([`crate::gpu::implicit`]), and the inelastic impulses after the step
+//! are applied on the device too (`shaders/couple_impulse.wgsl`, the CPU's rule; docs/contacts.md,
+//! "The search on the device").
 
 mod contact;
 pub mod implicit;
