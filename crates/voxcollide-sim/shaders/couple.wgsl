@@ -48,6 +48,12 @@ struct Coupling {
 @group(0) @binding(7) var<storage, read_write> push: array<vec4<f32>>;
 @group(0) @binding(8) var<storage, read_write> in_solve: array<u32>;
 @group(0) @binding(9) var<storage, read_write> changed: array<atomic<u32>, 1>;
+// The solve's joint scalars (implicit_solve.wgsl's `red`): the arrival test runs only once the
+// solve is done, so that it may be recorded after every batch and read with the solve's scalars.
+@group(0) @binding(10) var<storage, read> red: array<f32>;
+
+// `S_DONE` in implicit_solve.wgsl: 0 while the solve runs, 1 once it is done.
+const DONE: u32 = 7u;
 
 // Vertex v's vector in `slot` of body a (`on_a`) or b, or its velocity (VELOCITY).
 fn value(on_a: bool, slot: u32, v: u32) -> vec3<f32> {
@@ -90,6 +96,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let depth = c.terms.y;
     let is_active = in_solve[k] != 0u;
     if MODE == MODE_ARRIVE {
+        if red[DONE] <= 0.0 {
+            return;
+        }
         // Where the new velocity ends it within the gap (the CPU's rounds in
         // `integrate_implicit_together`): after the first round pairs only join.
         let arrives = h * relative(c, SLOT_T) < depth;

@@ -244,6 +244,11 @@ pub(crate) struct Sums {
 }
 
 impl Sums {
+    /// The buffer of the joint and per-body scalars (and the partials).
+    pub(crate) fn red(&self) -> &Buffer {
+        &self.red
+    }
+
     /// The buffer for bodies of `n` vertices each.
     pub(crate) fn new(device: &wgpu::Device, n: &[u32], max_per_dim: u32) -> Sums {
         let groups: u32 = n.iter().map(|&n| own_groups(n, max_per_dim)).sum();
@@ -621,41 +626,28 @@ pub(crate) fn solve(
         // Batches before the first readback: in the first round, as many as the last solve
         // suggests ([`Setup::expect`]).
         let mut ahead = if round == 1 { setup.expect.div_ceil(BATCH).max(1) } else { 1 };
-        // Without couplings (none in the world, or none this step: bodies with a surface
-        // contact not yet near) the farthest move rides along with each readback of the solve
-        // (it reads the solve's answer and writes only its own scratch, and the couplings'
-        // gathers only zeros), so that a step waits once for both; with them, the arrival test
-        // must see the final answer alone.
-        let far_along = couplings.is_none_or(|c| c.host.is_empty());
-        let last = loop {
+        // The couplings the solve ends within the gap are in it, and no others: solved again,
+        // from its answer, while that set changes (after the first round pairs only join).
+        let recheck = couplings.filter(|c| !c.host.is_empty() && round < 4);
+        // The farthest move, and the couplings' arrival test, ride along with each readback of
+        // the solve: the first reads the solve's answer and writes only its own scratch, and
+        // the second waits on the device for the solve to be done (`couple.wgsl`), so that a
+        // round waits once for all three.
+        let (joint, own, changed) = loop {
             for _ in 0..ahead {
                 record(&mut encoder, kernels, bodies, couplings, &batch, max_per_dim);
                 recorded += BATCH;
             }
             ahead = 1;
-            if far_along {
-                record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
-            }
+            record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
             queue.submit([encoder.finish()]);
-            let (joint, own, _) = read_scalars(ctx, sums, None)?;
+            let scalars = read_scalars(ctx, sums, recheck.map(|c| &c.changed))?;
             encoder = new_encoder();
             // (The cap is the solve's own, checked on the device; this only stops the host.)
-            if joint[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
-                break (joint, own);
+            if scalars.0[S_DONE] != 0.0 || recorded > setup.max_iterations + BATCH {
+                break scalars;
             }
         };
-        if far_along {
-            iterations += last.0[S_ITERATIONS] as u32;
-            first_round = iterations;
-            break last;
-        }
-        record(&mut encoder, kernels, bodies, couplings, &far, max_per_dim);
-        queue.submit([encoder.finish()]);
-        encoder = new_encoder();
-        // The couplings the solve ends within the gap are in it, and no others: solved again,
-        // from its answer, while that set changes (after the first round pairs only join).
-        let recheck = couplings.filter(|c| !c.host.is_empty() && round < 4);
-        let (joint, own, changed) = read_scalars(ctx, sums, recheck.map(|c| &c.changed))?;
         iterations += joint[S_ITERATIONS] as u32;
         if round == 1 {
             first_round = joint[S_ITERATIONS] as u32;
@@ -830,7 +822,7 @@ impl Couplings {
                     device,
                     "voxcollide couplings",
                     COUPLE,
-                    &[Uniform, Read, Read, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                    &[Uniform, Read, Read, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read],
                     &[("MODE", f64::from(mode))],
                 )
             })
@@ -916,7 +908,7 @@ impl Couplings {
         queue: &wgpu::Queue,
         bodies: &[crate::body::MassSpring],
         implicit: &[ImplicitBody],
-        (vel, info): (&[&Buffer], &[&Buffer]),
+        (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
         per_contact: Vec<Vec<crate::integrator::implicit::Coupling>>,
         h: f32,
     ) {
@@ -990,7 +982,7 @@ impl Couplings {
             }
         }
         if !self.bound {
-            self.bind(device, implicit, (vel, info));
+            self.bind(device, implicit, (vel, info, red));
         }
         queue.write_buffer(&self.couplings, 0, bytemuck::cast_slice(&records));
         queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(&flat));
@@ -1030,7 +1022,7 @@ impl Couplings {
         &mut self,
         device: &wgpu::Device,
         implicit: &[ImplicitBody],
-        (vel, info): (&[&Buffer], &[&Buffer]),
+        (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
     ) {
         self.relative_groups = self
             .pairs
@@ -1053,6 +1045,7 @@ impl Couplings {
                                 &self.push,
                                 &self.active,
                                 &self.changed,
+                                red,
                             ],
                         )
                     })

@@ -811,6 +811,7 @@ impl Stepper for GpuWorld {
             max_iterations: settings.max_iterations,
             expect: imp.last_iterations,
         };
+        let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
         // The surface contacts' pushes, found on the host by `record`, as couplings.
         if let Some(couplings) = imp.couplings.as_mut() {
             let per_contact: Vec<Vec<Coupling>> = self
@@ -826,12 +827,11 @@ impl Stepper for GpuWorld {
                 self.ctx.queue(),
                 &self.world.bodies,
                 &imp.bodies,
-                (&vel, &info),
+                (&vel, &info, sums.red()),
                 per_contact,
                 h,
             );
         }
-        let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
         let solved = crate::gpu::implicit::solve(
             &self.ctx,
             encoder,
