@@ -16,10 +16,23 @@ use voxcollide_sim::{Simulation, World, simulation};
 /// the ball started just above the block so that they touch within a few dozen steps, under
 /// `integrator`.
 fn world(integrator: &str) -> World {
-    let text = include_str!("../../../scenes/indentation.toml")
-        .replace("[time]", &format!("[time]\nintegrator = \"{integrator}\""))
-        .replace("position = [0, 0, 14]", "position = [0, 0, 13.05]")
-        .replace("{ t = 0.0, position = [0, 0, 14] }", "{ t = 0.0, position = [0, 0, 13.05] }");
+    indentation(
+        integrator,
+        &[
+            ("position = [0, 0, 14]", "position = [0, 0, 13.05]"),
+            ("{ t = 0.0, position = [0, 0, 14] }", "{ t = 0.0, position = [0, 0, 13.05] }"),
+        ],
+    )
+}
+
+/// The shipped indentation scene under `integrator`, with each `(from, to)` of `edits` made to
+/// its text.
+fn indentation(integrator: &str, edits: &[(&str, &str)]) -> World {
+    let text = edits.iter().fold(
+        include_str!("../../../scenes/indentation.toml")
+            .replace("[time]", &format!("[time]\nintegrator = \"{integrator}\"")),
+        |text, (from, to)| text.replace(from, to),
+    );
     let built = build_world(&SceneFile::parse("indentation.toml", &text).unwrap()).unwrap();
     assert_eq!(built.world.names, ["block", "ball"]);
     built.world
@@ -166,13 +179,15 @@ fn an_implicit_step_before_its_surface_contact_touches_waits_for_its_solve_once(
     // farthest move rides with the solve's readback. A step waits for the positions (the
     // host's search) and for its solve, twice in all, not three times.
     let Some(ctx) = common::gpu() else { return };
-    let text = include_str!("../../../scenes/indentation.toml")
-        .replace("[time]", "[time]\nintegrator = \"implicit\"")
-        .replace("position = [0, 0, 14]", "position = [0, 0, 34]")
-        .replace("{ t = 0.2, position = [0, 0, 10] }", "{ t = 0.2, position = [0, 0, 34] }");
-    let built = build_world(&SceneFile::parse("indentation.toml", &text).unwrap()).unwrap();
-    let mut gpu = voxcollide_sim::GpuWorld::new(&ctx, built.world.clone()).unwrap();
-    let mut cpu = voxcollide_sim::CpuWorld::new(built.world).unwrap();
+    let held = indentation(
+        "implicit",
+        &[
+            ("position = [0, 0, 14]", "position = [0, 0, 34]"),
+            ("{ t = 0.2, position = [0, 0, 10] }", "{ t = 0.2, position = [0, 0, 34] }"),
+        ],
+    );
+    let mut gpu = voxcollide_sim::GpuWorld::new(&ctx, held.clone()).unwrap();
+    let mut cpu = voxcollide_sim::CpuWorld::new(held).unwrap();
     let before = gpu.host_waits();
     for _ in 0..20 {
         gpu.step().unwrap();
