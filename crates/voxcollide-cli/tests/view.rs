@@ -300,14 +300,32 @@ fn find_window(conn: &impl x11rb::connection::Connection, root: u32, child: &mut
                 .and_then(|c| c.reply().ok())
                 .is_some_and(|p| String::from_utf8_lossy(&p.value).contains("voxcollide view"))
         });
-        // Let it draw a few frames first.
+        // Once it has drawn: the window shows the bodies and the heads-up text (many colours),
+        // not its blank background. A fixed wait was not enough on a loaded machine, where
+        // the device and the run take longer to set up after the window opens.
         if let Some(w) = found
-            && since.elapsed() > Duration::from_secs(3)
+            && drawn(conn, w)
         {
+            // And a few frames more.
+            std::thread::sleep(Duration::from_millis(500));
             return w;
         }
         std::thread::sleep(Duration::from_millis(200));
     }
+}
+
+/// Whether `window` shows a drawn frame: at least three colours in its top left 200 × 40
+/// pixels (the heads-up line's dark text on its light panel, over the background), where a
+/// window not drawn yet shows one.
+fn drawn(conn: &impl x11rb::connection::Connection, window: u32) -> bool {
+    use x11rb::protocol::xproto::{ConnectionExt, ImageFormat};
+    let Some(image) =
+        conn.get_image(ImageFormat::Z_PIXMAP, window, 0, 0, 200, 40, !0).ok().and_then(|c| c.reply().ok())
+    else {
+        return false;
+    };
+    let colours: std::collections::HashSet<&[u8]> = image.data.chunks(4).collect();
+    colours.len() >= 3
 }
 
 /// Asks `window` to close as a window manager does when its close button is pressed, and waits

@@ -253,6 +253,8 @@ struct Live {
     frames_wanted: Option<u64>,
     script: Option<super::ScriptedDrag>,
     started: Option<Instant>,
+    /// The states read from the run when the first frame started, and when the last ended.
+    states_at: (u64, u64),
     last_frame: Option<Instant>,
     behind_frames: u64,
     behind: bool,
@@ -357,6 +359,12 @@ impl Live {
         let on_gpu = placed.backend == "gpu";
         let buffers = device_buffers(&*placed.run, world.bodies.len());
         let stepper = Stepper::start(placed.run, f64::from(built.dt), config.steps_per_frame.is_some())?;
+        // Drawn from the device from the first frame on (the GPU backend, coloured by
+        // displacement): a state a few times a second will do from the start, not after every
+        // batch until that frame has drawn.
+        if on_gpu && config.colouring == Colouring::Displacement {
+            stepper.set_snapshot_every(SNAPSHOT_EVERY);
+        }
         let points: Vec<Vec3> = world.bodies.iter().flat_map(|b| b.pos.iter().copied()).collect();
         // Framed left of the legend's panel, so that it covers none of the bodies: framed for
         // the window's width less the panel's, and the camera moved right by half the panel.
@@ -410,6 +418,7 @@ impl Live {
             frames_wanted: config.frames,
             script: config.drag,
             started: None,
+            states_at: (0, 0),
             last_frame: None,
             behind_frames: 0,
             behind: false,
@@ -582,7 +591,10 @@ impl Live {
 
     fn frame_with(&mut self) -> Result<bool, Error> {
         let now = Instant::now();
-        self.started.get_or_insert(now);
+        if self.started.is_none() {
+            self.started = Some(now);
+            self.states_at.0 = self.stepper.snapshots();
+        }
         let elapsed = self.last_frame.map_or(0.0, |t| now.duration_since(t).as_secs_f64());
         self.last_frame = Some(now);
         if elapsed > 0.0 {
@@ -652,6 +664,7 @@ impl Live {
         self.draw_time = if self.draw_time > 0.0 { 0.8 * self.draw_time + 0.2 * took } else { took };
         self.frames += 1;
         self.ended = Some(Instant::now());
+        self.states_at.1 = self.stepper.snapshots();
         let done = self.frames_wanted.is_some_and(|n| self.frames >= n);
         // Interactive, at most the frame rate aimed at: a fast GPU need not spin a core. A run
         // of --frames goes as fast as it can, to measure it.
@@ -920,7 +933,7 @@ impl Live {
             instruments: self.instruments.clone(),
             paused: self.paused,
             frames_from_device: self.frames_from_device,
-            states_read: self.stepper.snapshots(),
+            states_read: self.states_at.1.saturating_sub(self.states_at.0),
             colouring: match self.colouring {
                 Colouring::Displacement => "displacement".into(),
                 Colouring::ContactForce => "force".into(),

@@ -113,9 +113,10 @@ pub struct ViewReport {
     /// Frames whose bodies were drawn from their positions on the device, where they step
     /// (the GPU backend, coloured by displacement): nothing read back to draw them.
     pub frames_from_device: u64,
-    /// States of the run handed to the window (the heads-up numbers, picking, the report's
-    /// figures); on the GPU backend each is read back from the device, a few a second while
-    /// the bodies are drawn from the device, after every batch of steps otherwise.
+    /// States of the run handed to the window while it drew its frames (from the first frame's
+    /// start to the last one's end, as `seconds`): the heads-up numbers, picking, the report's
+    /// figures. On the GPU backend each is read back from the device, a few a second while the
+    /// bodies are drawn from the device, after every batch of steps otherwise.
     pub states_read: u64,
     /// The colouring at the end: `"displacement"` or `"force"`.
     pub colouring: String,

@@ -59,6 +59,8 @@ struct Shared {
     snapshot_every: f64,
     /// States read from the run and published (on the GPU backend, each a read-back).
     snapshots: u64,
+    /// Whether the thread is waiting while paused, with no step under way.
+    idle_paused: bool,
 }
 
 /// The stepping thread and what it shares with the window.
@@ -95,6 +97,7 @@ impl Stepper {
                 behind: false,
                 snapshot_every: 0.0,
                 snapshots,
+                idle_paused: false,
             }),
             Condvar::new(),
         ));
@@ -114,6 +117,15 @@ impl Stepper {
     pub fn set_paused(&self, paused: bool) {
         lock(&self.shared).paused = paused;
         self.shared.1.notify_all();
+    }
+
+    /// Waits until the thread has seen the pause: the batch under way when it was asked for
+    /// has ended, and nothing steps until [`step_once`](Self::step_once) or a resume.
+    pub fn wait_paused(&self) {
+        let mut s = lock(&self.shared);
+        while s.paused && !s.idle_paused && s.broken.is_none() && !s.quit {
+            s = self.shared.1.wait(s).unwrap_or_else(std::sync::PoisonError::into_inner);
+        }
     }
 
     /// One step while paused.
@@ -229,6 +241,8 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
                 // publishing held back, now (in real time the next batch is due soon).
                 (0, 0.0)
             } else if n == 0 {
+                s.idle_paused = s.paused;
+                shared.1.notify_all();
                 // Until a frame asks, or a step is owed.
                 let wait = if s.fixed || s.paused || s.broken.is_some() {
                     Duration::from_millis(50)
@@ -238,6 +252,7 @@ fn step_loop(mut run: Run, dt: f64, shared: &(Mutex<Shared>, Condvar)) {
                 drop(shared.1.wait_timeout(s, wait).unwrap_or_else(std::sync::PoisonError::into_inner));
                 continue;
             } else {
+                s.idle_paused = false;
                 (n, if s.fixed || s.paused { 0.0 } else { s.snapshot_every })
             }
         };
@@ -326,8 +341,8 @@ mod tests {
         let latest = wait_for(&s, |_| true);
         assert!(s.take_latest().is_some_and(|l| l.steps > 0 && l.time > 0.0), "{latest}");
         s.set_paused(true);
-        // The batch under way ends; then nothing moves.
-        std::thread::sleep(Duration::from_millis(100));
+        // The batch under way ends (however long a loaded machine makes it); then nothing moves.
+        s.wait_paused();
         let (paused_at, _, _) = s.status();
         std::thread::sleep(Duration::from_millis(200));
         assert_eq!(s.status().0, paused_at, "stepped while paused");
