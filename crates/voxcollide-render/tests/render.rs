@@ -173,7 +173,7 @@ fn brightness(p: [u8; 4]) -> u32 {
 }
 
 fn temp_png(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("voxcollide_render_{name}.png"))
+    std::env::temp_dir().join(format!("voxcollide_render_{}_{name}.png", std::process::id()))
 }
 
 /// Decodes a PNG written by `write_png`: (width, height, RGBA bytes).
