@@ -103,6 +103,11 @@ pub struct CandidateResult {
     /// Where it did not finish: why, a sentence.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unfinished: Option<String>,
+    /// Where its numbers are an answer, but likely not to the question asked: a sentence. (The
+    /// one case so far: the implant does not touch the tissue at the end, so nothing of the
+    /// tissue's shape is its doing: see [`untouched`].)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub warning: Option<String>,
     /// The voxel size of the compared body's contact (scene units): the model removes
     /// penetrations deeper than that within a few steps.
     pub voxel_size: f32,
@@ -784,6 +789,7 @@ fn run_candidate(
     result.steps = summary.steps;
     result.unfinished = unfinished(&result);
     result.finished = result.unfinished.is_none();
+    result.warning = untouched(&result, units);
     Ok(result)
 }
 
@@ -845,6 +851,20 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
         ));
     }
     (!why.is_empty()).then(|| why.join("; "))
+}
+
+/// A warning for a candidate that does not touch the tissue at the end (no tissue surface
+/// vertex within half a voxel of it, [`CandidateResult::contact_area`] 0): the gap it was
+/// placed under is wider than it stands, and its lift (0 without gravity) says nothing of it.
+/// A failed or blown-up run says its own reason instead.
+#[must_use]
+pub fn untouched(r: &CandidateResult, units: &str) -> Option<String> {
+    (r.held && r.blew_up_at_step.is_none() && r.contact_area == 0.0).then(|| {
+        format!(
+            "it does not touch the tissue at the end, so the tissue's shape is none of its doing (a lift of {:.2} {units}): it stands lower than the gap it was placed under",
+            r.apex_lift
+        )
+    })
 }
 
 impl CandidateResult {
@@ -1404,6 +1424,13 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
                 escape(why)
             );
         }
+        if let Some(why) = &c.warning {
+            rows += &format!(
+                "<tr class=\"warning\"><td colspan=\"14\"><strong>Warning — {}:</strong> {}.</td></tr>\n",
+                escape(&c.name),
+                escape(why)
+            );
+        }
     }
     // On a patient: what the operation added between her skin and chest wall, and where it
     // carried her landmarks (docs/design.md §15).
@@ -1516,6 +1543,8 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
                 "<p class=\"unfinished\"><strong>UNFINISHED — not a result:</strong> {}. Its pictures show where the run stopped.</p>\n",
                 escape(why)
             );
+        } else if let Some(why) = &c.warning {
+            figures += &format!("<p class=\"warning\"><strong>Warning:</strong> {}.</p>\n", escape(why));
         }
         if c.pictures.is_empty() && c.blew_up_at_step.is_none() {
             figures += "<p>No pictures: no adapter to draw them on.</p>\n";
@@ -1542,7 +1571,7 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
 <style>
 body {{ font-family: sans-serif; margin: 2em; color: #222; }}
 table {{ border-collapse: collapse; font-size: 0.85em; }} th, td {{ border: 1px solid #bbb; padding: 0.25em 0.45em; text-align: right; }}
-th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; }} tr.failed td {{ text-align: left; }} .unfinished {{ background: #fec; color: #850; }} tr.unfinished td {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
+th[scope=row] {{ text-align: left; }} .failed {{ background: #fdd; color: #900; }} tr.failed td {{ text-align: left; }} .unfinished {{ background: #fec; color: #850; }} tr.unfinished td {{ text-align: left; }} .warning {{ background: #ffd; color: #660; }} tr.warning td {{ text-align: left; }} figure {{ display: inline-block; margin: 0.5em; vertical-align: top; }} img {{ max-width: 480px; }}
 </style></head>
 <body>
 <h1>Implant comparison</h1>

@@ -755,6 +755,11 @@ fn compare(args: &CompareArgs) -> ExitCode {
                     r.not_a_result().unwrap_or_default()
                 );
             }
+            for r in &c.candidates {
+                if let Some(w) = &r.warning {
+                    eprintln!("warning: candidate {:?}: {w}", r.name);
+                }
+            }
             let failed = c.candidates.iter().filter(|r| !r.held).count();
             let unfinished = c.candidates.iter().filter(|r| r.held && !r.finished).count();
             if failed > 0 {

@@ -413,6 +413,34 @@ shape = { implant = { volume_ml = 100, base_mm = 80, projection_mm = 30 } }
 }
 
 #[test]
+fn a_candidate_that_never_reaches_the_tissue_is_an_answer_with_a_warning() {
+    // The tissue's underside is 25 mm above the chest wall; an implant 8 mm tall stays clear of
+    // it, and the tissue does not move: an answer (it held, it finished), but not to the
+    // question a surgeon asked, and the files say so. The one that reaches it has no warning.
+    let two = r#"
+[[candidate]]
+name = "flat 42 mL"
+shape = { ellipsoid = [50, 50, 4] }
+
+[[candidate]]
+name = "round 300 mL"
+shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+"#;
+    let d = dir("untouched");
+    let c = run_on(&d, &settled_scene(12.0), two, Backend::Cpu, 1).unwrap();
+    let (flat, round) = (&c.candidates[0], &c.candidates[1]);
+    assert!(flat.is_result() && flat.contact_area == 0.0 && flat.apex_lift.abs() < 0.01, "{flat:?}");
+    let warning = flat.warning.as_deref().expect("a warning");
+    assert!(warning.contains("does not touch the tissue"), "{warning}");
+    assert!(round.is_result() && round.contact_area > 0.0 && round.warning.is_none(), "{round:?}");
+    let json = std::fs::read_to_string(d.join("out/compare.json")).unwrap();
+    assert_eq!(json.matches("\"warning\"").count(), 1, "{json}");
+    let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
+    assert!(html.contains("<strong>Warning — flat 42 mL:</strong> it does not touch the tissue"));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
 fn bad_candidates_and_bodies_are_named_and_nothing_is_written() {
     let d = dir("errors");
     let bad = format!(

@@ -120,7 +120,9 @@ impl Stepper {
     }
 
     /// Waits until the thread has seen the pause: the batch under way when it was asked for
-    /// has ended, and nothing steps until [`step_once`](Self::step_once) or a resume.
+    /// has ended, and nothing steps until [`step_once`](Self::step_once) or a resume. (The
+    /// window needs no such wait: it draws whatever was published.)
+    #[cfg(test)]
     pub fn wait_paused(&self) {
         let mut s = lock(&self.shared);
         while s.paused && !s.idle_paused && s.broken.is_none() && !s.quit {
