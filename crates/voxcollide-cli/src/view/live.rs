@@ -547,8 +547,9 @@ impl Live {
         }
     }
 
-    /// The movable body nearest the pointer on the screen (within 24 pixels of one of its
-    /// vertices), to drag.
+    /// The movable body under the pointer (a driven vertex within 24 pixels of it; of several,
+    /// the nearest the camera: the surface seen there, not the hidden side behind it), to drag
+    /// at that vertex's depth.
     fn pick(&mut self) -> Option<Grab> {
         let (w, h) = (self.surface_config.width, self.surface_config.height);
         let (x, y) = self.pointer;
@@ -561,7 +562,7 @@ impl Live {
                 }
                 if let Some((px, py, depth)) = self.orbit.project(*p, w, h) {
                     let d2 = (px - x).powi(2) + (py - y).powi(2);
-                    if d2 < 24.0 * 24.0 && best.is_none_or(|(b2, _, _)| d2 < b2) {
+                    if d2 < 24.0 * 24.0 && best.is_none_or(|(_, _, nearest)| depth < nearest) {
                         best = Some((d2, k, depth));
                     }
                 }
@@ -677,18 +678,24 @@ impl Live {
         Ok(done)
     }
 
-    /// Where each instrument is drawn: the window pixel of its driven vertex nearest its
-    /// centre, where a press takes hold of it.
+    /// Where each instrument is drawn: the window pixel of the driven vertex that shows
+    /// nearest its centre on the screen, among those on the side facing the camera (the near
+    /// half of their depths: a shell's far side projects near its centre too, hidden), where
+    /// a press takes hold of it.
     fn locate_instruments(&mut self, world: &World) {
         let (w, h) = (self.surface_config.width, self.surface_config.height);
         for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
             let driven: Vec<Vec3> =
                 b.pos.iter().zip(&b.mode).filter(|(_, m)| **m == Mode::Driven).map(|(p, _)| *p).collect();
             let centre = driven.iter().copied().sum::<Vec3>() / driven.len().max(1) as f32;
-            let nearest =
-                driven.iter().copied().min_by(|p, q| p.distance(centre).total_cmp(&q.distance(centre)));
-            if let Some((x, y, _)) = nearest.and_then(|p| self.orbit.project(p, w, h)) {
-                self.instruments.push((world.names[k].clone(), [x, y]));
+            let Some((cx, cy, _)) = self.orbit.project(centre, w, h) else { continue };
+            let shown: Vec<(f32, f32, f32)> =
+                driven.iter().filter_map(|p| self.orbit.project(*p, w, h)).collect();
+            let (near, far) = shown.iter().fold((f32::MAX, f32::MIN), |(a, b), p| (a.min(p.2), b.max(p.2)));
+            let facing = shown.iter().filter(|p| p.2 <= 0.5 * (near + far));
+            let at = |p: &&(f32, f32, f32)| (p.0 - cx).powi(2) + (p.1 - cy).powi(2);
+            if let Some((x, y, _)) = facing.min_by(|p, q| at(p).total_cmp(&at(q))) {
+                self.instruments.push((world.names[k].clone(), [*x, *y]));
             }
         }
     }
