@@ -27,6 +27,10 @@ pub const TOLERANCE: f32 = 0.01;
 pub const WARN: f32 = 0.1;
 /// The most fixed-point iterations.
 pub const MAX_ITERATIONS: u32 = 40;
+/// A recovery judges its pace over this many iterations, and stops with the best shape found
+/// where at that pace the iterations left would not bring its miss within [`WARN`] of the
+/// spacing (a body too soft for the sag of its scan: docs/patient.md).
+pub const PACE: usize = 6;
 /// Each static solve: its first step (seconds), and how many times the step may grow towards rest.
 const SOLVE_DT: f32 = 5e-3;
 const SOLVE_ACCELERATION: f32 = 256.0;
@@ -152,27 +156,71 @@ pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> 
     let mut rest = scan.clone();
     let mut recovered = Recovered { residual: f32::INFINITY, iterations: 0, spacing, solve_steps: 0 };
     let mut best = (f32::INFINITY, rest.clone(), scan.clone());
-    for iteration in 1..=MAX_ITERATIONS {
-        set_rest_shape(body, &rest)?;
-        body.pos.clone_from(&scan);
-        recovered.solve_steps += settle(body, gravity)?;
+    // The share of the miss each iteration moves by: all of it, halved where that would turn a
+    // tetrahedron of the unloaded shape inside out, or make its static solve blow up (a soft
+    // body's scan sagged far: its first misses overshoot), down to 1/64.
+    let mut share = 1.0f32;
+    // The last shape whose solve came through, and its miss: where a smaller move starts.
+    let mut base: Option<(Vec<Vec3>, Vec<Vec3>)> = None;
+    // The misses of the solves that came through, in order: how fast the recovery goes.
+    let mut misses: Vec<f32> = Vec::new();
+    set_rest_shape(body, &rest)?;
+    'iterate: for iteration in 1..=MAX_ITERATIONS {
         recovered.iterations = iteration;
-        let miss: Vec<Vec3> = scan.iter().zip(&body.pos).map(|(s, p)| *s - *p).collect();
-        let residual =
-            miss.iter().zip(&free).filter(|(_, f)| **f).map(|(m, _)| m.length()).fold(0.0, f32::max);
-        if residual < best.0 {
-            best = (residual, rest.clone(), body.pos.clone());
-        } else if residual > 2.0 * best.0 {
-            // Diverging: keep the best shape found.
-            break;
-        }
-        if residual <= TOLERANCE * spacing {
-            break;
-        }
-        for ((r, m), f) in rest.iter_mut().zip(&miss).zip(&free) {
-            if *f {
-                *r += *m;
+        body.pos.clone_from(&scan);
+        let miss = match settle(body, gravity) {
+            Ok(steps) => {
+                recovered.solve_steps += steps;
+                let miss: Vec<Vec3> = scan.iter().zip(&body.pos).map(|(s, p)| *s - *p).collect();
+                let residual =
+                    miss.iter().zip(&free).filter(|(_, f)| **f).map(|(m, _)| m.length()).fold(0.0, f32::max);
+                if residual < best.0 {
+                    best = (residual, rest.clone(), body.pos.clone());
+                } else if residual > 2.0 * best.0 {
+                    // Diverging: keep the best shape found.
+                    break;
+                }
+                if residual <= TOLERANCE * spacing {
+                    break;
+                }
+                // Too slow to be a result: at the pace of its last PACE solves, the iterations
+                // left would not bring the miss within WARN of the spacing.
+                misses.push(residual);
+                if let Some(&then) = misses.len().checked_sub(PACE + 1).map(|k| &misses[k]) {
+                    let pace = (residual / then).powf(1.0 / PACE as f32);
+                    let needed = (WARN * spacing / residual).ln() / pace.ln();
+                    if pace >= 1.0 || needed > (MAX_ITERATIONS - iteration) as f32 {
+                        break;
+                    }
+                }
+                base = Some((rest.clone(), miss.clone()));
+                miss
             }
+            // The scan itself as the unloaded shape blew up: nothing to go back to.
+            Err(e) if base.is_none() => return Err(e),
+            // The last move went too far: half as far from where it started.
+            Err(_) => {
+                share *= 0.5;
+                let (from, miss) = base.clone().expect("a shape before");
+                rest = from;
+                miss
+            }
+        };
+        loop {
+            if share < 1.0 / 64.0 {
+                break 'iterate;
+            }
+            let next: Vec<Vec3> = rest
+                .iter()
+                .zip(&miss)
+                .zip(&free)
+                .map(|((r, m), f)| if *f { *r + share * *m } else { *r })
+                .collect();
+            if set_rest_shape(body, &next).is_ok() {
+                rest = next;
+                break;
+            }
+            share *= 0.5;
         }
     }
     let (residual, rest, loaded) = best;

@@ -370,6 +370,52 @@ fixed = [{{ below = {{ z = 1 }} }}]
     }
 }
 
+/// A soft mound sags so far that moving the unloaded shape by the whole miss turns it inside
+/// out: the recovery takes shorter moves and still comes back, loaded again, within a tenth of
+/// its spacing (before, the 0.5 kPa mound was refused outright: "the reference gravity is more
+/// than the material can have held", though the original is a shape it held). So soft a body's
+/// recovery is ill-conditioned: its unloaded shape ends a millimetre or two from the original
+/// while loaded it misses by a tenth of that. A softer one still, sagging 55 mm, is not
+/// recovered: it is said to be no result, after a few iterations, not the forty allowed.
+#[test]
+fn a_soft_mound_is_recovered_by_shorter_moves_and_a_softer_one_is_no_result() {
+    for (young, recovered) in [(0.7, true), (0.5, true), (0.3, false)] {
+        let text = format!(
+            r#"
+units = "mm"
+[time]
+integrator = "implicit"
+[[body]]
+name = "breast"
+kind = "soft"
+shape = {{ ellipsoid = [60, 55, 45] }}
+spacing = 9
+material = {{ model = "neo-hookean", young_kpa = {young}, poisson = 0.45, density = 1000, damping = 0.5 }}
+fixed = [{{ below = {{ z = 1 }} }}]
+"#
+        );
+        let original =
+            build_world(&SceneFile::parse("mound.toml", &text).unwrap()).unwrap().world.bodies[0].clone();
+        let g = Vec3::new(0.0, -9810.0, 0.0);
+        let mut scan = original.clone();
+        reference::settle(&mut scan, g).unwrap();
+        let moved = farthest(&scan.pos, &original.pos, &original.mode);
+        let loaded = scan.pos.clone();
+        set_rest_shape(&mut scan, &loaded).unwrap();
+        let r = reference::unload(&mut scan, g).unwrap();
+        let back = farthest(&scan.rest_pos, &original.rest_pos, &original.mode);
+        eprintln!(
+            "E {young} kPa: sags {moved:.2} mm; {} iterations, residual {:.4} mm, {back:.4} mm from the original",
+            r.iterations, r.residual
+        );
+        if recovered {
+            assert!(r.is_valid() && back <= 0.25 * 9.0, "E {young}: {r:?}, {back} mm from the original");
+        } else {
+            assert!(!r.is_valid() && r.iterations < reference::MAX_ITERATIONS / 2, "E {young}: {r:?}");
+        }
+    }
+}
+
 /// A shell filled to a volume weighs its fill (a 300 mL gel implant about 300 g), shared over
 /// its vertices by area; one inflated by pressure weighs its wall, as thick as its edge.
 #[test]

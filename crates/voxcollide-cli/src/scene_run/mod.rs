@@ -249,7 +249,9 @@ fn say_findings(file: &SceneFile, built: &Built, note: &mut dyn FnMut(&str)) -> 
                     "{}: its unloaded shape was not recovered: loaded again it misses the shape given by {:.3} {units}, more than a tenth of its spacing {:.3} {units}",
                     n.name, r.residual, r.spacing
                 );
-                note(&format!("warning: {said}; the run is not a result"));
+                note(&format!(
+                    "warning: {said}; the run is not a result (the recovery could not undo so large a sag: check the body's young_kpa, and the reference gravity's direction and units, docs/gravity.md)"
+                ));
                 not_a_result.push(why);
             }
         }
