@@ -743,6 +743,7 @@ fn run_candidate(
             result.history.push(sample(world, reports, body, tissue, metres, at.time, Lift::of(world, body)));
             if at.last {
                 measure_end(world, reports, body, tissue, metres, &mut result);
+                result.warning = wider_than_tissue(world, body, tissue, units);
                 // The pressure of the last step's inputs; internal stress units are pascals times
                 // the file's metres per unit.
                 let inputs = world.inputs(at.step.saturating_sub(1))?;
@@ -789,7 +790,10 @@ fn run_candidate(
     result.steps = summary.steps;
     result.unfinished = unfinished(&result);
     result.finished = result.unfinished.is_none();
-    result.warning = untouched(&result, units);
+    result.warning = [untouched(&result, units), result.warning.take()]
+        .into_iter()
+        .flatten()
+        .reduce(|a, b| format!("{a}; {b}"));
     Ok(result)
 }
 
@@ -854,15 +858,40 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
 }
 
 /// A warning for a candidate that does not touch the tissue at the end (no tissue surface
-/// vertex within half a voxel of it, [`CandidateResult::contact_area`] 0): the gap it was
+/// vertex within half a voxel of it, [`CandidateResult::contact_area`] 0, and no contact force
+/// on the tissue at the last step): the gap it was
 /// placed under is wider than it stands, and its lift (0 without gravity) says nothing of it.
 /// A failed or blown-up run says its own reason instead.
 #[must_use]
 pub fn untouched(r: &CandidateResult, units: &str) -> Option<String> {
-    (r.held && r.blew_up_at_step.is_none() && r.contact_area == 0.0).then(|| {
+    (r.held && r.blew_up_at_step.is_none() && r.contact_area == 0.0 && r.peak_contact_pressure_kpa == 0.0)
+        .then(|| {
         format!(
             "it does not touch the tissue at the end, so the tissue's shape is none of its doing (a lift of {:.2} {units}): it stands lower than the gap it was placed under",
             r.apex_lift
+        )
+    })
+}
+
+/// A warning for an implant on a flat chest wall (no curved wall) whose base
+/// reaches past the tissue over it, across the wall, at the end: the tissue's edge, held or
+/// not, then shapes the answer as much as the implant does. (On a curved wall, placement
+/// refuses an implant that does not fit inside the patient's box: docs/patient.md.)
+fn wider_than_tissue(world: &World, body: usize, tissue: &[usize], units: &str) -> Option<String> {
+    let implant = &world.bodies[body];
+    if implant.wall.is_some() || tissue.is_empty() {
+        return None;
+    }
+    let extent = |points: &mut dyn Iterator<Item = Vec3>| {
+        let (lo, hi) = points.fold((Vec3::MAX, Vec3::MIN), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        (hi - lo).truncate()
+    };
+    let across = extent(&mut implant.pos.iter().copied());
+    let under = extent(&mut tissue.iter().flat_map(|&t| world.bodies[t].pos.iter().copied()));
+    (across.x > under.x || across.y > under.y).then(|| {
+        format!(
+            "its base reaches past the tissue over it ({:.0} × {:.0} {units} across the chest wall, the tissue {:.0} × {:.0} {units}): the tissue's edge, not the implant alone, shapes the answer",
+            across.x, across.y, under.x, under.y
         )
     })
 }

@@ -413,10 +413,11 @@ shape = { implant = { volume_ml = 100, base_mm = 80, projection_mm = 30 } }
 }
 
 #[test]
-fn a_candidate_that_never_reaches_the_tissue_is_an_answer_with_a_warning() {
+fn a_candidate_that_never_reaches_the_tissue_or_reaches_past_it_is_an_answer_with_a_warning() {
     // The tissue's underside is 25 mm above the chest wall; an implant 8 mm tall stays clear of
     // it, and the tissue does not move: an answer (it held, it finished), but not to the
-    // question a surgeon asked, and the files say so. The one that reaches it has no warning.
+    // question a surgeon asked, and the files say so. One 200 mm across lifts the 150 mm
+    // tissue by its held edge: a warning too. The one that fits under it has none.
     let two = r#"
 [[candidate]]
 name = "flat 42 mL"
@@ -425,16 +426,22 @@ shape = { ellipsoid = [50, 50, 4] }
 [[candidate]]
 name = "round 300 mL"
 shape = { implant = { volume_ml = 300, base_mm = 115, projection_mm = 40 } }
+
+[[candidate]]
+name = "wide 450 mL"
+shape = { implant = { volume_ml = 450, base_mm = 200, projection_mm = 30 } }
 "#;
     let d = dir("untouched");
     let c = run_on(&d, &settled_scene(12.0), two, Backend::Cpu, 1).unwrap();
-    let (flat, round) = (&c.candidates[0], &c.candidates[1]);
+    let (flat, round, wide) = (&c.candidates[0], &c.candidates[1], &c.candidates[2]);
     assert!(flat.is_result() && flat.contact_area == 0.0 && flat.apex_lift.abs() < 0.01, "{flat:?}");
     let warning = flat.warning.as_deref().expect("a warning");
     assert!(warning.contains("does not touch the tissue"), "{warning}");
     assert!(round.is_result() && round.contact_area > 0.0 && round.warning.is_none(), "{round:?}");
+    let past = wide.warning.as_deref().expect("a warning for the wide one");
+    assert!(past.contains("reaches past the tissue") && past.contains("200 × 200 mm"), "{past}");
     let json = std::fs::read_to_string(d.join("out/compare.json")).unwrap();
-    assert_eq!(json.matches("\"warning\"").count(), 1, "{json}");
+    assert_eq!(json.matches("\"warning\"").count(), 2, "{json}");
     let html = std::fs::read_to_string(d.join("out/report.html")).unwrap();
     assert!(html.contains("<strong>Warning — flat 42 mL:</strong> it does not touch the tissue"));
     std::fs::remove_dir_all(&d).unwrap();

@@ -67,7 +67,7 @@ impl Recovered {
 ///
 /// # Errors
 /// [`Error::Invalid`] for a length that does not match, a non-finite position, or a
-/// tetrahedron that `rest` turns inside out (the load is too much for the material).
+/// tetrahedron that `rest` turns inside out or flattens.
 pub fn set_rest_shape(body: &mut MassSpring, rest: &[Vec3]) -> Result<(), Error> {
     if rest.len() != body.len() || !rest.iter().all(|p| p.is_finite()) {
         return Err(Error::Invalid {
@@ -85,7 +85,7 @@ pub fn set_rest_shape(body: &mut MassSpring, rest: &[Vec3]) -> Result<(), Error>
                 return Err(Error::Invalid {
                     what: "unloaded shape",
                     value: format!("tetrahedron {k} {t:?}"),
-                    rule: "is turned inside out: the reference gravity is more than the material can have held; check its direction and units (m/s²) and the body's stiffness".into(),
+                    rule: "is turned inside out or flat: no body rests in such a shape".into(),
                 });
             }
             elements.dm_inv[k] = dm.inverse();
@@ -144,7 +144,9 @@ pub fn settle(body: &mut MassSpring, gravity: Vec3) -> Result<u64, Error> {
 /// and standing where that equilibrium puts it (the shape given, to the residual), still.
 ///
 /// # Errors
-/// Those of [`settle`] and [`set_rest_shape`] (a shape the material cannot have held).
+/// Those of [`settle`] where the shape given, as its own unloaded shape, blows up under
+/// `gravity`, and of [`set_rest_shape`] where the shape given is not a valid one. A shape not
+/// recovered within [`WARN`] of the spacing is no error: its [`Recovered::is_valid`] is false.
 pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> {
     let scan = body.pos.clone();
     let spacing = if body.springs.is_empty() {
@@ -168,17 +170,27 @@ pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> 
     'iterate: for iteration in 1..=MAX_ITERATIONS {
         recovered.iterations = iteration;
         body.pos.clone_from(&scan);
-        let miss = match settle(body, gravity) {
-            Ok(steps) => {
-                recovered.solve_steps += steps;
-                let miss: Vec<Vec3> = scan.iter().zip(&body.pos).map(|(s, p)| *s - *p).collect();
-                let residual =
-                    miss.iter().zip(&free).filter(|(_, f)| **f).map(|(m, _)| m.length()).fold(0.0, f32::max);
+        let solved = settle(body, gravity).map(|steps| {
+            recovered.solve_steps += steps;
+            let miss: Vec<Vec3> = scan.iter().zip(&body.pos).map(|(s, p)| *s - *p).collect();
+            let residual =
+                miss.iter().zip(&free).filter(|(_, f)| **f).map(|(m, _)| m.length()).fold(0.0, f32::max);
+            (miss, residual)
+        });
+        // The last move went too far (its solve blew up, or its miss more than doubled): half
+        // as far from where it started.
+        let too_far = solved.as_ref().map_or(true, |(_, residual)| *residual > 2.0 * best.0);
+        let miss = match (solved, &base) {
+            (Err(_), Some((from, miss))) | (Ok(_), Some((from, miss))) if too_far => {
+                share *= 0.5;
+                rest.clone_from(from);
+                miss.clone()
+            }
+            // The scan itself as the unloaded shape blew up: nothing to go back to.
+            (Err(e), _) => return Err(e),
+            (Ok((miss, residual)), _) => {
                 if residual < best.0 {
                     best = (residual, rest.clone(), body.pos.clone());
-                } else if residual > 2.0 * best.0 {
-                    // Diverging: keep the best shape found.
-                    break;
                 }
                 if residual <= TOLERANCE * spacing {
                     break;
@@ -194,15 +206,6 @@ pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> 
                     }
                 }
                 base = Some((rest.clone(), miss.clone()));
-                miss
-            }
-            // The scan itself as the unloaded shape blew up: nothing to go back to.
-            Err(e) if base.is_none() => return Err(e),
-            // The last move went too far: half as far from where it started.
-            Err(_) => {
-                share *= 0.5;
-                let (from, miss) = base.clone().expect("a shape before");
-                rest = from;
                 miss
             }
         };

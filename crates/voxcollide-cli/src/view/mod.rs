@@ -103,8 +103,9 @@ pub struct ViewReport {
     /// How far instruments were dragged, in all (scene units).
     pub dragged: f32,
     /// The bodies a drag can move (those with driven vertices: rigid instruments, driven
-    /// parts), each with the window pixel its centre was drawn at in the first frame: where a
-    /// scripted drag can take hold of it.
+    /// parts), each with a window pixel in the first frame where a press takes hold of it:
+    /// the driven vertex on the side facing the camera that shows nearest its centre (where a
+    /// scripted drag can start).
     pub instruments: Vec<(String, [f32; 2])>,
     /// The screenshot written, if any.
     pub screenshot: Option<PathBuf>,

@@ -124,9 +124,15 @@ impl Stepper {
     /// window needs no such wait: it draws whatever was published.)
     #[cfg(test)]
     pub fn wait_paused(&self) {
+        let until = Instant::now() + Duration::from_secs(20);
         let mut s = lock(&self.shared);
-        while s.paused && !s.idle_paused && s.broken.is_none() && !s.quit {
-            s = self.shared.1.wait(s).unwrap_or_else(std::sync::PoisonError::into_inner);
+        while s.paused && !s.idle_paused && s.broken.is_none() && !s.quit && Instant::now() < until {
+            s = self
+                .shared
+                .1
+                .wait_timeout(s, Duration::from_millis(100))
+                .unwrap_or_else(std::sync::PoisonError::into_inner)
+                .0;
         }
     }
 
