@@ -103,9 +103,9 @@ pub struct CandidateResult {
     /// Where it did not finish: why, a sentence.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub unfinished: Option<String>,
-    /// Where its numbers are an answer, but likely not to the question asked: a sentence. (The
-    /// one case so far: the implant does not touch the tissue at the end, so nothing of the
-    /// tissue's shape is its doing: see [`untouched`].)
+    /// Where its numbers are an answer, but likely not to the question asked: a sentence (the
+    /// implant does not touch the tissue at the end, [`untouched`], or its base reaches past
+    /// the tissue on a flat chest wall).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub warning: Option<String>,
     /// The voxel size of the compared body's contact (scene units): the model removes
@@ -731,6 +731,8 @@ fn run_candidate(
         Backend::Cpu => (None, "no adapter used: --backend cpu, no pictures"),
         _ => (ctx, "no adapter"),
     };
+    // Measured at the last frame; said after the run, with the rest of its warnings.
+    let mut wide = None;
     let ran = run_scene_on(
         run_ctx,
         without,
@@ -743,7 +745,7 @@ fn run_candidate(
             result.history.push(sample(world, reports, body, tissue, metres, at.time, Lift::of(world, body)));
             if at.last {
                 measure_end(world, reports, body, tissue, metres, &mut result);
-                result.warning = wider_than_tissue(world, body, tissue, units);
+                wide = wider_than_tissue(world, body, tissue, units);
                 // The pressure of the last step's inputs; internal stress units are pascals times
                 // the file's metres per unit.
                 let inputs = world.inputs(at.step.saturating_sub(1))?;
@@ -790,10 +792,8 @@ fn run_candidate(
     result.steps = summary.steps;
     result.unfinished = unfinished(&result);
     result.finished = result.unfinished.is_none();
-    result.warning = [untouched(&result, units), result.warning.take()]
-        .into_iter()
-        .flatten()
-        .reduce(|a, b| format!("{a}; {b}"));
+    result.warning =
+        [untouched(&result, units), wide].into_iter().flatten().reduce(|a, b| format!("{a}; {b}"));
     Ok(result)
 }
 
@@ -873,9 +873,9 @@ pub fn untouched(r: &CandidateResult, units: &str) -> Option<String> {
     })
 }
 
-/// A warning for an implant on a flat chest wall (no curved wall) whose base
-/// reaches past the tissue over it, across the wall, at the end: the tissue's edge, held or
-/// not, then shapes the answer as much as the implant does. (On a curved wall, placement
+/// A warning for an implant on a flat chest wall (no curved wall) whose base reaches past the
+/// tissue over it, across the wall, at the end: the tissue's edge, held or not, then shapes
+/// the answer along with the implant. (On a curved wall, placement
 /// refuses an implant that does not fit inside the patient's box: docs/patient.md.)
 fn wider_than_tissue(world: &World, body: usize, tissue: &[usize], units: &str) -> Option<String> {
     let implant = &world.bodies[body];

@@ -29,7 +29,7 @@ pub const WARN: f32 = 0.1;
 pub const MAX_ITERATIONS: u32 = 40;
 /// A recovery judges its pace over this many iterations, and stops with the best shape found
 /// where at that pace the iterations left would not bring its miss within [`WARN`] of the
-/// spacing (a body too soft for the sag of its scan: docs/patient.md).
+/// spacing (a body too soft for the sag of its scan: docs/gravity.md, "Soft bodies").
 pub const PACE: usize = 6;
 /// Each static solve: its first step (seconds), and how many times the step may grow towards rest.
 const SOLVE_DT: f32 = 5e-3;
@@ -181,7 +181,7 @@ pub fn unload(body: &mut MassSpring, gravity: Vec3) -> Result<Recovered, Error> 
         // as far from where it started.
         let too_far = solved.as_ref().map_or(true, |(_, residual)| *residual > 2.0 * best.0);
         let miss = match (solved, &base) {
-            (Err(_), Some((from, miss))) | (Ok(_), Some((from, miss))) if too_far => {
+            (_, Some((from, miss))) if too_far => {
                 share *= 0.5;
                 rest.clone_from(from);
                 miss.clone()

@@ -554,7 +554,7 @@ impl Live {
         let (w, h) = (self.surface_config.width, self.surface_config.height);
         let (x, y) = self.pointer;
         let world = &self.shown.as_ref()?.world;
-        let mut best: Option<(f32, usize, f32)> = None;
+        let mut best: Option<(usize, f32)> = None;
         for (k, b) in world.bodies.iter().enumerate().filter(|(k, _)| self.movable[*k]) {
             for (p, m) in b.pos.iter().zip(&b.mode) {
                 if *m != Mode::Driven {
@@ -562,13 +562,13 @@ impl Live {
                 }
                 if let Some((px, py, depth)) = self.orbit.project(*p, w, h) {
                     let d2 = (px - x).powi(2) + (py - y).powi(2);
-                    if d2 < 24.0 * 24.0 && best.is_none_or(|(_, _, nearest)| depth < nearest) {
-                        best = Some((d2, k, depth));
+                    if d2 < 24.0 * 24.0 && best.is_none_or(|(_, nearest)| depth < nearest) {
+                        best = Some((k, depth));
                     }
                 }
             }
         }
-        best.map(|(_, body, depth)| Grab { body, depth, last: (x, y) })
+        best.map(|(body, depth)| Grab { body, depth, last: (x, y) })
     }
 
     /// Steps, draws and presents one frame; `Ok(true)` when the frames asked for are drawn.
