@@ -8,7 +8,8 @@
 //   (the search, shaders/surface_search.wgsl)
 //   `confirm`        a doubtful hit checked by the winding number and dropped outside (`confirm`);
 //                    whether each probe is inside, and the way it was pushed out (its entry);
-//   `count`, `scan`, `scatter`  per partner vertex, the pushes on its triangles (probe, corner);
+//   `count`, `scan`, `scatter`  per partner vertex, the hits listed on its triangles (probe,
+//                    corner): the pushes, and those within the margin;
 // then per body `gather`: each vertex's force summed in the CPU's order (the first side's pushes
 // in probe order, then the second's), zero where the vertex is held.
 
@@ -143,15 +144,16 @@ fn confirm(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroup
     hits[k] = hit;
 }
 
-// Whether probe k pushes (a hit deeper than the gap: within the margin it is listed, no force).
-fn pushes(k: u32) -> bool {
-    return hits[k].found == 1u && hits[k].normal.w > 0.0;
+// Whether probe k is listed: it pushes (a hit deeper than the gap), or lies within the
+// margin (no force; the implicit solve's couplings take it, src/gpu/implicit.rs).
+fn listed(k: u32) -> bool {
+    return hits[k].found == 1u;
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn count(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = item_index(gid, nwg);
-    if k >= side.n_probes || !pushes(k) {
+    if k >= side.n_probes || !listed(k) {
         return;
     }
     let t = hits[k].triangle;
@@ -190,7 +192,7 @@ fn scan(@builtin(local_invocation_index) lid: u32) {
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn scatter(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = item_index(gid, nwg);
-    if k >= side.n_probes || !pushes(k) {
+    if k >= side.n_probes || !listed(k) {
         return;
     }
     let t = hits[k].triangle;

@@ -57,7 +57,10 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         last = least;
         any = true;
         let r = other[least / 3u];
-        f = f - r.weights[least % 3u] * push_force(r);
+        // (A hit within the margin is listed for the implicit solve's couplings: no force.)
+        if r.normal.w > 0.0 {
+            f = f - r.weights[least % 3u] * push_force(r);
+        }
     }
     if gather.own_first == 0u && pushed {
         f = f + 1.0 * push_force(h);

@@ -37,8 +37,9 @@ pub(super) struct HostSurface {
 }
 
 impl DeviceContact {
-    /// The contact `pair` of `bodies` on `ctx`'s device; a surface contact between bodies that
-    /// show their own surface steps there whole under the `explicit` integrator.
+    /// The contact `pair` of `bodies` on `ctx`'s device; a surface contact steps there whole
+    /// where `on_device` (the caller's choice: bodies that show their own surface, under the
+    /// explicit integrator, or under the implicit one where the device builds the couplings).
     ///
     /// # Errors
     /// The contact errors of [`GpuCollision::new`] and [`SurfaceContact::new`]; [`Error::Gpu`]
@@ -47,16 +48,14 @@ impl DeviceContact {
         ctx: &GpuContext,
         pair: &ContactPair,
         bodies: &[MassSpring],
-        explicit: bool,
+        on_device: bool,
     ) -> Result<DeviceContact, Error> {
         let device = ctx.device();
         match pair.model {
             ContactModel::Voxel(response) => GpuCollision::new(ctx, pair.grid, pair.params)
                 .and_then(|g| g.with_response(response))
                 .map(|g| DeviceContact::Voxel(Box::new(g))),
-            ContactModel::Surface(penalty)
-                if explicit && bodies[pair.a].embedded.is_none() && bodies[pair.b].embedded.is_none() =>
-            {
+            ContactModel::Surface(penalty) if on_device => {
                 DeviceSurface::new(ctx, penalty, &bodies[pair.a], &bodies[pair.b])
                     .map(|d| DeviceContact::Device(Box::new(d)))
             }
@@ -81,6 +80,14 @@ impl DeviceContact {
                     force_b: buffer(b.len())?,
                 })))
             }
+        }
+    }
+
+    /// Its surface contact stepped on the device, where it is one.
+    pub(super) fn device_surface(&self) -> Option<&DeviceSurface> {
+        match self {
+            DeviceContact::Device(d) => Some(d),
+            DeviceContact::Voxel(_) | DeviceContact::Surface(_) => None,
         }
     }
 

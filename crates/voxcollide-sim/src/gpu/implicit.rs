@@ -102,6 +102,19 @@ pub const COUPLE_GATHER: &str = concat!(
     include_str!("../../shaders/implicit_slots.wgsl"),
     include_str!("../../shaders/couple_gather.wgsl")
 );
+/// The pass that builds a surface contact's couplings from its search on the device.
+pub const COUPLE_BUILD: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/couple_build.wgsl")
+);
+/// The pass that lists a coupled body's couplings per vertex on the device, with their blocks.
+pub const COUPLE_LISTS: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/implicit_slots.wgsl"),
+    include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/couple_lists.wgsl")
+);
 /// The contact stiffness pass's WGSL.
 pub const IMPLICIT_CONTACT: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
@@ -628,7 +641,7 @@ pub(crate) fn solve(
         let mut ahead = if round == 1 { setup.expect.div_ceil(BATCH).max(1) } else { 1 };
         // The couplings the solve ends within the gap are in it, and no others: solved again,
         // from its answer, while that set changes (after the first round pairs only join).
-        let recheck = couplings.filter(|c| !c.host.is_empty() && round < 4);
+        let recheck = couplings.filter(|c| c.any() && round < 4);
         // The farthest move, and the couplings' arrival test, ride along with each readback of
         // the solve: the first reads the solve's answer and writes only its own scratch, and
         // the second waits on the device for the solve to be done (`couple.wgsl`), so that a
@@ -763,6 +776,42 @@ pub(crate) struct CoupledPair {
     pub b: usize,
 }
 
+/// `Build` in `shaders/couple_build.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuBuild {
+    n_probes: u32,
+    first: u32,
+    of_a: u32,
+    stiffness: f32,
+}
+
+/// `Lists` in `shaders/couple_lists.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct GpuLists {
+    n: u32,
+    own_first: u32,
+    own: u32,
+    other: u32,
+    starts_at: u32,
+    keys_at: u32,
+    h: f32,
+    _pad: u32,
+}
+
+/// Couplings built on the device from its own search of the surface contacts
+/// ([`Couplings::record_built`]): per contact its two sides' build passes, per coupled body
+/// its lists pass, bound once.
+struct OnDevice {
+    build: Kernel,
+    lists: Kernel,
+    /// Per contact and side (`b` probing `a`, then `a` probing `b`): the build's group.
+    build_groups: Vec<([GpuBuild; 2], [wgpu::BindGroup; 2])>,
+    /// Per coupled body (as `gathers`): the lists' uniform, its values and its group.
+    lists_groups: Vec<(Buffer, GpuLists, wgpu::BindGroup)>,
+}
+
 /// One coupled body's gather: its lists of (coupling, ±weight) per vertex.
 struct Gather {
     body: usize,
@@ -775,8 +824,10 @@ struct Gather {
 
 /// The surface contacts' couplings in the device's implicit solve (`shaders/couple.wgsl`): the
 /// host builds them from the contacts' pushes each step ([`crate::integrator::implicit::Coupling`], as the
-/// CPU does) and uploads them; the passes add their terms to `A·p`, `A·x` and the right-hand
-/// side, and mark which the solve ends within the gap.
+/// CPU does) and uploads them ([`upload`](Self::upload)), or, where the contacts' search runs
+/// on the device, the device builds them there ([`record_built`](Self::record_built)); the
+/// passes add their terms to `A·p`, `A·x` and the right-hand side, and mark which the solve
+/// ends within the gap.
 pub(crate) struct Couplings {
     relative: Vec<Kernel>,
     gather: Kernel,
@@ -801,6 +852,9 @@ pub(crate) struct Couplings {
     host: Vec<crate::integrator::implicit::Coupling>,
     h: f32,
     bound: bool,
+    /// Built on the device: whether, and (once bound) its passes.
+    built: bool,
+    on_device: Option<OnDevice>,
 }
 
 fn storage_buffer(device: &wgpu::Device, label: &'static str, size: u64) -> Buffer {
@@ -813,8 +867,10 @@ fn storage_buffer(device: &wgpu::Device, label: &'static str, size: u64) -> Buff
 }
 
 impl Couplings {
-    /// The couplings of the surface contacts `pairs` over bodies of `n` vertices each.
-    pub(crate) fn new(device: &wgpu::Device, pairs: Vec<CoupledPair>, n: &[u32]) -> Couplings {
+    /// The couplings of the surface contacts `pairs` over bodies of `n` vertices each, built on
+    /// the device from its own search (`built`: [`record_built`](Self::record_built)) or on the
+    /// host ([`upload`](Self::upload)).
+    pub(crate) fn new(device: &wgpu::Device, pairs: Vec<CoupledPair>, n: &[u32], built: bool) -> Couplings {
         use Slot::{Read, ReadWrite, Uniform};
         let relative = (0..4)
             .map(|mode| {
@@ -890,6 +946,195 @@ impl Couplings {
             host: Vec::new(),
             h: 0.0,
             bound: false,
+            built,
+            on_device: None,
+        }
+    }
+
+    /// Whether the device builds them from its own search ([`record_built`](Self::record_built)).
+    pub(crate) fn built(&self) -> bool {
+        self.built
+    }
+
+    /// Whether there may be couplings this step (built on the device: one for every probe,
+    /// most of them empty).
+    fn any(&self) -> bool {
+        self.built || !self.host.is_empty()
+    }
+
+    /// Whether a coupling may be pushed now, and so take an impulse after the step.
+    pub(crate) fn may_push(&self) -> bool {
+        self.built || self.host.iter().any(|k| k.depth > 0.0)
+    }
+
+    /// Records this step's couplings built on the device into `encoder`, after the contacts'
+    /// searches (`surfaces`, one per pair, [`DeviceSurface`](crate::gpu::surface::DeviceSurface)):
+    /// each probe's coupling (`shaders/couple_build.wgsl`), then each coupled body's lists of
+    /// them and their blocks (`shaders/couple_lists.wgsl`), at step `h`. Nothing is uploaded
+    /// but the step's `h`. Each coupled body is in one contact (`GpuWorld` builds them so
+    /// only then).
+    pub(crate) fn record_built(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        surfaces: &[&crate::gpu::surface::DeviceSurface],
+        implicit: &[ImplicitBody],
+        (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
+        h: f32,
+    ) {
+        use Slot::{Read, ReadWrite, Uniform};
+        self.h = h;
+        if self.on_device.is_none() {
+            // Every probe's coupling, every step: the room is known once.
+            let sizes: Vec<(usize, u32)> = self.gathers.iter().map(|g| (g.body, g.n)).collect();
+            let n = |k: usize| sizes.iter().find(|(body, _)| *body == k).map_or(0, |(_, n)| *n);
+            self.ranges.clear();
+            let mut first = 0u32;
+            for p in &self.pairs {
+                let count = n(p.a) + n(p.b);
+                self.ranges.push((first, count));
+                first += count;
+            }
+            let total = u64::from(first).max(1);
+            self.capacity = (total, 4 * total);
+            self.couplings = storage_buffer(device, "couplings", 48 * total);
+            self.entries = storage_buffer(device, "coupling entries", 32 * total);
+            self.push = storage_buffer(device, "coupling pushes", 16 * total);
+            self.active = storage_buffer(device, "coupling flags", 4 * total);
+            // A body's items: its own coupling a vertex, and up to three a probe of its partner.
+            let partner_of = |body: usize| {
+                self.pairs.iter().find_map(|p| {
+                    if p.a == body {
+                        Some(p.b)
+                    } else if p.b == body {
+                        Some(p.a)
+                    } else {
+                        None
+                    }
+                })
+            };
+            let room: Vec<u64> = self
+                .gathers
+                .iter()
+                .map(|g| u64::from(g.n) + 3 * u64::from(partner_of(g.body).map_or(0, n)))
+                .collect();
+            for (g, room) in self.gathers.iter_mut().zip(room) {
+                g.items_capacity = room.max(1);
+                g.items = storage_buffer(device, "coupling gather items", 8 * g.items_capacity);
+            }
+            self.bind(device, implicit, (vel, info, red));
+            let build = Kernel::new(
+                device,
+                "voxcollide coupling build",
+                COUPLE_BUILD,
+                &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+            );
+            let lists = Kernel::new(
+                device,
+                "voxcollide coupling lists",
+                COUPLE_LISTS,
+                &[Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+            );
+            let uniform = |label: &str, bytes: &[u8]| {
+                use wgpu::util::DeviceExt as _;
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents: bytes,
+                    usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                })
+            };
+            let build_groups = self
+                .pairs
+                .iter()
+                .zip(&self.ranges)
+                .zip(surfaces)
+                .map(|((p, &(first, _)), surface)| {
+                    // Side 0: b's probes of a's surface, first; side 1: a's of b's.
+                    let sides = [(p.b, p.a, first, 0), (p.a, p.b, first + n(p.b), 1)];
+                    let params = sides.map(|(_, _, first, s)| {
+                        let side = surface.side_lists(s);
+                        GpuBuild { n_probes: side.n_probes, first, of_a: s as u32, stiffness: side.stiffness }
+                    });
+                    let groups = sides.map(|(probe, partner, _, s)| {
+                        let side = surface.side_lists(s);
+                        let params = uniform("coupling build", bytemuck::bytes_of(&params[s]));
+                        build.bind(
+                            device,
+                            &[
+                                &params,
+                                side.hits,
+                                side.topology,
+                                vel[probe],
+                                vel[partner],
+                                &self.couplings,
+                                &self.entries,
+                                &self.active,
+                            ],
+                        )
+                    });
+                    (params, groups)
+                })
+                .collect();
+            let lists_groups = self
+                .gathers
+                .iter()
+                .map(|g| {
+                    let (c, p) = self
+                        .pairs
+                        .iter()
+                        .enumerate()
+                        .find(|(_, p)| p.a == g.body || p.b == g.body)
+                        .unwrap_or_else(|| unreachable!("a gather's body is in a contact"));
+                    let first = self.ranges[c].0;
+                    let is_b = p.b == g.body;
+                    // Its partner's probes on its triangles: the other side's lists.
+                    let other = surfaces[c].side_lists(usize::from(is_b));
+                    let values = GpuLists {
+                        n: g.n,
+                        own_first: u32::from(is_b),
+                        own: if is_b { first } else { first + n(p.b) },
+                        other: if is_b { first + n(p.b) } else { first },
+                        starts_at: other.starts_at,
+                        keys_at: other.keys_at,
+                        h,
+                        _pad: 0,
+                    };
+                    let params = uniform("coupling lists", bytemuck::bytes_of(&values));
+                    let group = lists.bind(
+                        device,
+                        &[
+                            &params,
+                            other.hits,
+                            other.scratch,
+                            &self.couplings,
+                            &g.offsets,
+                            &g.items,
+                            &implicit[g.body].work,
+                        ],
+                    );
+                    (params, values, group)
+                })
+                .collect();
+            self.on_device = Some(OnDevice { build, lists, build_groups, lists_groups });
+        }
+        let Some(d) = self.on_device.as_ref() else { unreachable!("made above") };
+        for (params, values, _) in &d.lists_groups {
+            queue.write_buffer(params, 0, bytemuck::bytes_of(&GpuLists { h, ..*values }));
+        }
+        self.set_round(queue, 1);
+        let max_per_dim = device.limits().max_compute_workgroups_per_dimension;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("voxcollide coupling build"),
+            timestamp_writes: None,
+        });
+        for (params, groups) in &d.build_groups {
+            for (p, group) in params.iter().zip(groups) {
+                d.build.dispatch(&mut pass, group, p.n_probes, max_per_dim);
+            }
+        }
+        for ((_, values, group), _) in d.lists_groups.iter().zip(&self.gathers) {
+            d.lists.dispatch(&mut pass, group, values.n, max_per_dim);
         }
     }
 
@@ -1104,11 +1349,6 @@ impl Couplings {
                 self.gather.dispatch(pass, group, g.n, max_per_dim);
             }
         }
-    }
-
-    /// This step's couplings.
-    pub(crate) fn couplings(&self) -> &[crate::integrator::implicit::Coupling] {
-        &self.host
     }
 
     /// Records the inelastic impulses of the couplings pushed now that the solve kept

@@ -328,12 +328,27 @@ impl GpuWorld {
             });
         }
         let device = ctx.device();
+        // A surface contact steps on the device between bodies that show their own surface.
+        // Under the implicit integrator the device builds its couplings too, where every surface
+        // contact can step there and each body is in one of them at most (its couplings are
+        // listed per vertex for one contact); otherwise every one searches on the host.
+        let explicit = matches!(world.integrator, Integrator::Explicit);
+        let own_surface = |c: &crate::contact::ContactPair| {
+            world.bodies[c.a].embedded.is_none() && world.bodies[c.b].embedded.is_none()
+        };
+        let surface_contacts = |k: usize| {
+            world.contacts.iter().filter(|c| c.surface().is_some() && (c.a == k || c.b == k)).count()
+        };
+        let built = !explicit
+            && world
+                .contacts
+                .iter()
+                .filter(|c| c.surface().is_some())
+                .all(|c| own_surface(c) && surface_contacts(c.a) == 1 && surface_contacts(c.b) == 1);
         let collisions = world
             .contacts
             .iter()
-            .map(|c| {
-                DeviceContact::new(ctx, c, &world.bodies, matches!(world.integrator, Integrator::Explicit))
-            })
+            .map(|c| DeviceContact::new(ctx, c, &world.bodies, own_surface(c) && (explicit || built)))
             .collect::<Result<Vec<_>, _>>()?;
         let on_host = collisions.iter().any(DeviceContact::on_host);
         use Slot::{Read, ReadWrite, Uniform};
@@ -412,7 +427,7 @@ impl GpuWorld {
                         .map(|c| CoupledPair { a: c.a, b: c.b })
                         .collect();
                     let n: Vec<u32> = world.bodies.iter().map(|b| b.len() as u32).collect();
-                    (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n))
+                    (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n, built))
                 },
                 guess_h: 0.0,
                 last_iterations: 0,
@@ -798,7 +813,7 @@ impl Stepper for GpuWorld {
         inputs: &[StepInputs],
         implicit: Option<ImplicitSettings>,
     ) -> Result<Residual, Error> {
-        let encoder = self.record(inputs)?;
+        let mut encoder = self.record(inputs)?;
         let (Some(settings), Some(imp)) = (implicit, self.implicit.as_mut()) else {
             self.ctx.queue().submit([encoder.finish()]);
             return Ok(Residual::default());
@@ -812,16 +827,29 @@ impl Stepper for GpuWorld {
             expect: imp.last_iterations,
         };
         let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
-        // The surface contacts' pushes, found on the host by `record`, as couplings.
-        if let Some(couplings) = imp.couplings.as_mut() {
+        // The surface contacts' couplings: built on the device from its search, recorded after
+        // it; or the pushes found on the host by `record`, uploaded.
+        let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
+        let info: Vec<&Buffer> = self.bodies.iter().map(|b| &b.info).collect();
+        if let Some(couplings) = imp.couplings.as_mut().filter(|c| c.built()) {
+            let surfaces: Vec<&surface::DeviceSurface> =
+                self.collisions.iter().filter_map(DeviceContact::device_surface).collect();
+            couplings.record_built(
+                self.ctx.device(),
+                self.ctx.queue(),
+                &mut encoder,
+                &surfaces,
+                &imp.bodies,
+                (&vel, &info, sums.red()),
+                h,
+            );
+        } else if let Some(couplings) = imp.couplings.as_mut() {
             let per_contact: Vec<Vec<Coupling>> = self
                 .collisions
                 .iter()
                 .zip(&self.world.contacts)
                 .filter_map(|(c, pair)| c.couplings(pair))
                 .collect();
-            let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
-            let info: Vec<&Buffer> = self.bodies.iter().map(|b| &b.info).collect();
             couplings.upload(
                 self.ctx.device(),
                 self.ctx.queue(),
@@ -863,7 +891,7 @@ impl Stepper for GpuWorld {
             // kept that separate, in coupling order, on the device (the CPU's own rule,
             // `shaders/couple_impulse.wgsl`), after the update. Only a coupling pushed now
             // can take one.
-            if let Some(c) = imp.couplings.as_ref().filter(|c| c.couplings().iter().any(|k| k.depth > 0.0)) {
+            if let Some(c) = imp.couplings.as_ref().filter(|c| c.may_push()) {
                 let mut encoder = self.ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("voxcollide implicit impulses"),
                 });

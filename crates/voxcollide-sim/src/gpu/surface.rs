@@ -436,6 +436,24 @@ struct GpuGather {
 /// `b` in contact.
 pub type ReadBack = (Vec<Vec3>, Vec<Vec3>, Vec<u32>);
 
+/// One side of a [`DeviceSurface`] as the implicit solve's couplings are built from it
+/// ([`DeviceSurface::side_lists`]).
+pub(crate) struct SideLists<'a> {
+    /// The probes (every vertex of the probing body).
+    pub n_probes: u32,
+    /// Each probe's `SurfaceHit` (`shaders/surface_hit.wgsl`).
+    pub hits: &'a Buffer,
+    /// The partner's triangles, three corners each.
+    pub topology: &'a Buffer,
+    /// Per partner vertex, where its listed hits start (from `starts_at`, `n_partner + 1` of
+    /// them), and their keys `3·probe + corner` (from `keys_at`), as `u32`s.
+    pub scratch: &'a Buffer,
+    pub starts_at: u32,
+    pub keys_at: u32,
+    /// The contact's stiffness.
+    pub stiffness: f32,
+}
+
 /// One side of a [`DeviceSurface`]: its search and what the passes after it keep.
 #[derive(Debug)]
 struct DeviceSide {
@@ -707,6 +725,23 @@ impl DeviceSurface {
         drop(pass);
         self.steps += 1;
         Ok(())
+    }
+
+    /// Side `s` (0: `b`'s points probing `a`'s surface; 1: `a`'s probing `b`'s) after a
+    /// recorded step, as the implicit solve's couplings are built from it on the device
+    /// ([`crate::gpu::implicit`]): each probe's hit, the partner's triangles, and the lists of
+    /// the hits on each partner vertex's triangles.
+    pub(crate) fn side_lists(&self, s: usize) -> SideLists<'_> {
+        let side = &self.sides[s];
+        SideLists {
+            n_probes: side.side.n_probes,
+            hits: side.search.hits_buffer(),
+            topology: side.search.topology_buffer(),
+            scratch: &side.scratch,
+            starts_at: side.side.count_at,
+            keys_at: side.side.keys_at,
+            stiffness: side.side.stiffness,
+        }
     }
 
     /// The forces on `a` (`as_a`) or on `b`, one `vec4<f32>` per vertex (w 0).
