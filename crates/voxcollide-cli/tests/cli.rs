@@ -422,7 +422,7 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     // explicit step with the voxel model's contacts stays on the device (0), and so does the
     // surface contact between bodies that show their own surface; with a lattice made from a
     // surface it reads the two bodies' positions back once a step (1); the implicit solve reads
-    // its scalars about once a step. A CPU run has no such key.
+    // its scalars about once a step, with either contact. A CPU run has no such key.
     let Some(_) = common::gpu() else { return };
     let dir = std::env::temp_dir().join(format!("voxcollide-waits-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -477,6 +477,9 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     // first readback after as many iterations as the last solve took).
     let implicit = waits("implicit", scene("penalty", "implicit"), "gpu").unwrap();
     assert!((1.0..1.5).contains(&implicit), "the implicit solve reads its scalars: {implicit}");
+    // With the surface contact, too: its search and couplings stay on the device.
+    let implicit = waits("implicit-surface", scene("surface", "implicit"), "gpu").unwrap();
+    assert!((1.0..1.5).contains(&implicit), "the implicit surface contact's step: {implicit}");
     assert_eq!(
         waits("cpu", scene("penalty", "explicit"), "cpu"),
         None,
