@@ -45,8 +45,10 @@ pub fn context(
 }
 
 /// Why `world` steps on the CPU under `--backend auto` though it could step on the GPU, if it
-/// does: the implicit integrator, whose solve waits on the device every few iterations (on
-/// lavapipe a 1,000-vertex press stepped at 59 steps/s against the CPU's 1,121), or a surface
+/// does: the implicit integrator, whose solve waits on the device about once a round of its
+/// active set, and which no hardware GPU has yet been measured stepping (on lavapipe
+/// `scenes/breast-implant.toml` stepped at 8.3 steps/s against the CPU's 92, docs/integrator.md,
+/// "The surface contact on the device"), or a surface
 /// contact with a lattice made from a surface, whose search runs on the host for it and makes
 /// each GPU step wait for the positions (between bodies that show their own surface the
 /// explicit step's contact runs wholly on the device, docs/contacts.md); and
@@ -61,7 +63,7 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
         )
     } else if world.integrator != Integrator::Explicit {
         Some(
-            "[time] integrator = \"implicit\" (its WGSL solve waits on the device a few times a step: --backend gpu runs it)",
+            "[time] integrator = \"implicit\" (its WGSL solve waits on the device about once a step, and steps an eleventh as fast as the CPU on lavapipe: --backend gpu runs it)",
         )
     } else if world.contacts.iter().any(|c| {
         c.surface().is_some()

@@ -1,8 +1,9 @@
 //! The contacts of a [`GpuWorld`](super::GpuWorld), each by its model: the voxel model's
 //! collision passes (through the embedding API, recorded into the step's encoder); a surface
-//! contact stepped wholly on the device ([`DeviceSurface`]: under the explicit integrator,
-//! between bodies that show their own surface); or else a surface contact found on the host,
-//! its forces uploaded for the `forces` pass. The GPU world's twin of
+//! contact stepped wholly on the device ([`DeviceSurface`]: between bodies that show their own
+//! surface, under the implicit integrator only where no body is in two surface contacts); or
+//! else a surface contact found on the host, its forces (and couplings) uploaded. The GPU
+//! world's twin of
 //! [`crate::contact::CpuContacts`].
 
 use glam::Vec4;

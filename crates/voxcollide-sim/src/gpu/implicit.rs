@@ -9,10 +9,9 @@
 //! rows held, and the same update. The passes run without a readback except where the host
 //! must decide: once per batch of [`BATCH`] iterations (has the solve converged?; the first
 //! readback only after as many iterations as the last solve took, `Setup::expect`), once at the
-//! end (how far would the farthest vertex move? read with the solve's last scalars where there
-//! is no surface contact), and with a surface contact once per round
-//! (did the set of couplings in the gap change?), once for the flags the solve kept, and the
-//! coupled bodies' velocities for the impulses, written back.
+//! end (how far would the farthest vertex move? read with the solve's last scalars), and with a
+//! surface contact once per round of its active set (did the set of couplings in the gap
+//! change? read with the scalars too).
 //!
 //! **One solve over every body**, as on the CPU: each body's passes write its own range of
 //! every column of partial sums in one buffer (`red`), and the scalar passes sum every body's,
@@ -20,8 +19,11 @@
 //! joint system's, and every body reports the joint solve in its [`StepStats`]. A fill's
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
-//! **A surface contact's couplings** ([`crate::integrator::implicit::Coupling`]) are built on the host from
-//! its pushes each step and uploaded (`Couplings`); `shaders/couple.wgsl` takes each one's
+//! **A surface contact's couplings** ([`crate::integrator::implicit::Coupling`]) are built on the
+//! device from its own search where the contact's bodies show their own surface
+//! (`shaders/couple_build.wgsl`, one a probe, and `shaders/couple_lists.wgsl`, each vertex's
+//! list and blocks; `Couplings::record_built`), or else on the host from the pushes it found
+//! over the positions read back, and uploaded (`Couplings::upload`); `shaders/couple.wgsl` takes each one's
 //! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
 //! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
 //! again from its answer while the set of couplings it ends within the gap changes (at most four

@@ -6,10 +6,11 @@
 //! move) where the host must decide.
 //!
 //! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact))
-//! steps here wholly on the device under the explicit integrator between bodies that show their
-//! own surface ([`surface::DeviceSurface`]: each side's search through the voxel model, and the
-//! passes after it, to the CPU's bits, nothing read back). Otherwise (a lattice made from a
-//! surface, or the implicit integrator) its search is on the host: each step reads back the
+//! steps here wholly on the device between bodies that show their own surface
+//! ([`surface::DeviceSurface`]: each side's search through the voxel model, and the passes after
+//! it, to the CPU's bits, nothing read back); under the implicit integrator its couplings are
+//! built there from the search too (`implicit::Couplings`), where no body is in two surface
+//! contacts. Otherwise (a lattice made from a surface) its search is on the host: each step reads back the
 //! positions of the two bodies, finds the pushes as the CPU world does (the same code over the
 //! same positions), and uploads the two force buffers that the `forces` pass reads as it reads
 //! a collision's (explicit: the CPU's bits). Under the implicit one the pushes are also uploaded

@@ -15,8 +15,9 @@
 //! **The explicit step on the device** ([`DeviceSurface`]): both sides' searches, then each
 //! side's clearances, the inside test of doubtful hits and the way in kept for the next step,
 //! and each vertex's force summed in the CPU's order (`shaders/surface_forces.wgsl`,
-//! `shaders/surface_gather.wgsl`), with nothing read back. A lattice made from a surface, and
-//! the implicit integrator's couplings, still search on the host ([`crate::gpu::GpuWorld`]).
+//! `shaders/surface_gather.wgsl`), with nothing read back. The implicit integrator builds its
+//! couplings from the same search ([`crate::gpu::implicit`]). A lattice made from a surface
+//! still searches on the host ([`crate::gpu::GpuWorld`]).
 //! The search is held to the CPU's on the same positions (`tests/surface_search.rs`), and the
 //! step to the CPU world's bits (`tests/simulation.rs`).
 
@@ -478,7 +479,7 @@ struct SurfaceKernels {
 }
 
 /// A surface contact stepped wholly on the device, for two bodies that each show their own
-/// surface ([`crate::body::Embedding`]: none) under the explicit integrator: both sides'
+/// surface ([`crate::body::Embedding`]: none): both sides'
 /// searches ([`SurfaceSearch`]), the passes after them, and each body's forces, in buffers the
 /// `forces` pass reads, with nothing read back. The same forces as
 /// [`SurfaceContact::step`](crate::contact::SurfaceContact::step), to the bit, but where the
