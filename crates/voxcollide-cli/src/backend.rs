@@ -48,11 +48,9 @@ pub fn context(
 /// does: the implicit integrator, whose solve waits on the device about once a round of its
 /// active set, and which no hardware GPU has yet been measured stepping (on lavapipe
 /// `scenes/breast-implant.toml` stepped at 8.3 steps/s against the CPU's 92, docs/integrator.md,
-/// "The surface contact on the device"), or a surface
-/// contact with a lattice made from a surface, whose search runs on the host for it and makes
-/// each GPU step wait for the positions (between bodies that show their own surface the
-/// explicit step's contact runs wholly on the device, docs/contacts.md); and
-/// always for a curved chest wall (an implant placed on a patient), which only the CPU holds.
+/// "The surface contact on the device"); and always for a curved chest wall (an implant placed
+/// on a patient), which only the CPU holds. (The explicit step's surface contact runs wholly on
+/// the device, docs/contacts.md.)
 /// (On a software adapter any surface contact steps on the CPU too: [`place`].)
 /// `--backend gpu` steps every world on the device: both integrators, springs or
 /// `"neo-hookean"` tetrahedra, and every contact response.
@@ -64,13 +62,6 @@ pub(crate) fn cpu_first(world: &World) -> Option<&'static str> {
     } else if world.integrator != Integrator::Explicit {
         Some(
             "[time] integrator = \"implicit\" (its WGSL solve waits on the device about once a step, and steps an eleventh as fast as the CPU on lavapipe: --backend gpu runs it)",
-        )
-    } else if world.contacts.iter().any(|c| {
-        c.surface().is_some()
-            && (world.bodies[c.a].embedded.is_some() || world.bodies[c.b].embedded.is_some())
-    }) {
-        Some(
-            "contact response = \"surface\" on a lattice made from a surface (its search runs on the host for such a lattice, each GPU step waiting for the positions; --backend gpu runs it)",
         )
     } else {
         None

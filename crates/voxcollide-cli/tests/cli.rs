@@ -420,9 +420,9 @@ fn settling_goes_on_past_the_schedule_until_the_bodies_rest() {
 fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     // docs/design.md §5: `host_waits_per_step` in a `--backend gpu` run's summary.json. The
     // explicit step with the voxel model's contacts stays on the device (0), and so does the
-    // surface contact between bodies that show their own surface; with a lattice made from a
-    // surface it reads the two bodies' positions back once a step (1); the implicit solve reads
-    // its scalars about once a step, with either contact. A CPU run has no such key.
+    // surface contact, between bodies that show their own surface or with a lattice made from a
+    // surface; the implicit solve reads its scalars about once a step, with either contact. A
+    // CPU run has no such key.
     let Some(_) = common::gpu() else { return };
     let dir = std::env::temp_dir().join(format!("voxcollide-waits-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -466,13 +466,14 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
     waits("auto-penalty", scene("penalty", "explicit"), "auto");
     let expected = if software { "cpu" } else { "gpu" };
     assert_eq!((on("auto-surface").as_str(), on("auto-penalty").as_str()), (expected, "gpu"));
-    // A lattice made from a surface (a soft ball under the rigid one): its contact searches on
-    // the host, over the positions read back once a step.
+    // A lattice made from a surface (a soft ball under the rigid one): the device writes the
+    // surface it carries each step and searches it there (until 2026-12-07 the host searched
+    // it, over the positions read back once a step).
     let carried = scene("surface", "explicit")
         .replace("shape = { box = [20, 20, 6] }", "shape = { sphere = 8 }\nposition = [0, 0, -5]")
         .replace("below = { z = -2.9 }", "below = { z = -11 }");
     assert!(carried.contains("sphere = 8"), "{carried}");
-    assert_eq!(waits("carried", carried, "gpu"), Some(1.0), "a carried surface's contact");
+    assert_eq!(waits("carried", carried, "gpu"), Some(0.0), "a carried surface's contact");
     // The implicit solve reads its scalars, with its farthest move, about once a step (the
     // first readback after as many iterations as the last solve took).
     let implicit = waits("implicit", scene("penalty", "implicit"), "gpu").unwrap();

@@ -329,10 +329,12 @@ impl GpuWorld {
             });
         }
         let device = ctx.device();
-        // A surface contact steps on the device between bodies that show their own surface.
-        // Under the implicit integrator the device builds its couplings too, where every surface
-        // contact can step there and each body is in one of them at most (its couplings are
-        // listed per vertex for one contact); otherwise every one searches on the host.
+        // A surface contact steps on the device under the explicit integrator. Under the
+        // implicit one the device builds its couplings too, where every surface contact's bodies
+        // show their own surface (a carried surface's point is shared by up to 8 vertices, which
+        // the device's couplings do not take) and each body is in one of them at most (its
+        // couplings are listed per vertex for one contact); otherwise every one searches on the
+        // host.
         let explicit = matches!(world.integrator, Integrator::Explicit);
         let own_surface = |c: &crate::contact::ContactPair| {
             world.bodies[c.a].embedded.is_none() && world.bodies[c.b].embedded.is_none()
@@ -349,7 +351,7 @@ impl GpuWorld {
         let collisions = world
             .contacts
             .iter()
-            .map(|c| DeviceContact::new(ctx, c, &world.bodies, own_surface(c) && (explicit || built)))
+            .map(|c| DeviceContact::new(ctx, c, &world.bodies, explicit || built))
             .collect::<Result<Vec<_>, _>>()?;
         let on_host = collisions.iter().any(DeviceContact::on_host);
         use Slot::{Read, ReadWrite, Uniform};

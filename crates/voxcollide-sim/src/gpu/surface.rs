@@ -392,6 +392,10 @@ pub const SURFACE_FORCES: &str = concat!(
     include_str!("../../shaders/surface_hit.wgsl"),
     include_str!("../../shaders/surface_forces.wgsl")
 );
+/// A lattice's points where it carries a surface (`shaders/surface_embed.wgsl`), composed with
+/// `sim_common.wgsl`.
+pub const SURFACE_EMBED: &str =
+    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_embed.wgsl"));
 /// The forces on one body's vertices (`shaders/surface_gather.wgsl`), composed with
 /// `sim_common.wgsl`.
 pub const SURFACE_GATHER: &str = concat!(
@@ -430,7 +434,74 @@ struct GpuGather {
     starts_at: u32,
     keys_at: u32,
     stiffness: f32,
-    _pad: [u32; 3],
+    carried: u32,
+    _pad: [u32; 2],
+}
+
+/// A carried point. Keep in sync with `Carried` in `shaders/surface_embed.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+struct GpuCarried {
+    rest: [f32; 4],
+    corners: [u32; 8],
+    weights: [f32; 8],
+}
+
+/// A lattice that carries the surface it shows its contacts, on the device: the pass that
+/// writes its points (its vertices, then the carried surface's) into `view` each step.
+#[derive(Debug)]
+struct Carried {
+    uniform: Buffer,
+    rest: Buffer,
+    carried: Buffer,
+    view: Buffer,
+    /// The bind group, and the position buffer it was made over.
+    group: Option<(Buffer, wgpu::BindGroup)>,
+    points: u32,
+}
+
+/// A body as its surface contact sees it (the CPU's `View` in `contact/surface.rs`): its points
+/// (its vertices, then the points of the surface it carries, if any) and the surface it shows
+/// over them.
+struct Shown {
+    pos: Vec<Vec3>,
+    mesh: TriangleMesh,
+}
+
+impl Shown {
+    fn of(body: &crate::body::MassSpring) -> Shown {
+        match &body.embedded {
+            Some(e) => {
+                let n = body.len() as u32;
+                let mut pos = body.pos.clone();
+                pos.extend(e.positions(&body.pos, &body.rest_pos));
+                Shown {
+                    pos,
+                    mesh: TriangleMesh {
+                        triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect(),
+                    },
+                }
+            }
+            None => Shown { pos: body.pos.clone(), mesh: body.surface.clone() },
+        }
+    }
+}
+
+/// Point `p` of `body`'s points (see [`Shown`]) as its vertices and their weights: the CPU's
+/// `View::stencil`.
+fn stencil(body: &crate::body::MassSpring, p: u32) -> Vec<(u32, f32)> {
+    match &body.embedded {
+        Some(e) if p as usize >= body.len() => {
+            let k = p as usize - body.len();
+            e.corners[k]
+                .iter()
+                .zip(&e.weights[k])
+                .filter(|(c, _)| **c != u32::MAX)
+                .map(|(c, w)| (*c, *w))
+                .collect()
+        }
+        _ => vec![(p, 1.0)],
+    }
 }
 
 /// What [`DeviceSurface::read`] reads back: the forces on `a` and on `b`, and the vertices of
@@ -476,12 +547,15 @@ struct SurfaceKernels {
     /// [`SURFACE_FORCES_ENTRIES`]'s, in order.
     side: Vec<Kernel>,
     gather: Kernel,
+    embed: Kernel,
 }
 
-/// A surface contact stepped wholly on the device, for two bodies that each show their own
-/// surface ([`crate::body::Embedding`]: none): both sides'
+/// A surface contact stepped wholly on the device: both sides'
 /// searches ([`SurfaceSearch`]), the passes after them, and each body's forces, in buffers the
-/// `forces` pass reads, with nothing read back. The same forces as
+/// `forces` pass reads, with nothing read back. A lattice that carries the surface it was made
+/// from ([`crate::body::Embedding`]) shows the contact that surface, as on the CPU: its points
+/// are its vertices, then the carried surface's, written each step (`shaders/surface_embed.wgsl`),
+/// and a force on a carried point is shared by its cell's corners in their weights. The same forces as
 /// [`SurfaceContact::step`](crate::contact::SurfaceContact::step), to the bit, but where the
 /// inside test of a doubtful hit lands within rounding of one half (the device sums its winding
 /// number in `f32` over every triangle, the CPU in `f64` through a hierarchy).
@@ -490,9 +564,15 @@ pub struct DeviceSurface {
     /// `b`'s points probing `a`'s surface, then `a`'s probing `b`'s.
     sides: [DeviceSide; 2],
     kernels: SurfaceKernels,
-    /// Per body (`a`, `b`): the gather's uniform, its free flags, its forces, its bind group.
-    gather: [(Buffer, Buffer, Buffer); 2],
+    /// Per body (`a`, `b`): the gather's uniform, its free flags, its forces, and its points
+    /// (where it carries a surface; a placeholder otherwise).
+    gather: [(Buffer, Buffer, Buffer, Buffer); 2],
     gather_groups: Option<[wgpu::BindGroup; 2]>,
+    /// Per body (`a`, `b`): its vertices, and where it carries a surface, the pass that writes
+    /// its points.
+    bodies: [(u32, Option<Carried>); 2],
+    /// Per point of `b`, its vertices and weights (for the vertices of `b` in contact).
+    b_stencils: Vec<Vec<(u32, f32)>>,
     steps: u64,
     max_per_dim: u32,
     /// What the last read found.
@@ -511,22 +591,12 @@ impl DeviceSurface {
         a: &crate::body::MassSpring,
         b: &crate::body::MassSpring,
     ) -> Result<DeviceSurface, Error> {
-        if a.embedded.is_some() || b.embedded.is_some() {
-            return Err(Error::Invalid {
-                what: "surface contact on the device",
-                value: "a lattice that carries a surface".into(),
-                rule:
-                    "only bodies that show their own surface step their surface contact on the device so far"
-                        .into(),
-            });
-        }
         let device = ctx.device();
         let storage = BufferUsages::STORAGE | BufferUsages::COPY_SRC | BufferUsages::COPY_DST;
-        let side = |probing: &crate::body::MassSpring,
-                    partner: &crate::body::MassSpring|
-         -> Result<DeviceSide, Error> {
-            let search = SurfaceSearch::new(ctx, penalty, &partner.surface, &partner.pos, probing.len())?;
-            let (np, nq) = (probing.len() as u32, partner.len() as u32);
+        let (shown_a, shown_b) = (Shown::of(a), Shown::of(b));
+        let side = |probing: &Shown, partner: &Shown| -> Result<DeviceSide, Error> {
+            let search = SurfaceSearch::new(ctx, penalty, &partner.mesh, &partner.pos, probing.pos.len())?;
+            let (np, nq) = (probing.pos.len() as u32, partner.pos.len() as u32);
             let count_at = 1 + 2 * np;
             let cursor_at = count_at + nq + 1;
             let keys_at = cursor_at + nq;
@@ -542,7 +612,7 @@ impl DeviceSurface {
                 stiffness: penalty.stiffness,
                 gap: penalty.gap,
                 reach: penalty.reach,
-                n_triangles: partner.surface.triangles.len() as u32,
+                n_triangles: partner.mesh.triangles.len() as u32,
             };
             scoped(device, || {
                 let zeros = |label: &str, bytes: u64| {
@@ -568,7 +638,7 @@ impl DeviceSurface {
                 }
             })
         };
-        let sides = [side(b, a)?, side(a, b)?];
+        let sides = [side(&shown_b, &shown_a)?, side(&shown_a, &shown_b)?];
         let kernels = scoped(device, || {
             let side_slots = [
                 Slot::Uniform,
@@ -590,7 +660,21 @@ impl DeviceSurface {
                     device,
                     "sim surface gather",
                     SURFACE_GATHER,
-                    &[Slot::Uniform, Slot::Read, Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
+                    &[
+                        Slot::Uniform,
+                        Slot::Read,
+                        Slot::Read,
+                        Slot::Read,
+                        Slot::Read,
+                        Slot::ReadWrite,
+                        Slot::Read,
+                    ],
+                ),
+                embed: Kernel::new(
+                    device,
+                    "sim surface embed",
+                    SURFACE_EMBED,
+                    &[Slot::Uniform, Slot::Read, Slot::Read, Slot::Read, Slot::ReadWrite],
                 ),
             }
         })?;
@@ -603,9 +687,33 @@ impl DeviceSurface {
                 starts_at: other.count_at,
                 keys_at: other.keys_at,
                 stiffness: penalty.stiffness,
-                _pad: [0; 3],
+                carried: u32::from(body.embedded.is_some()),
+                _pad: [0; 2],
             };
             let free: Vec<u32> = body.mode.iter().map(|m| u32::from(*m == crate::body::Mode::Free)).collect();
+            // Per vertex, the points whose stencils hold it, in point order: itself, then the
+            // carried surface's points in its cells.
+            let points: Vec<u32> = match &body.embedded {
+                Some(e) => {
+                    let n = body.len();
+                    let mut lists: Vec<Vec<(u32, f32)>> = (0..n).map(|v| vec![(v as u32, 1.0)]).collect();
+                    for (k, (c, w)) in e.corners.iter().zip(&e.weights).enumerate() {
+                        for (c, w) in c.iter().zip(w).filter(|(c, _)| **c != u32::MAX) {
+                            lists[*c as usize].push(((n + k) as u32, *w));
+                        }
+                    }
+                    let mut offsets = Vec::with_capacity(n + 1);
+                    let mut pairs = Vec::new();
+                    for l in &lists {
+                        offsets.push((pairs.len() / 2) as u32);
+                        pairs.extend(l.iter().flat_map(|(p, w)| [*p, w.to_bits()]));
+                    }
+                    offsets.push((pairs.len() / 2) as u32);
+                    offsets.extend(pairs);
+                    offsets
+                }
+                None => vec![0; 4],
+            };
             scoped(device, || {
                 (
                     init(device, "sim surface gather", bytemuck::bytes_of(&uniform), BufferUsages::UNIFORM),
@@ -616,15 +724,52 @@ impl DeviceSurface {
                         bytemuck::cast_slice(&vec![[0f32; 4]; body.len()]),
                         storage,
                     ),
+                    init(device, "sim surface points", bytemuck::cast_slice(&points), BufferUsages::STORAGE),
                 )
             })
         };
         let gather = [gather(0, a)?, gather(1, b)?];
+        let carried = |body: &crate::body::MassSpring, shown: &Shown| -> Result<Option<Carried>, Error> {
+            let Some(e) = &body.embedded else { return Ok(None) };
+            let (n, m) = (body.len() as u32, e.rest.len() as u32);
+            let points: Vec<GpuCarried> = e
+                .rest
+                .iter()
+                .zip(&e.corners)
+                .zip(&e.weights)
+                .map(|((r, c), w)| GpuCarried { rest: r.extend(0.0).to_array(), corners: *c, weights: *w })
+                .collect();
+            let rest: Vec<Vec4> = body.rest_pos.iter().map(|r| r.extend(0.0)).collect();
+            let view: Vec<Vec4> = shown.pos.iter().map(|p| p.extend(0.0)).collect();
+            scoped(device, || Carried {
+                uniform: init(
+                    device,
+                    "sim surface embed",
+                    bytemuck::cast_slice(&[n, m, 0, 0]),
+                    BufferUsages::UNIFORM,
+                ),
+                rest: init(device, "sim surface rest", bytemuck::cast_slice(&rest), BufferUsages::STORAGE),
+                carried: init(
+                    device,
+                    "sim surface carried",
+                    bytemuck::cast_slice(&points),
+                    BufferUsages::STORAGE,
+                ),
+                view: init(device, "sim surface points", bytemuck::cast_slice(&view), storage),
+                group: None,
+                points: n + m,
+            })
+            .map(Some)
+        };
+        let bodies = [(a.len() as u32, carried(a, &shown_a)?), (b.len() as u32, carried(b, &shown_b)?)];
+        let b_stencils = (0..shown_b.pos.len() as u32).map(|p| stencil(b, p)).collect();
         Ok(DeviceSurface {
             sides,
             kernels,
             gather,
             gather_groups: None,
+            bodies,
+            b_stencils,
             steps: 0,
             max_per_dim: device.limits().max_compute_workgroups_per_dimension,
             stats: std::cell::Cell::default(),
@@ -646,6 +791,26 @@ impl DeviceSurface {
     ) -> Result<(), Error> {
         let device = self.sides[0].search.binning.context().device().clone();
         let first = self.steps == 0;
+        // A lattice that carries a surface: its points first.
+        for ((_, carried), pos) in self.bodies.iter_mut().zip([a, b]) {
+            let Some(c) = carried else { continue };
+            if c.group.as_ref().is_none_or(|(k, _)| k != pos) {
+                let group = scoped(&device, || {
+                    self.kernels.embed.bind(&device, &[&c.uniform, pos, &c.rest, &c.carried, &c.view])
+                })?;
+                c.group = Some((pos.clone(), group));
+            }
+            let Some((_, group)) = c.group.as_ref() else { unreachable!("bound above") };
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("sim surface embed"),
+                timestamp_writes: None,
+            });
+            self.kernels.embed.dispatch(&mut pass, group, c.points, self.max_per_dim);
+        }
+        let view = |k: usize, pos: &Buffer| -> Buffer {
+            self.bodies[k].1.as_ref().map_or_else(|| pos.clone(), |c| c.view.clone())
+        };
+        let (a, b) = (&view(0, a), &view(1, b));
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probes, partner) = if s == 0 { (b, a) } else { (a, b) };
             if side.side.first != u32::from(first) {
@@ -699,7 +864,7 @@ impl DeviceSurface {
             let [s0, s1] = &self.sides;
             let bind = |k: usize| {
                 let (own, other) = if k == 0 { (s1, s0) } else { (s0, s1) };
-                let (uniform, free, force) = &self.gather[k];
+                let (uniform, free, force, points) = &self.gather[k];
                 self.kernels.gather.bind(
                     &device,
                     &[
@@ -709,6 +874,7 @@ impl DeviceSurface {
                         &other.scratch,
                         free,
                         force,
+                        points,
                     ],
                 )
             };
@@ -719,9 +885,8 @@ impl DeviceSurface {
             label: Some("sim surface gather"),
             timestamp_writes: None,
         });
-        for (k, group) in groups.iter().enumerate() {
-            let n = self.sides[k].side.n_partner;
-            self.kernels.gather.dispatch(&mut pass, group, n, self.max_per_dim);
+        for (group, (n, _)) in groups.iter().zip(&self.bodies) {
+            self.kernels.gather.dispatch(&mut pass, group, *n, self.max_per_dim);
         }
         drop(pass);
         self.steps += 1;
@@ -759,14 +924,15 @@ impl DeviceSurface {
     /// [`Error::Gpu`] / [`Error::DeviceLost`] when the readback fails.
     pub fn read(&self) -> Result<ReadBack, Error> {
         let ctx = self.sides[0].search.binning.context();
-        let sizes = [self.sides[1].side.n_probes, self.sides[0].side.n_probes];
+        let sizes = [self.bodies[0].0, self.bodies[1].0];
+        let points = [self.sides[1].side.n_probes, self.sides[0].side.n_probes];
         let bytes = read_buffers(
             ctx,
             &[
                 (&self.gather[0].2, 16 * u64::from(sizes[0])),
                 (&self.gather[1].2, 16 * u64::from(sizes[1])),
-                (self.sides[0].search.hits_buffer(), 64 * u64::from(sizes[1])),
-                (self.sides[1].search.hits_buffer(), 64 * u64::from(sizes[0])),
+                (self.sides[0].search.hits_buffer(), 64 * u64::from(points[1])),
+                (self.sides[1].search.hits_buffer(), 64 * u64::from(points[0])),
                 (&self.sides[0].search.edge, 16),
                 (&self.sides[1].search.edge, 16),
             ],
@@ -788,10 +954,12 @@ impl DeviceSurface {
         let mut stats = crate::contact::SurfaceStats::default();
         let mut touching = Vec::new();
         let pushes = |h: &GpuHit| h.found == 1 && h.normal[3] > 0.0;
+        // (As the CPU's `SurfaceContact::step`: a vertex of `b` is in contact where a push's
+        // stencil gives it a positive weight.)
         for (k, h) in on_a.iter().enumerate().filter(|(_, h)| pushes(h)) {
             stats.b_pushed += 1;
             stats.deepest = stats.deepest.max(h.normal[3]);
-            touching.push(k as u32);
+            touching.extend(self.b_stencils[k].iter().filter(|(_, u)| *u > 0.0).map(|(v, _)| *v));
         }
         let triangles = &self.sides[1].search;
         let corners = triangles.corners();
@@ -799,7 +967,10 @@ impl DeviceSurface {
             stats.a_pushed += 1;
             stats.deepest = stats.deepest.max(h.normal[3]);
             let t = corners[h.triangle as usize];
-            touching.extend((0..3).filter(|&c| h.weights[c] > 0.0).map(|c| t[c]));
+            for c in 0..3 {
+                let stencil = &self.b_stencils[t[c] as usize];
+                touching.extend(stencil.iter().filter(|(_, u)| h.weights[c] * u > 0.0).map(|(v, _)| *v));
+            }
         }
         touching.sort_unstable();
         touching.dedup();
