@@ -473,7 +473,9 @@ fn a_gpu_run_counts_the_times_a_step_waits_for_the_device() {
         .replace("shape = { box = [20, 20, 6] }", "shape = { sphere = 8 }\nposition = [0, 0, -5]")
         .replace("below = { z = -2.9 }", "below = { z = -11 }");
     assert!(carried.contains("sphere = 8"), "{carried}");
-    assert_eq!(waits("carried", carried, "gpu"), Some(0.0), "a carried surface's contact");
+    assert_eq!(waits("carried", carried.clone(), "gpu"), Some(0.0), "a carried surface's contact");
+    let implicit = waits("carried-implicit", carried.replace("\"explicit\"", "\"implicit\""), "gpu").unwrap();
+    assert!((1.0..1.5).contains(&implicit), "the implicit step of a carried surface's contact: {implicit}");
     // The implicit solve reads its scalars, with its farthest move, about once a step (the
     // first readback after as many iterations as the last solve took).
     let implicit = waits("implicit", scene("penalty", "implicit"), "gpu").unwrap();

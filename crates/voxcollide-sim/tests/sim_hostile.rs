@@ -228,12 +228,21 @@ fn nan_or_huge_positions_under_the_implicit_integrator_are_named_on_the_cpu_and_
 /// surface and a rigid ball it steps wholly on the device (docs/contacts.md, "The search on the
 /// device").
 const PRESS: &str = include_str!("common/press.toml");
+/// A rigid ball pressed into a lattice that carries a sphere's surface, which the contact meets
+/// (`shaders/surface_embed.wgsl` writes its points each step).
+const DOME: &str = include_str!("common/dome.toml");
 
 #[test]
 fn the_devices_surface_contact_meets_poisons_mid_run_with_a_named_error_or_a_finite_run() {
     let Some(ctx) = common::gpu() else { return };
+    for (name, text) in [("press.toml", PRESS), ("dome.toml", DOME)] {
+        poisons_on_the_device(&ctx, name, text);
+    }
+}
+
+fn poisons_on_the_device(ctx: &GpuContext, name: &str, text: &str) {
     let built = voxcollide_sim::build::build_world(
-        &voxcollide_sim::scene_file::SceneFile::parse("press.toml", PRESS).unwrap(),
+        &voxcollide_sim::scene_file::SceneFile::parse(name, text).unwrap(),
     )
     .unwrap();
     let mut cpu = CpuWorld::new(built.world).unwrap();
@@ -241,14 +250,14 @@ fn the_devices_surface_contact_meets_poisons_mid_run_with_a_named_error_or_a_fin
         cpu.step().unwrap();
     }
     let s = cpu.surface_stats[0];
-    assert!(s.a_pushed + s.b_pushed > 0, "the two should be in contact: {s:?}");
+    assert!(s.a_pushed + s.b_pushed > 0, "{name}: the two should be in contact: {s:?}");
     // Under the implicit integrator too, where the device builds the solve's couplings from its
     // search (`shaders/couple_build.wgsl`): a NaN ends each solve at once, and the readback
     // names it.
     for implicit in [false, true] {
         for body in [0, 1] {
             for value in POISONS {
-                let what = format!("implicit {implicit} body {body} value {value}");
+                let what = format!("{name}: implicit {implicit} body {body} value {value}");
                 let mut world = cpu.world.clone();
                 let b = &mut world.bodies[body];
                 let i = b.len() / 2;
@@ -256,7 +265,7 @@ fn the_devices_surface_contact_meets_poisons_mid_run_with_a_named_error_or_a_fin
                 if implicit {
                     world = world.with_integrator(Integrator::Implicit(ImplicitSettings::default()));
                 }
-                let mut gpu = GpuWorld::new(&ctx, world).unwrap();
+                let mut gpu = GpuWorld::new(ctx, world).unwrap();
                 let mut result = Ok(());
                 for _ in 0..20 {
                     result = gpu.step();

@@ -136,29 +136,7 @@ fn a_world_of_surface_contacts_steps_the_same_on_one_and_two_threads() {
 
 /// A rigid ball pressed 2 mm into a soft sphere: a lattice that carries the sphere's surface,
 /// which the contact meets (its points' forces shared by their cells' corners).
-const DOME: &str = r#"
-units = "mm"
-[time]
-integrator = "explicit"
-steps = 300
-[[body]]
-name = "dome"
-kind = "soft"
-shape = { sphere = 10 }
-spacing = 3
-material = { young_kpa = 10 }
-fixed = [{ below = { z = -5 } }]
-[[body]]
-name = "ball"
-kind = "rigid"
-shape = { sphere = 4 }
-spacing = 2
-position = [1, 0.5, 15]
-motion = [{ t = 0.0, position = [1, 0.5, 15] }, { t = 0.006, position = [1, 0.5, 12] }]
-[[contact]]
-a = "ball"
-b = "dome"
-"#;
+const DOME: &str = include_str!("common/dome.toml");
 
 fn bits(v: &[Vec3]) -> Vec<[u32; 3]> {
     v.iter().map(|p| p.to_array().map(f32::to_bits)).collect()
@@ -228,9 +206,9 @@ fn under_the_explicit_integrator_a_surface_contact_steps_the_same_bits_on_cpu_an
 
 #[test]
 fn under_the_implicit_integrator_the_gpu_world_couples_a_surface_contact_as_the_cpu_does() {
-    // The couplings in the device's solve, built there from its own search (pressed into a
-    // block) or on the host (into a lattice that carries a sphere's surface): the two backends
-    // agree to the solve's tolerance while the ball is driven, and on the dent it leaves.
+    // The couplings in the device's solve, built there from its own search, pressed into a
+    // block and into a lattice that carries a sphere's surface: the two backends agree to the
+    // solve's tolerance while the ball is driven, and on the dent it leaves.
     let Some(ctx) = common::gpu() else { return };
     for (name, text, steps) in [("press.toml", PRESS, 60), ("dome.toml", DOME, 60)] {
         let implicit = text.replace("integrator = \"explicit\"", "integrator = \"implicit\"");
@@ -256,12 +234,11 @@ fn under_the_implicit_integrator_the_gpu_world_couples_a_surface_contact_as_the_
             assert!(c.iterations.abs_diff(g.iterations) <= 2, "{name}: step {step}: {c:?} on the CPU, {g:?}");
         }
         assert!(worst < 1e-3, "{name}: the bodies differ by up to {worst} mm");
-        // The block's contact searches and builds its couplings on the device: a step waits for
-        // its solve alone, about once (a second round of the active set, once more). The dome's
-        // lattice carries its surface, which is searched on the host over positions read back.
+        // The contact searches and builds its couplings on the device, the dome's over the
+        // surface its lattice carries (each coupling's points as their cells' corners): a step
+        // waits for its solve alone, about once (a second round of the active set, once more).
         let waits = gpu.host_waits() as f64 / f64::from(steps);
-        let bound = if name == "press.toml" { 1.5 } else { 3.0 };
-        assert!((1.0..bound).contains(&waits), "{name}: {waits} waits a step");
+        assert!((1.0..1.5).contains(&waits), "{name}: {waits} waits a step");
         let dent = |w: &World| {
             w.bodies[0].pos.iter().zip(&w.bodies[0].rest_pos).map(|(p, r)| r.z - p.z).fold(0.0f32, f32::max)
         };

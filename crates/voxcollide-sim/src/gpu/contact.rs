@@ -1,7 +1,7 @@
 //! The contacts of a [`GpuWorld`](super::GpuWorld), each by its model: the voxel model's
 //! collision passes (through the embedding API, recorded into the step's encoder); a surface
-//! contact stepped wholly on the device ([`DeviceSurface`]: between bodies that show their own
-//! surface, under the implicit integrator only where no body is in two surface contacts); or
+//! contact stepped wholly on the device ([`DeviceSurface`]: under the implicit integrator only
+//! where no body is in two surface contacts); or
 //! else a surface contact found on the host, its forces (and couplings) uploaded. The GPU
 //! world's twin of
 //! [`crate::contact::CpuContacts`].
@@ -39,8 +39,8 @@ pub(super) struct HostSurface {
 
 impl DeviceContact {
     /// The contact `pair` of `bodies` on `ctx`'s device; a surface contact steps there whole
-    /// where `on_device` (the caller's choice: bodies that show their own surface, under the
-    /// explicit integrator, or under the implicit one where the device builds the couplings).
+    /// where `on_device` (the caller's choice: always under the explicit integrator, and under
+    /// the implicit one where the device builds the couplings).
     ///
     /// # Errors
     /// The contact errors of [`GpuCollision::new`] and [`SurfaceContact::new`]; [`Error::Gpu`]

@@ -20,7 +20,7 @@
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
 //! **A surface contact's couplings** ([`crate::integrator::implicit::Coupling`]) are built on the
-//! device from its own search where the contact's bodies show their own surface
+//! device from its own search where no body is in two surface contacts
 //! (`shaders/couple_build.wgsl`, one a probe, and `shaders/couple_lists.wgsl`, each vertex's
 //! list and blocks; `Couplings::record_built`), or else on the host from the pushes it found
 //! over the positions read back, and uploaded (`Couplings::upload`); `shaders/couple.wgsl` takes each one's
@@ -786,6 +786,10 @@ struct GpuBuild {
     first: u32,
     of_a: u32,
     stiffness: f32,
+    stride: u32,
+    probe_n: u32,
+    partner_n: u32,
+    carries: u32,
 }
 
 /// `Lists` in `shaders/couple_lists.wgsl`.
@@ -799,20 +803,25 @@ struct GpuLists {
     starts_at: u32,
     keys_at: u32,
     h: f32,
-    _pad: u32,
+    carried: u32,
 }
 
 /// Couplings built on the device from its own search of the surface contacts
 /// ([`Couplings::record_built`]): per contact its two sides' build passes, per coupled body
-/// its lists pass, bound once.
+/// its lists passes (`count`, `scan`, `fill`), bound once.
 struct OnDevice {
     build: Kernel,
-    lists: Kernel,
+    lists: [Kernel; 3],
     /// Per contact and side (`b` probing `a`, then `a` probing `b`): the build's group.
     build_groups: Vec<([GpuBuild; 2], [wgpu::BindGroup; 2])>,
     /// Per coupled body (as `gathers`): the lists' uniform, its values and its group.
-    lists_groups: Vec<(Buffer, GpuLists, wgpu::BindGroup)>,
+    lists_groups: Vec<(Buffer, GpuLists, [wgpu::BindGroup; 3])>,
 }
+
+/// Entries a coupling built on the device: a vertex and a triangle's three corners, or, where
+/// a body carries a surface, a point's up to 8 corners and three points' up to 24.
+const STRIDE_OWN: u32 = 4;
+const STRIDE_CARRIED: u32 = 32;
 
 /// One coupled body's gather: its lists of (coupling, ±weight) per vertex.
 struct Gather {
@@ -975,6 +984,7 @@ impl Couplings {
     /// them and their blocks (`shaders/couple_lists.wgsl`), at step `h`. Nothing is uploaded
     /// but the step's `h`. Each coupled body is in one contact (`GpuWorld` builds them so
     /// only then).
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn record_built(
         &mut self,
         device: &wgpu::Device,
@@ -988,38 +998,46 @@ impl Couplings {
         use Slot::{Read, ReadWrite, Uniform};
         self.h = h;
         if self.on_device.is_none() {
-            // Every probe's coupling, every step: the room is known once.
-            let sizes: Vec<(usize, u32)> = self.gathers.iter().map(|g| (g.body, g.n)).collect();
-            let n = |k: usize| sizes.iter().find(|(body, _)| *body == k).map_or(0, |(_, n)| *n);
+            // Every probe's coupling, every step: the room is known once. Side 0 is b's points
+            // probing a's surface, side 1 a's probing b's.
+            let sides: Vec<[crate::gpu::surface::SideLists<'_>; 2]> =
+                surfaces.iter().map(|s| [s.side_lists(0), s.side_lists(1)]).collect();
+            let carries = sides.iter().flatten().any(|s| s.probe.1.is_some() || s.partner.1.is_some());
+            let stride = if carries { STRIDE_CARRIED } else { STRIDE_OWN };
             self.ranges.clear();
             let mut first = 0u32;
-            for p in &self.pairs {
-                let count = n(p.a) + n(p.b);
+            for [s0, s1] in &sides {
+                let count = s0.n_probes + s1.n_probes;
                 self.ranges.push((first, count));
                 first += count;
             }
             let total = u64::from(first).max(1);
-            self.capacity = (total, 4 * total);
+            self.capacity = (total, u64::from(stride) * total);
             self.couplings = storage_buffer(device, "couplings", 48 * total);
-            self.entries = storage_buffer(device, "coupling entries", 32 * total);
+            self.entries = storage_buffer(device, "coupling entries", 8 * u64::from(stride) * total);
             self.push = storage_buffer(device, "coupling pushes", 16 * total);
             self.active = storage_buffer(device, "coupling flags", 4 * total);
-            // A body's items: its own coupling a vertex, and up to three a probe of its partner.
-            let partner_of = |body: usize| {
-                self.pairs.iter().find_map(|p| {
-                    if p.a == body {
-                        Some(p.b)
-                    } else if p.b == body {
-                        Some(p.a)
-                    } else {
-                        None
-                    }
-                })
-            };
+            // A body's items: one a point of its points per vertex (at most 8 a carried point),
+            // and up to 3 a probe of its partner (each over up to 8 vertices where it carries).
+            let spread = if carries { 8 } else { 1 };
             let room: Vec<u64> = self
                 .gathers
                 .iter()
-                .map(|g| u64::from(g.n) + 3 * u64::from(partner_of(g.body).map_or(0, n)))
+                .map(|g| {
+                    let (c, p) = self
+                        .pairs
+                        .iter()
+                        .enumerate()
+                        .find(|(_, p)| p.a == g.body || p.b == g.body)
+                        .unwrap_or_else(|| unreachable!("a gather's body is in a contact"));
+                    // The side where this body is the partner: its own points probe the other.
+                    let (own, other) = if p.b == g.body {
+                        (&sides[c][0], &sides[c][1])
+                    } else {
+                        (&sides[c][1], &sides[c][0])
+                    };
+                    spread * (u64::from(own.n_probes) + 3 * u64::from(other.n_probes))
+                })
                 .collect();
             for (g, room) in self.gathers.iter_mut().zip(room) {
                 g.items_capacity = room.max(1);
@@ -1030,14 +1048,12 @@ impl Couplings {
                 device,
                 "voxcollide coupling build",
                 COUPLE_BUILD,
-                &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
+                &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, Read],
             );
-            let lists = Kernel::new(
-                device,
-                "voxcollide coupling lists",
-                COUPLE_LISTS,
-                &[Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite],
-            );
+            let list_slots = [Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read];
+            let lists = ["count", "scan", "fill"].map(|entry| {
+                Kernel::entry(device, "voxcollide coupling lists", COUPLE_LISTS, &list_slots, entry)
+            });
             let uniform = |label: &str, bytes: &[u8]| {
                 use wgpu::util::DeviceExt as _;
                 device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -1046,20 +1062,32 @@ impl Couplings {
                     usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
                 })
             };
+            // Where a body carries no surface, its carried points' binding is a placeholder.
+            let none = storage_buffer(device, "no carried points", 80);
             let build_groups = self
                 .pairs
                 .iter()
                 .zip(&self.ranges)
-                .zip(surfaces)
-                .map(|((p, &(first, _)), surface)| {
-                    // Side 0: b's probes of a's surface, first; side 1: a's of b's.
-                    let sides = [(p.b, p.a, first, 0), (p.a, p.b, first + n(p.b), 1)];
-                    let params = sides.map(|(_, _, first, s)| {
-                        let side = surface.side_lists(s);
-                        GpuBuild { n_probes: side.n_probes, first, of_a: s as u32, stiffness: side.stiffness }
+                .zip(&sides)
+                .map(|((p, &(first, _)), sides)| {
+                    let firsts = [first, first + sides[0].n_probes];
+                    let (probes, partners) = ([p.b, p.a], [p.a, p.b]);
+                    let params: [GpuBuild; 2] = std::array::from_fn(|s| {
+                        let side = &sides[s];
+                        GpuBuild {
+                            n_probes: side.n_probes,
+                            first: firsts[s],
+                            of_a: s as u32,
+                            stiffness: side.stiffness,
+                            stride,
+                            probe_n: side.probe.0,
+                            partner_n: side.partner.0,
+                            carries: u32::from(side.probe.1.is_some())
+                                | (u32::from(side.partner.1.is_some()) << 1),
+                        }
                     });
-                    let groups = sides.map(|(probe, partner, _, s)| {
-                        let side = surface.side_lists(s);
+                    let groups = std::array::from_fn(|s| {
+                        let side = &sides[s];
                         let params = uniform("coupling build", bytemuck::bytes_of(&params[s]));
                         build.bind(
                             device,
@@ -1067,11 +1095,13 @@ impl Couplings {
                                 &params,
                                 side.hits,
                                 side.topology,
-                                vel[probe],
-                                vel[partner],
+                                vel[probes[s]],
+                                vel[partners[s]],
                                 &self.couplings,
                                 &self.entries,
                                 &self.active,
+                                side.probe.1.unwrap_or(&none),
+                                side.partner.1.unwrap_or(&none),
                             ],
                         )
                     });
@@ -1090,32 +1120,32 @@ impl Couplings {
                         .unwrap_or_else(|| unreachable!("a gather's body is in a contact"));
                     let first = self.ranges[c].0;
                     let is_b = p.b == g.body;
-                    // Its partner's probes on its triangles: the other side's lists.
-                    let other = surfaces[c].side_lists(usize::from(is_b));
+                    // Its partner's probes on its surface: the side where it is the partner
+                    // (side 0 for a, side 1 for b).
+                    let other = &sides[c][usize::from(is_b)];
                     let values = GpuLists {
                         n: g.n,
                         own_first: u32::from(is_b),
-                        own: if is_b { first } else { first + n(p.b) },
-                        other: if is_b { first + n(p.b) } else { first },
+                        own: if is_b { first } else { first + sides[c][0].n_probes },
+                        other: if is_b { first + sides[c][0].n_probes } else { first },
                         starts_at: other.starts_at,
                         keys_at: other.keys_at,
                         h,
-                        _pad: 0,
+                        carried: u32::from(other.partner.1.is_some()),
                     };
                     let params = uniform("coupling lists", bytemuck::bytes_of(&values));
-                    let group = lists.bind(
-                        device,
-                        &[
-                            &params,
-                            other.hits,
-                            other.scratch,
-                            &self.couplings,
-                            &g.offsets,
-                            &g.items,
-                            &implicit[g.body].work,
-                        ],
-                    );
-                    (params, values, group)
+                    let buffers = [
+                        &params,
+                        other.hits,
+                        other.scratch,
+                        &self.couplings,
+                        &g.offsets,
+                        &g.items,
+                        &implicit[g.body].work,
+                        other.partner_points,
+                    ];
+                    let groups = lists.each_ref().map(|k| k.bind(device, &buffers));
+                    (params, values, groups)
                 })
                 .collect();
             self.on_device = Some(OnDevice { build, lists, build_groups, lists_groups });
@@ -1135,8 +1165,10 @@ impl Couplings {
                 d.build.dispatch(&mut pass, group, p.n_probes, max_per_dim);
             }
         }
-        for ((_, values, group), _) in d.lists_groups.iter().zip(&self.gathers) {
-            d.lists.dispatch(&mut pass, group, values.n, max_per_dim);
+        for (_, values, [count, scan, fill]) in &d.lists_groups {
+            d.lists[0].dispatch(&mut pass, count, values.n, max_per_dim);
+            d.lists[1].dispatch_one(&mut pass, scan);
+            d.lists[2].dispatch(&mut pass, fill, values.n, max_per_dim);
         }
     }
 

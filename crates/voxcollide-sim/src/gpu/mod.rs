@@ -6,11 +6,11 @@
 //! move) where the host must decide.
 //!
 //! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact))
-//! steps here wholly on the device between bodies that show their own surface
-//! ([`surface::DeviceSurface`]: each side's search through the voxel model, and the passes after
+//! steps here wholly on the device ([`surface::DeviceSurface`]: each side's search through the voxel model, and the passes after
 //! it, to the CPU's bits, nothing read back); under the implicit integrator its couplings are
 //! built there from the search too (`implicit::Couplings`), where no body is in two surface
-//! contacts. Otherwise (a lattice made from a surface) its search is on the host: each step reads back the
+//! contacts. Otherwise (the implicit integrator with a body in two surface contacts) its search
+//! is on the host: each step reads back the
 //! positions of the two bodies, finds the pushes as the CPU world does (the same code over the
 //! same positions), and uploads the two force buffers that the `forces` pass reads as it reads
 //! a collision's (explicit: the CPU's bits). Under the implicit one the pushes are also uploaded
@@ -330,15 +330,10 @@ impl GpuWorld {
         }
         let device = ctx.device();
         // A surface contact steps on the device under the explicit integrator. Under the
-        // implicit one the device builds its couplings too, where every surface contact's bodies
-        // show their own surface (a carried surface's point is shared by up to 8 vertices, which
-        // the device's couplings do not take) and each body is in one of them at most (its
-        // couplings are listed per vertex for one contact); otherwise every one searches on the
-        // host.
+        // implicit one the device builds its couplings too, where each body is in one surface
+        // contact at most (its couplings are listed per vertex for one contact); otherwise every
+        // one searches on the host.
         let explicit = matches!(world.integrator, Integrator::Explicit);
-        let own_surface = |c: &crate::contact::ContactPair| {
-            world.bodies[c.a].embedded.is_none() && world.bodies[c.b].embedded.is_none()
-        };
         let surface_contacts = |k: usize| {
             world.contacts.iter().filter(|c| c.surface().is_some() && (c.a == k || c.b == k)).count()
         };
@@ -347,7 +342,7 @@ impl GpuWorld {
                 .contacts
                 .iter()
                 .filter(|c| c.surface().is_some())
-                .all(|c| own_surface(c) && surface_contacts(c.a) == 1 && surface_contacts(c.b) == 1);
+                .all(|c| surface_contacts(c.a) == 1 && surface_contacts(c.b) == 1);
         let collisions = world
             .contacts
             .iter()
@@ -495,10 +490,10 @@ impl GpuWorld {
 
     /// How many times the steps so far waited for the device to hand data back to the host
     /// (a buffer mapped for reading), frames ([`sync`](Self::sync)) excluded. 0 where every
-    /// step stays on the device: the explicit integrator with the voxel model's contacts, or
-    /// with surface contacts between bodies that show their own surface. A surface contact's
-    /// search on the host reads positions back once a step, and the implicit solve reads its
-    /// few scalars every few iterations.
+    /// step stays on the device: the explicit integrator, with any contact. The implicit solve
+    /// reads its few scalars about once a round of its active set, and a surface contact's
+    /// search on the host (the implicit integrator with a body in two surface contacts) its
+    /// positions once a step.
     #[must_use]
     pub fn host_waits(&self) -> u64 {
         self.host_waits

@@ -15,9 +15,9 @@
 //! **The explicit step on the device** ([`DeviceSurface`]): both sides' searches, then each
 //! side's clearances, the inside test of doubtful hits and the way in kept for the next step,
 //! and each vertex's force summed in the CPU's order (`shaders/surface_forces.wgsl`,
-//! `shaders/surface_gather.wgsl`), with nothing read back. The implicit integrator builds its
-//! couplings from the same search ([`crate::gpu::implicit`]). A lattice made from a surface
-//! still searches on the host ([`crate::gpu::GpuWorld`]).
+//! `shaders/surface_gather.wgsl`), with nothing read back; a lattice made from a surface shows
+//! it the surface it carries (`shaders/surface_embed.wgsl`). The implicit integrator builds its
+//! couplings from the same search ([`crate::gpu::implicit`]).
 //! The search is held to the CPU's on the same positions (`tests/surface_search.rs`), and the
 //! step to the CPU world's bits (`tests/simulation.rs`).
 
@@ -511,8 +511,16 @@ pub type ReadBack = (Vec<Vec3>, Vec<Vec3>, Vec<u32>);
 /// One side of a [`DeviceSurface`] as the implicit solve's couplings are built from it
 /// ([`DeviceSurface::side_lists`]).
 pub(crate) struct SideLists<'a> {
-    /// The probes (every vertex of the probing body).
+    /// The probes: every point of the probing body (its vertices, then those of the surface it
+    /// carries, if any).
     pub n_probes: u32,
+    /// The probing body's and the partner's: their vertices, and where they carry a surface,
+    /// their carried points (`Carried` in `shaders/surface_embed.wgsl`).
+    pub probe: (u32, Option<&'a Buffer>),
+    pub partner: (u32, Option<&'a Buffer>),
+    /// The partner's points per vertex (the gather's `points`: placeholder where it carries
+    /// none).
+    pub partner_points: &'a Buffer,
     /// Each probe's `SurfaceHit` (`shaders/surface_hit.wgsl`).
     pub hits: &'a Buffer,
     /// The partner's triangles, three corners each.
@@ -899,8 +907,14 @@ impl DeviceSurface {
     /// the hits on each partner vertex's triangles.
     pub(crate) fn side_lists(&self, s: usize) -> SideLists<'_> {
         let side = &self.sides[s];
+        // Side 0: b's points probing a's surface; side 1: a's probing b's.
+        let (probe, partner) = if s == 0 { (1, 0) } else { (0, 1) };
+        let body = |k: usize| (self.bodies[k].0, self.bodies[k].1.as_ref().map(|c| &c.carried));
         SideLists {
             n_probes: side.side.n_probes,
+            probe: body(probe),
+            partner: body(partner),
+            partner_points: &self.gather[partner].3,
             hits: side.search.hits_buffer(),
             topology: side.search.topology_buffer(),
             scratch: &side.scratch,
