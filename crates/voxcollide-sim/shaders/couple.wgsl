@@ -1,4 +1,4 @@
-// A surface contact's couplings in the implicit solve (src/gpu_implicit.rs, `Couplings`; the
+// A surface contact's couplings in the implicit solve (src/gpu/implicit.rs, `Couplings`; the
 // CPU's `Coupling`): each a spring of stiffness k along n between a point of one body and the
 // nearest point of the other's surface, both as weights of their bodies' vertices. Two shaders:
 //
@@ -30,7 +30,7 @@ struct RelativeParams {
     _pad1: u32,
 }
 
-// Keep in sync with `GpuCoupling` in src/gpu_implicit.rs.
+// Keep in sync with couple_build.wgsl (which writes them) and couple_impulse.wgsl.
 struct Coupling {
     normal: vec4<f32>,   // xyz: the push's direction (unit); w: its stiffness k
     terms: vec4<f32>,    // x: its critical damping d; y: its depth (gap − s at the step's start)

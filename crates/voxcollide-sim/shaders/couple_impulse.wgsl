@@ -17,7 +17,7 @@ struct RelativeParams {
     _pad1: u32,
 }
 
-// Keep in sync with `GpuCoupling` in src/gpu/implicit.rs (and couple.wgsl).
+// Keep in sync with `Coupling` in couple.wgsl (and couple_build.wgsl, which writes them).
 struct Coupling {
     normal: vec4<f32>,   // xyz: the push's direction (unit); w: its stiffness
     terms: vec4<f32>,    // x: its critical damping; y: its depth (> 0: pushed now)

@@ -6,10 +6,13 @@
 // the partner's probes on the triangles at those points (minus the corner's barycentric weight
 // times its own), in coupling order as the host lists them (the first side's couplings first,
 // each in probe order, then corner order); the blocks are summed in that order, as the CPU's
-// `coupling_blocks`. Three passes, one invocation per vertex but the scan:
-//   `count`  each vertex's couplings, into `offsets`;
-//   `scan`   the counts into their starts, in place (n + 1 of them, the last the total);
-//   `fill`   the lists and the blocks.
+// `coupling_blocks`. A body in several surface contacts has each contact's couplings after
+// the one's before (they are numbered in contact order), and its blocks summed on. Three
+// passes, one invocation per vertex but the scan:
+//   `count`  each vertex's couplings of the contact, into (or onto) `offsets`;
+//   `scan`   the counts into their starts, in place (n + 1 of them, the last the total), once
+//            after every contact's count;
+//   `fill`   the lists and the blocks, each contact's after the ones before (`cursor`).
 
 struct Lists {
     n: u32,            // the body's vertices
@@ -20,6 +23,10 @@ struct Lists {
     keys_at: u32,      // and their keys, 3·probe + corner
     h: f32,
     carried: u32,      // 1 where the body carries its surface: each vertex's points in `points`
+    after: u32,        // 1 where this is not the body's first surface contact
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Keep in sync with `Coupling` in couple.wgsl.
@@ -38,6 +45,8 @@ struct Coupling {
 @group(0) @binding(6) var<storage, read_write> work: array<vec4<f32>>;
 // Per vertex, its points and its weight in each (surface_gather.wgsl's `points`).
 @group(0) @binding(7) var<storage, read> points: array<u32>;
+// Per vertex, how many of its couplings the contacts before this one have filled in.
+@group(0) @binding(8) var<storage, read_write> cursor: array<u32>;
 
 var<private> block_a: vec4<f32>;   // xx, yy, zz, xy
 var<private> block_b: vec2<f32>;   // xz, yz
@@ -74,9 +83,13 @@ fn count(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups)
     for (var e = r.x; e < r.y; e++) {
         total += reactions_at(point_at(v, e).x);
     }
-    offsets[v] = total;
-    if v == 0u {
-        offsets[lists.n] = 0u;
+    if lists.after == 1u {
+        offsets[v] += total;
+    } else {
+        offsets[v] = total;
+        if v == 0u {
+            offsets[lists.n] = 0u;
+        }
     }
 }
 
@@ -139,6 +152,11 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     var at = offsets[v];
     block_a = vec4<f32>(0.0);
     block_b = vec2<f32>(0.0);
+    if lists.after == 1u {
+        at += cursor[v];
+        block_a = work[SLOT_E0 * lists.n + v];
+        block_b = work[SLOT_E1 * lists.n + v].xy;
+    }
     if lists.own_first == 1u {
         at = own_couplings(v, r, at);
     }
@@ -174,6 +192,7 @@ fn fill(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     if lists.own_first == 0u {
         at = own_couplings(v, r, at);
     }
+    cursor[v] = at - offsets[v];
     work[SLOT_E0 * lists.n + v] = block_a;
     work[SLOT_E1 * lists.n + v] = vec4<f32>(block_b, 0.0, 0.0);
 }

@@ -580,3 +580,83 @@ fn a_probe_past_the_middle_of_a_thin_plate_is_pushed_out_the_way_it_came_in() {
     }
     assert!(past_middle >= 4, "{past_middle}");
 }
+
+/// A block pressed by two rigid balls, a contact each, the block `b` of one and `a` of the
+/// other: each of its vertices has couplings of both contacts.
+const TWO_BALLS: &str = r#"
+units = "mm"
+[time]
+integrator = "implicit"
+steps = 60
+[[body]]
+name = "block"
+kind = "soft"
+shape = { box = [36, 24, 10] }
+spacing = 3
+material = { young_kpa = 10 }
+fixed = [{ below = { z = -4 } }]
+[[body]]
+name = "left"
+kind = "rigid"
+shape = { sphere = 5 }
+spacing = 2.5
+position = [-9, 0, 10]
+motion = [{ t = 0.0, position = [-9, 0, 10] }, { t = 0.01, position = [-9, 0, 8] }]
+[[body]]
+name = "right"
+kind = "rigid"
+shape = { sphere = 5 }
+spacing = 2.5
+position = [9, 1, 10]
+motion = [{ t = 0.0, position = [9, 1, 10] }, { t = 0.01, position = [9, 1, 8.5] }]
+[[contact]]
+a = "left"
+b = "block"
+[[contact]]
+a = "block"
+b = "right"
+"#;
+
+#[test]
+fn a_body_in_two_surface_contacts_is_coupled_on_the_device_as_on_the_cpu() {
+    // The device lists each vertex's couplings of both contacts, the first contact's before the
+    // second's, and sums their blocks on (`shaders/couple_lists.wgsl`): the two backends agree
+    // to the solve's tolerance, and a step waits for its solve alone.
+    let Some(ctx) = common::gpu() else { return };
+    let built = build_world(&SceneFile::parse("two.toml", TWO_BALLS).unwrap()).unwrap();
+    assert_ne!(built.world.integrator, Integrator::Explicit);
+    let mut cpu = CpuWorld::new(built.world.clone()).unwrap();
+    let mut gpu = GpuWorld::new(&ctx, built.world).unwrap();
+    let (mut pushed, mut worst) = ([0; 2], 0.0f32);
+    for step in 1..=60 {
+        cpu.step().unwrap();
+        gpu.step().unwrap();
+        for (c, s) in pushed.iter_mut().zip(gpu.surface_stats()) {
+            *c += s.a_pushed + s.b_pushed;
+        }
+        gpu.sync().unwrap();
+        for (c, g) in cpu.world.bodies.iter().zip(&gpu.world.bodies) {
+            let d = c.pos.iter().zip(&g.pos).map(|(a, b)| a.distance(*b)).fold(0.0, f32::max);
+            worst = worst.max(d);
+        }
+        let (c, g) = (cpu.stats[0], gpu.stats().unwrap()[0]);
+        assert!(g.relative_residual <= ImplicitSettings::default().tolerance, "step {step}: {g:?}");
+        assert!(c.iterations.abs_diff(g.iterations) <= 2, "step {step}: {c:?} on the CPU, {g:?}");
+    }
+    assert!(pushed.iter().all(|p| *p > 0), "a ball never pressed: {pushed:?}");
+    assert!(worst < 1e-3, "the bodies differ by up to {worst} mm");
+    // Each ball left its dent.
+    let block = &gpu.world.bodies[0];
+    for x in [-9.0f32, 9.0] {
+        let dent = block
+            .pos
+            .iter()
+            .zip(&block.rest_pos)
+            .filter(|(_, r)| (r.x - x).abs() < 4.0)
+            .map(|(p, r)| r.z - p.z)
+            .fold(0.0f32, f32::max);
+        assert!(dent > 0.2, "the dent at x = {x} is {dent} mm");
+    }
+    let waits = gpu.host_waits() as f64 / 60.0;
+    assert!((1.0..1.5).contains(&waits), "{waits} waits a step");
+}

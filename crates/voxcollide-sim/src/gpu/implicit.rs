@@ -20,10 +20,9 @@
 //! products (`g·v`, `g·p`) and a body's residual at rest are its own.
 //!
 //! **A surface contact's couplings** ([`crate::integrator::implicit::Coupling`]) are built on the
-//! device from its own search where no body is in two surface contacts
-//! (`shaders/couple_build.wgsl`, one a probe, and `shaders/couple_lists.wgsl`, each vertex's
-//! list and blocks; `Couplings::record_built`), or else on the host from the pushes it found
-//! over the positions read back, and uploaded (`Couplings::upload`); `shaders/couple.wgsl` takes each one's
+//! device from its own search each step (`shaders/couple_build.wgsl`, one a probe, and
+//! `shaders/couple_lists.wgsl`, each vertex's list and blocks; `Couplings::record_built`), as
+//! the CPU builds them from its pushes; `shaders/couple.wgsl` takes each one's
 //! `n·(Σ w·u_point − Σ w·u_partner)` of `p`, `x`, or `v` and the held `Δv`, and gathers its terms
 //! per vertex into a slot that `A·p`, `b − A·x` and the right-hand side add. The solve is taken
 //! again from its answer while the set of couplings it ends within the gap changes (at most four
@@ -186,10 +185,9 @@ const fn per_tetrahedron(pass: usize) -> bool {
 const TET_WORK: u64 = 15;
 
 /// Slots of per-vertex vectors in `work` (`SLOTS` in implicit_solve.wgsl); the contact stiffness's,
-/// and the couplings' own blocks (`SLOT_E0`, `SLOT_E1`, written by the host).
+/// and the couplings' own blocks (`SLOT_E0`, `SLOT_E1`, written by `shaders/couple_lists.wgsl`).
 const SLOTS: u64 = 18;
 const SLOT_KC0: u32 = 5;
-const SLOT_E0: u64 = 16;
 /// Columns of partials, the joint scalars and each body's own in `red`.
 const COLUMNS: u64 = 8;
 const SCALARS: u64 = 16;
@@ -533,7 +531,7 @@ fn each(bodies: usize, passes: impl Fn(usize) -> Vec<usize>) -> Vec<(usize, usiz
 /// The solve of one implicit step over every body, after the collisions and the fills'
 /// pressures are recorded in `encoder`: the contact stiffness, the system, one conjugate
 /// gradient over every body to the joint tolerance, and the farthest move. With `couplings`
-/// (a surface contact's, uploaded for this step), their terms join the system, and the solve is
+/// (a surface contact's, built for this step), their terms join the system, and the solve is
 /// repeated from its last answer while the set of couplings it ends within the gap changes, at
 /// most four times, as on the CPU. Returns each body's solve (the joint one's figures, with its
 /// own residual at rest); the update is [`finish`]'s.
@@ -643,7 +641,7 @@ pub(crate) fn solve(
         let mut ahead = if round == 1 { setup.expect.div_ceil(BATCH).max(1) } else { 1 };
         // The couplings the solve ends within the gap are in it, and no others: solved again,
         // from its answer, while that set changes (after the first round pairs only join).
-        let recheck = couplings.filter(|c| c.any() && round < 4);
+        let recheck = couplings.filter(|_| round < 4);
         // The farthest move, and the couplings' arrival test, ride along with each readback of
         // the solve: the first reads the solve's answer and writes only its own scratch, and
         // the second waits on the device for the solve to be done (`couple.wgsl`), so that a
@@ -738,18 +736,6 @@ pub(crate) fn stats(solved: &[Solved], scale: f32, taken: bool) -> Vec<StepStats
         .collect()
 }
 
-/// Keep in sync with `Coupling` in `shaders/couple.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-struct GpuCoupling {
-    /// The push's direction, and its stiffness.
-    normal: [f32; 4],
-    /// Its critical damping and its depth.
-    terms: [f32; 4],
-    /// Its first entry, the partner's first, the end, and 1 where the pushed point is `a`'s.
-    range: [u32; 4],
-}
-
 /// Keep in sync with `RelativeParams` in `shaders/couple.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -804,6 +790,8 @@ struct GpuLists {
     keys_at: u32,
     h: f32,
     carried: u32,
+    after: u32,
+    _pad: [u32; 3],
 }
 
 /// Couplings built on the device from its own search of the surface contacts
@@ -814,8 +802,9 @@ struct OnDevice {
     lists: [Kernel; 3],
     /// Per contact and side (`b` probing `a`, then `a` probing `b`): the build's group.
     build_groups: Vec<([GpuBuild; 2], [wgpu::BindGroup; 2])>,
-    /// Per coupled body (as `gathers`): the lists' uniform, its values and its group.
-    lists_groups: Vec<(Buffer, GpuLists, [wgpu::BindGroup; 3])>,
+    /// Per coupled body (as `gathers`) and per surface contact of it, in contact order: the
+    /// lists' uniform, its values and its groups.
+    lists_groups: Vec<Vec<(Buffer, GpuLists, [wgpu::BindGroup; 3])>>,
 }
 
 /// Entries a coupling built on the device: a vertex and a triangle's three corners, or, where
@@ -834,11 +823,10 @@ struct Gather {
 }
 
 /// The surface contacts' couplings in the device's implicit solve (`shaders/couple.wgsl`): the
-/// host builds them from the contacts' pushes each step ([`crate::integrator::implicit::Coupling`], as the
-/// CPU does) and uploads them ([`upload`](Self::upload)), or, where the contacts' search runs
-/// on the device, the device builds them there ([`record_built`](Self::record_built)); the
-/// passes add their terms to `A·p`, `A·x` and the right-hand side, and mark which the solve
-/// ends within the gap.
+/// device builds them each step from the contacts' search there
+/// ([`record_built`](Self::record_built); [`crate::integrator::implicit::Coupling`], as the CPU
+/// builds them from its pushes); the passes add their terms to `A·p`, `A·x` and the right-hand
+/// side, and mark which the solve ends within the gap.
 pub(crate) struct Couplings {
     relative: Vec<Kernel>,
     gather: Kernel,
@@ -856,15 +844,11 @@ pub(crate) struct Couplings {
     push: Buffer,
     active: Buffer,
     changed: Buffer,
-    /// Room for this many couplings and entries.
-    capacity: (u64, u64),
     /// This step's: per contact its first coupling and count, and the couplings.
     ranges: Vec<(u32, u32)>,
-    host: Vec<crate::integrator::implicit::Coupling>,
     h: f32,
     bound: bool,
-    /// Built on the device: whether, and (once bound) its passes.
-    built: bool,
+    /// Its build's passes, once bound.
     on_device: Option<OnDevice>,
 }
 
@@ -879,9 +863,8 @@ fn storage_buffer(device: &wgpu::Device, label: &'static str, size: u64) -> Buff
 
 impl Couplings {
     /// The couplings of the surface contacts `pairs` over bodies of `n` vertices each, built on
-    /// the device from its own search (`built`: [`record_built`](Self::record_built)) or on the
-    /// host ([`upload`](Self::upload)).
-    pub(crate) fn new(device: &wgpu::Device, pairs: Vec<CoupledPair>, n: &[u32], built: bool) -> Couplings {
+    /// the device from its own search ([`record_built`](Self::record_built)).
+    pub(crate) fn new(device: &wgpu::Device, pairs: Vec<CoupledPair>, n: &[u32]) -> Couplings {
         use Slot::{Read, ReadWrite, Uniform};
         let relative = (0..4)
             .map(|mode| {
@@ -952,38 +935,18 @@ impl Couplings {
             push: storage_buffer(device, "coupling pushes", 16),
             active: storage_buffer(device, "coupling flags", 4),
             changed: storage_buffer(device, "couplings changed", 4),
-            capacity: (1, 1),
             ranges: Vec::new(),
-            host: Vec::new(),
             h: 0.0,
             bound: false,
-            built,
             on_device: None,
         }
-    }
-
-    /// Whether the device builds them from its own search ([`record_built`](Self::record_built)).
-    pub(crate) fn built(&self) -> bool {
-        self.built
-    }
-
-    /// Whether there may be couplings this step (built on the device: one for every probe,
-    /// most of them empty).
-    fn any(&self) -> bool {
-        self.built || !self.host.is_empty()
-    }
-
-    /// Whether a coupling may be pushed now, and so take an impulse after the step.
-    pub(crate) fn may_push(&self) -> bool {
-        self.built || self.host.iter().any(|k| k.depth > 0.0)
     }
 
     /// Records this step's couplings built on the device into `encoder`, after the contacts'
     /// searches (`surfaces`, one per pair, [`DeviceSurface`](crate::gpu::surface::DeviceSurface)):
     /// each probe's coupling (`shaders/couple_build.wgsl`), then each coupled body's lists of
-    /// them and their blocks (`shaders/couple_lists.wgsl`), at step `h`. Nothing is uploaded
-    /// but the step's `h`. Each coupled body is in one contact (`GpuWorld` builds them so
-    /// only then).
+    /// them and their blocks (`shaders/couple_lists.wgsl`, a body's contacts in order), at step
+    /// `h`. Nothing is uploaded but the step's `h`.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn record_built(
         &mut self,
@@ -1012,7 +975,6 @@ impl Couplings {
                 first += count;
             }
             let total = u64::from(first).max(1);
-            self.capacity = (total, u64::from(stride) * total);
             self.couplings = storage_buffer(device, "couplings", 48 * total);
             self.entries = storage_buffer(device, "coupling entries", 8 * u64::from(stride) * total);
             self.push = storage_buffer(device, "coupling pushes", 16 * total);
@@ -1024,19 +986,17 @@ impl Couplings {
                 .gathers
                 .iter()
                 .map(|g| {
-                    let (c, p) = self
-                        .pairs
+                    self.pairs
                         .iter()
-                        .enumerate()
-                        .find(|(_, p)| p.a == g.body || p.b == g.body)
-                        .unwrap_or_else(|| unreachable!("a gather's body is in a contact"));
-                    // The side where this body is the partner: its own points probe the other.
-                    let (own, other) = if p.b == g.body {
-                        (&sides[c][0], &sides[c][1])
-                    } else {
-                        (&sides[c][1], &sides[c][0])
-                    };
-                    spread * (u64::from(own.n_probes) + 3 * u64::from(other.n_probes))
+                        .zip(&sides)
+                        .filter(|(p, _)| p.a == g.body || p.b == g.body)
+                        .map(|(p, sides)| {
+                            // The side where this body probes, and the other.
+                            let (own, other) =
+                                if p.b == g.body { (&sides[0], &sides[1]) } else { (&sides[1], &sides[0]) };
+                            spread * (u64::from(own.n_probes) + 3 * u64::from(other.n_probes))
+                        })
+                        .sum::<u64>()
                 })
                 .collect();
             for (g, room) in self.gathers.iter_mut().zip(room) {
@@ -1050,7 +1010,7 @@ impl Couplings {
                 COUPLE_BUILD,
                 &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, Read],
             );
-            let list_slots = [Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read];
+            let list_slots = [Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, ReadWrite];
             let lists = ["count", "scan", "fill"].map(|entry| {
                 Kernel::entry(device, "voxcollide coupling lists", COUPLE_LISTS, &list_slots, entry)
             });
@@ -1112,46 +1072,53 @@ impl Couplings {
                 .gathers
                 .iter()
                 .map(|g| {
-                    let (c, p) = self
-                        .pairs
+                    // Per vertex, how far the contacts before have filled its list.
+                    let cursor = storage_buffer(device, "coupling lists cursor", 4 * u64::from(g.n));
+                    self.pairs
                         .iter()
                         .enumerate()
-                        .find(|(_, p)| p.a == g.body || p.b == g.body)
-                        .unwrap_or_else(|| unreachable!("a gather's body is in a contact"));
-                    let first = self.ranges[c].0;
-                    let is_b = p.b == g.body;
-                    // Its partner's probes on its surface: the side where it is the partner
-                    // (side 0 for a, side 1 for b).
-                    let other = &sides[c][usize::from(is_b)];
-                    let values = GpuLists {
-                        n: g.n,
-                        own_first: u32::from(is_b),
-                        own: if is_b { first } else { first + sides[c][0].n_probes },
-                        other: if is_b { first + sides[c][0].n_probes } else { first },
-                        starts_at: other.starts_at,
-                        keys_at: other.keys_at,
-                        h,
-                        carried: u32::from(other.partner.1.is_some()),
-                    };
-                    let params = uniform("coupling lists", bytemuck::bytes_of(&values));
-                    let buffers = [
-                        &params,
-                        other.hits,
-                        other.scratch,
-                        &self.couplings,
-                        &g.offsets,
-                        &g.items,
-                        &implicit[g.body].work,
-                        other.partner_points,
-                    ];
-                    let groups = lists.each_ref().map(|k| k.bind(device, &buffers));
-                    (params, values, groups)
+                        .filter(|(_, p)| p.a == g.body || p.b == g.body)
+                        .enumerate()
+                        .map(|(nth, (c, p))| {
+                            let first = self.ranges[c].0;
+                            let is_b = p.b == g.body;
+                            // Its partner's probes on its surface: the side where it is the
+                            // partner (side 0 for a, side 1 for b).
+                            let other = &sides[c][usize::from(is_b)];
+                            let values = GpuLists {
+                                n: g.n,
+                                own_first: u32::from(is_b),
+                                own: if is_b { first } else { first + sides[c][0].n_probes },
+                                other: if is_b { first + sides[c][0].n_probes } else { first },
+                                starts_at: other.starts_at,
+                                keys_at: other.keys_at,
+                                h,
+                                carried: u32::from(other.partner.1.is_some()),
+                                after: u32::from(nth > 0),
+                                _pad: [0; 3],
+                            };
+                            let params = uniform("coupling lists", bytemuck::bytes_of(&values));
+                            let buffers = [
+                                &params,
+                                other.hits,
+                                other.scratch,
+                                &self.couplings,
+                                &g.offsets,
+                                &g.items,
+                                &implicit[g.body].work,
+                                other.partner_points,
+                                &cursor,
+                            ];
+                            let groups = lists.each_ref().map(|k| k.bind(device, &buffers));
+                            (params, values, groups)
+                        })
+                        .collect()
                 })
                 .collect();
             self.on_device = Some(OnDevice { build, lists, build_groups, lists_groups });
         }
         let Some(d) = self.on_device.as_ref() else { unreachable!("made above") };
-        for (params, values, _) in &d.lists_groups {
+        for (params, values, _) in d.lists_groups.iter().flatten() {
             queue.write_buffer(params, 0, bytemuck::bytes_of(&GpuLists { h, ..*values }));
         }
         self.set_round(queue, 1);
@@ -1165,136 +1132,23 @@ impl Couplings {
                 d.build.dispatch(&mut pass, group, p.n_probes, max_per_dim);
             }
         }
-        for (_, values, [count, scan, fill]) in &d.lists_groups {
-            d.lists[0].dispatch(&mut pass, count, values.n, max_per_dim);
-            d.lists[1].dispatch_one(&mut pass, scan);
-            d.lists[2].dispatch(&mut pass, fill, values.n, max_per_dim);
+        // Per coupled body: each of its contacts' counts, one scan, each contact's lists.
+        for contacts in &d.lists_groups {
+            for (_, values, [count, _, _]) in contacts {
+                d.lists[0].dispatch(&mut pass, count, values.n, max_per_dim);
+            }
+            if let Some((_, _, [_, scan, _])) = contacts.first() {
+                d.lists[1].dispatch_one(&mut pass, scan);
+            }
+            for (_, values, [_, _, fill]) in contacts {
+                d.lists[2].dispatch(&mut pass, fill, values.n, max_per_dim);
+            }
         }
     }
 
     /// Whether `body` is coupled.
     pub(crate) fn couples(&self, body: usize) -> bool {
         self.gathers.iter().any(|g| g.body == body)
-    }
-
-    /// This step's couplings, per contact in order (`per_contact[c]` the couplings of contact
-    /// `pairs[c]`), over `bodies` at step `h`: uploaded, with the couplings' own blocks into
-    /// each coupled body's `work`, every one in the solve that is pushed now.
-    #[allow(clippy::too_many_arguments)]
-    pub(crate) fn upload(
-        &mut self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        bodies: &[crate::body::MassSpring],
-        implicit: &[ImplicitBody],
-        (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
-        per_contact: Vec<Vec<crate::integrator::implicit::Coupling>>,
-        h: f32,
-    ) {
-        use crate::contact::entries;
-        self.ranges.clear();
-        self.host.clear();
-        for list in per_contact {
-            self.ranges.push((self.host.len() as u32, list.len() as u32));
-            self.host.extend(list);
-        }
-        self.h = h;
-        let damping = crate::integrator::implicit::coupling_damping(bodies, &self.host);
-        let blocks = crate::integrator::implicit::coupling_blocks(bodies, &self.host, &damping, h);
-        // The records and their entries; per coupled body, its lists.
-        let mut records = Vec::with_capacity(self.host.len());
-        let mut flat: Vec<[u32; 2]> = Vec::new();
-        let mut lists: Vec<Vec<Vec<[u32; 2]>>> =
-            self.gathers.iter().map(|g| vec![Vec::new(); g.n as usize]).collect();
-        let slot_of = |body: usize| self.gathers.iter().position(|g| g.body == body);
-        // Each coupling's contact, whose pair its pass binds as `a` and `b`.
-        let contact_of: Vec<usize> = self
-            .ranges
-            .iter()
-            .enumerate()
-            .flat_map(|(c, &(_, count))| std::iter::repeat_n(c, count as usize))
-            .collect();
-        for (c, ((k, d), &contact)) in self.host.iter().zip(&damping).zip(&contact_of).enumerate() {
-            let start = flat.len() as u32;
-            let (body, partner) = (slot_of(k.body as usize), slot_of(k.partner as usize));
-            for (v, w) in entries(&k.point) {
-                flat.push([v, w.to_bits()]);
-                if let Some(g) = body {
-                    lists[g][v as usize].push([c as u32, w.to_bits()]);
-                }
-            }
-            let middle = flat.len() as u32;
-            for (v, w) in entries(&k.from) {
-                flat.push([v, w.to_bits()]);
-                if let Some(g) = partner {
-                    lists[g][v as usize].push([c as u32, (-w).to_bits()]);
-                }
-            }
-            // (Whether the pushed point is its contact's `a`: two contacts may name the same two
-            // bodies in either order.)
-            let of_a = self.pairs[contact].a == k.body as usize;
-            records.push(GpuCoupling {
-                normal: k.normal.extend(k.stiffness).to_array(),
-                terms: [*d, k.depth, 0.0, 0.0],
-                range: [start, middle, flat.len() as u32, u32::from(of_a)],
-            });
-        }
-        // Room for them, the bind groups made anew where a buffer was.
-        let (couplings, entries_len) = (records.len() as u64, flat.len() as u64);
-        if couplings > self.capacity.0 || entries_len > self.capacity.1 {
-            self.capacity = (
-                couplings.max(self.capacity.0).next_power_of_two(),
-                entries_len.max(self.capacity.1).next_power_of_two(),
-            );
-            self.couplings = storage_buffer(device, "couplings", 48 * self.capacity.0);
-            self.entries = storage_buffer(device, "coupling entries", 8 * self.capacity.1);
-            self.push = storage_buffer(device, "coupling pushes", 16 * self.capacity.0);
-            self.active = storage_buffer(device, "coupling flags", 4 * self.capacity.0);
-            self.bound = false;
-        }
-        for (g, lists) in self.gathers.iter_mut().zip(&lists) {
-            let items: u64 = lists.iter().map(|l| l.len() as u64).sum();
-            if items > g.items_capacity {
-                g.items_capacity = items.next_power_of_two();
-                g.items = storage_buffer(device, "coupling gather items", 8 * g.items_capacity);
-                self.bound = false;
-            }
-        }
-        if !self.bound {
-            self.bind(device, implicit, (vel, info, red));
-        }
-        queue.write_buffer(&self.couplings, 0, bytemuck::cast_slice(&records));
-        queue.write_buffer(&self.entries, 0, bytemuck::cast_slice(&flat));
-        let active: Vec<u32> = self.host.iter().map(|k| u32::from(k.depth > 0.0)).collect();
-        queue.write_buffer(&self.active, 0, bytemuck::cast_slice(&active));
-        self.set_round(queue, 1);
-        for (g, lists) in self.gathers.iter().zip(&lists) {
-            let mut offsets = Vec::with_capacity(lists.len() + 1);
-            offsets.push(0u32);
-            let mut items: Vec<[u32; 2]> = Vec::new();
-            for l in lists {
-                items.extend_from_slice(l);
-                offsets.push(items.len() as u32);
-            }
-            queue.write_buffer(&g.offsets, 0, bytemuck::cast_slice(&offsets));
-            if !items.is_empty() {
-                queue.write_buffer(&g.items, 0, bytemuck::cast_slice(&items));
-            }
-            // The couplings' own blocks, symmetric in two slots (as `SLOT_KC0/1`).
-            let n = g.n as usize;
-            let mut packed = vec![[0.0f32; 4]; 2 * n];
-            if let Some(b) = blocks.get(g.body).filter(|b| b.len() == n) {
-                for (i, m) in b.iter().enumerate() {
-                    packed[i] = [m.x_axis.x, m.y_axis.y, m.z_axis.z, m.x_axis.y];
-                    packed[n + i] = [m.x_axis.z, m.y_axis.z, 0.0, 0.0];
-                }
-            }
-            queue.write_buffer(
-                &implicit[g.body].work,
-                16 * SLOT_E0 * u64::from(g.n),
-                bytemuck::cast_slice(&packed),
-            );
-        }
     }
 
     fn bind(

@@ -1,23 +1,17 @@
 //! The scene stepped on the GPU: the collision passes (through the embedding API) and the
 //! simulation passes `forces` and `integrate` for every body, recorded into one encoder per
-//! step, with nothing read back until a frame is wanted (but a surface contact's positions,
-//! below). Under the implicit integrator the step's solve is [`crate::gpu::implicit`]'s passes
+//! step, with nothing read back until a frame is wanted. Under the implicit integrator the step's solve is [`crate::gpu::implicit`]'s passes
 //! instead, which read back a few numbers (has the solve converged, how far would a vertex
 //! move) where the host must decide.
 //!
 //! **A surface contact** (`response = "surface"`, [`SurfaceContact`](crate::contact::SurfaceContact))
-//! steps here wholly on the device ([`surface::DeviceSurface`]: each side's search through the voxel model, and the passes after
-//! it, to the CPU's bits, nothing read back); under the implicit integrator its couplings are
-//! built there from the search too (`implicit::Couplings`), where no body is in two surface
-//! contacts. Otherwise (the implicit integrator with a body in two surface contacts) its search
-//! is on the host: each step reads back the
-//! positions of the two bodies, finds the pushes as the CPU world does (the same code over the
-//! same positions), and uploads the two force buffers that the `forces` pass reads as it reads
-//! a collision's (explicit: the CPU's bits). Under the implicit one the pushes are also uploaded
-//! as couplings ([`crate::integrator::implicit::Coupling`]) that join the two bodies in the
-//! device's one solve ([`crate::gpu::implicit`]), and the inelastic impulses after the step
-//! are applied on the device too (`shaders/couple_impulse.wgsl`, the CPU's rule; docs/contacts.md,
-//! "The search on the device").
+//! steps here wholly on the device ([`surface::DeviceSurface`]: each side's search through the
+//! voxel model, and the passes after it, to the CPU's bits, nothing read back; a lattice made
+//! from a surface shows it the surface it carries). Under the implicit integrator the device
+//! builds the couplings ([`crate::integrator::implicit::Coupling`]) that join the two bodies in
+//! its one solve from that search too (`implicit::Couplings`, [`crate::gpu::implicit`]), and
+//! applies the inelastic impulses after the step (`shaders/couple_impulse.wgsl`, the CPU's
+//! rule; docs/contacts.md, "The search on the device").
 
 mod contact;
 pub mod implicit;
@@ -29,7 +23,6 @@ use wgpu::{Buffer, BufferUsages};
 
 use crate::body::{MassSpring, StepInputs};
 use crate::contact::SurfaceStats;
-use crate::integrator::implicit::Coupling;
 use crate::integrator::implicit::{ImplicitSettings, Residual, StepStats};
 use crate::integrator::substep::{Parts, Stepper, after_implicit_step};
 use crate::world::{Integrator, World};
@@ -253,14 +246,11 @@ enum ContactSource {
 /// coupled bodies' velocities).
 pub struct GpuWorld {
     /// The world. Its bodies' positions and velocities are brought up to date by
-    /// [`sync`](Self::sync); a surface contact's bodies' positions also each step, for the
-    /// host's search (their velocities only by `sync`).
+    /// [`sync`](Self::sync).
     pub world: World,
     ctx: GpuContext,
     /// Per contact, in the world's order.
     collisions: Vec<DeviceContact>,
-    /// Whether a contact is found on the host (its bodies' positions then read back each step).
-    on_host: bool,
     forces: Kernel,
     integrate: Kernel,
     accumulate: Kernel,
@@ -329,26 +319,13 @@ impl GpuWorld {
             });
         }
         let device = ctx.device();
-        // A surface contact steps on the device under the explicit integrator. Under the
-        // implicit one the device builds its couplings too, where each body is in one surface
-        // contact at most (its couplings are listed per vertex for one contact); otherwise every
-        // one searches on the host.
-        let explicit = matches!(world.integrator, Integrator::Explicit);
-        let surface_contacts = |k: usize| {
-            world.contacts.iter().filter(|c| c.surface().is_some() && (c.a == k || c.b == k)).count()
-        };
-        let built = !explicit
-            && world
-                .contacts
-                .iter()
-                .filter(|c| c.surface().is_some())
-                .all(|c| surface_contacts(c.a) == 1 && surface_contacts(c.b) == 1);
+        // A surface contact steps on the device under either integrator; under the implicit
+        // one the device builds the solve's couplings from its search too.
         let collisions = world
             .contacts
             .iter()
-            .map(|c| DeviceContact::new(ctx, c, &world.bodies, explicit || built))
+            .map(|c| DeviceContact::new(ctx, c, &world.bodies))
             .collect::<Result<Vec<_>, _>>()?;
-        let on_host = collisions.iter().any(DeviceContact::on_host);
         use Slot::{Read, ReadWrite, Uniform};
         let contacts_of = world.contacts_of();
         let (forces, integrate, accumulate, volume, bodies, sources) = scoped(device, || {
@@ -425,7 +402,7 @@ impl GpuWorld {
                         .map(|c| CoupledPair { a: c.a, b: c.b })
                         .collect();
                     let n: Vec<u32> = world.bodies.iter().map(|b| b.len() as u32).collect();
-                    (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n, built))
+                    (!pairs.is_empty()).then(|| Couplings::new(device, pairs, &n))
                 },
                 guess_h: 0.0,
                 last_iterations: 0,
@@ -441,7 +418,6 @@ impl GpuWorld {
             max_per_dim: device.limits().max_compute_workgroups_per_dimension,
             ctx: ctx.clone(),
             collisions,
-            on_host,
             forces,
             integrate,
             accumulate,
@@ -491,9 +467,7 @@ impl GpuWorld {
     /// How many times the steps so far waited for the device to hand data back to the host
     /// (a buffer mapped for reading), frames ([`sync`](Self::sync)) excluded. 0 where every
     /// step stays on the device: the explicit integrator, with any contact. The implicit solve
-    /// reads its few scalars about once a round of its active set, and a surface contact's
-    /// search on the host (the implicit integrator with a body in two surface contacts) its
-    /// positions once a step.
+    /// reads its few scalars about once a round of its active set.
     #[must_use]
     pub fn host_waits(&self) -> u64 {
         self.host_waits
@@ -522,19 +496,11 @@ impl GpuWorld {
                 bytemuck::bytes_of(&gpu.params(body, inputs, self.world.v_max, self.step)),
             );
         }
-        if self.on_host {
-            self.read_positions()?;
-        }
         let mut encoder = device
             .create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("voxcollide sim step") });
         for (collision, pair) in self.collisions.iter_mut().zip(&self.world.contacts) {
             let (a, b) = (&self.bodies[pair.a], &self.bodies[pair.b]);
-            collision.record(
-                &mut encoder,
-                queue,
-                (&a.pos, a.n, &self.world.bodies[pair.a]),
-                (&b.pos, b.n, &self.world.bodies[pair.b]),
-            )?;
+            collision.record(&mut encoder, queue, (&a.pos, a.n), (&b.pos, b.n))?;
         }
         if self.bound.is_none() {
             let (bound, implicit_bodies, sums) = self.bind(&device)?;
@@ -739,27 +705,6 @@ impl GpuWorld {
         self.collisions.iter().map(DeviceContact::surface_stats).collect()
     }
 
-    /// Reads the positions of the bodies in a surface contact back into
-    /// [`world`](Self::world), for the host's search.
-    fn read_positions(&mut self) -> Result<(), Error> {
-        let mut wanted = vec![false; self.bodies.len()];
-        for (c, pair) in self.collisions.iter().zip(&self.world.contacts) {
-            if c.on_host() {
-                wanted[pair.a] = true;
-                wanted[pair.b] = true;
-            }
-        }
-        let which: Vec<usize> = (0..wanted.len()).filter(|&k| wanted[k]).collect();
-        let parts: Vec<(&Buffer, u64)> =
-            which.iter().map(|&k| (&self.bodies[k].pos, 16 * u64::from(self.bodies[k].n))).collect();
-        let bytes = voxcollide::gpu::read_buffers(&self.ctx, &parts)?;
-        for (&k, bytes) in which.iter().zip(&bytes) {
-            let pos: Vec<Vec4> = bytemuck::pod_collect_to_vec(bytes);
-            self.world.bodies[k].pos = pos.iter().map(|p| p.truncate()).collect();
-        }
-        Ok(())
-    }
-
     /// Reads every body's positions, velocities and held fill pressure back into
     /// [`world`](Self::world), checks
     /// for a blow-up, and returns the last step's report of every contact.
@@ -826,10 +771,10 @@ impl Stepper for GpuWorld {
         };
         let Some(sums) = imp.sums.as_ref() else { unreachable!("bound by record") };
         // The surface contacts' couplings: built on the device from its search, recorded after
-        // it; or the pushes found on the host by `record`, uploaded.
+        // it.
         let vel: Vec<&Buffer> = self.bodies.iter().map(|b| &b.vel).collect();
         let info: Vec<&Buffer> = self.bodies.iter().map(|b| &b.info).collect();
-        if let Some(couplings) = imp.couplings.as_mut().filter(|c| c.built()) {
+        if let Some(couplings) = imp.couplings.as_mut() {
             let surfaces: Vec<&surface::DeviceSurface> =
                 self.collisions.iter().filter_map(DeviceContact::device_surface).collect();
             couplings.record_built(
@@ -839,22 +784,6 @@ impl Stepper for GpuWorld {
                 &surfaces,
                 &imp.bodies,
                 (&vel, &info, sums.red()),
-                h,
-            );
-        } else if let Some(couplings) = imp.couplings.as_mut() {
-            let per_contact: Vec<Vec<Coupling>> = self
-                .collisions
-                .iter()
-                .zip(&self.world.contacts)
-                .filter_map(|(c, pair)| c.couplings(pair))
-                .collect();
-            couplings.upload(
-                self.ctx.device(),
-                self.ctx.queue(),
-                &self.world.bodies,
-                &imp.bodies,
-                (&vel, &info, sums.red()),
-                per_contact,
                 h,
             );
         }
@@ -889,7 +818,7 @@ impl Stepper for GpuWorld {
             // kept that separate, in coupling order, on the device (the CPU's own rule,
             // `shaders/couple_impulse.wgsl`), after the update. Only a coupling pushed now
             // can take one.
-            if let Some(c) = imp.couplings.as_ref().filter(|c| c.may_push()) {
+            if let Some(c) = imp.couplings.as_ref() {
                 let mut encoder = self.ctx.device().create_command_encoder(&wgpu::CommandEncoderDescriptor {
                     label: Some("voxcollide implicit impulses"),
                 });

@@ -981,9 +981,9 @@ impl DeviceSurface {
             stats.a_pushed += 1;
             stats.deepest = stats.deepest.max(h.normal[3]);
             let t = corners[h.triangle as usize];
-            for c in 0..3 {
-                let stencil = &self.b_stencils[t[c] as usize];
-                touching.extend(stencil.iter().filter(|(_, u)| h.weights[c] * u > 0.0).map(|(v, _)| *v));
+            for (p, w) in t.iter().zip(h.weights) {
+                let stencil = &self.b_stencils[*p as usize];
+                touching.extend(stencil.iter().filter(|(_, u)| w * u > 0.0).map(|(v, _)| *v));
             }
         }
         touching.sort_unstable();
