@@ -27,15 +27,6 @@ struct Coupling {
     range: vec4<u32>,
 }
 
-// Keep in sync with `Carried` in surface_embed.wgsl.
-struct Carried {
-    rest: vec4<f32>,
-    corners0: vec4<u32>,
-    corners1: vec4<u32>,
-    weights0: vec4<f32>,
-    weights1: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> build: Build;
 @group(0) @binding(1) var<storage, read> hits: array<SurfaceHit>;
 @group(0) @binding(2) var<storage, read> topology: array<u32>;        // the partner's triangles
@@ -46,13 +37,6 @@ struct Carried {
 @group(0) @binding(7) var<storage, read_write> in_solve: array<u32>;
 @group(0) @binding(8) var<storage, read> probe_carried: array<Carried>;
 @group(0) @binding(9) var<storage, read> partner_carried: array<Carried>;
-
-fn corner_of(c: Carried, j: u32) -> vec2<u32> {
-    if j < 4u {
-        return vec2<u32>(c.corners0[j], bitcast<u32>(c.weights0[j]));
-    }
-    return vec2<u32>(c.corners1[j - 4u], bitcast<u32>(c.weights1[j - 4u]));
-}
 
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {

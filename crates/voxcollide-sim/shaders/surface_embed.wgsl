@@ -11,15 +11,6 @@ struct Embed {
     _pad1: u32,
 }
 
-// A carried point: where it rests, and its up to 8 corners (0xffffffff: none) and weights.
-struct Carried {
-    rest: vec4<f32>,
-    corners0: vec4<u32>,
-    corners1: vec4<u32>,
-    weights0: vec4<f32>,
-    weights1: vec4<f32>,
-}
-
 @group(0) @binding(0) var<uniform> embed: Embed;
 @group(0) @binding(1) var<storage, read> pos: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> rest: array<vec4<f32>>;
@@ -39,14 +30,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     let c = carried[i - embed.n];
     var d = vec3<f32>(0.0);
     for (var j = 0u; j < 8u; j++) {
-        var corner = c.corners1[j & 3u];
-        var w = c.weights1[j & 3u];
-        if j < 4u {
-            corner = c.corners0[j];
-            w = c.weights0[j];
-        }
-        if corner != 0xffffffffu {
-            d = d + w * (pos[corner].xyz - rest[corner].xyz);
+        let e = corner_of(c, j);
+        if e.x != 0xffffffffu {
+            d = d + bitcast<f32>(e.y) * (pos[e.x].xyz - rest[e.x].xyz);
         }
     }
     view[i] = vec4<f32>(c.rest.xyz + d, 0.0);

@@ -16,12 +16,16 @@ fn every_simulation_shader_validates() {
     wgsl::validate("implicit_contact", voxcollide_sim::gpu::implicit::IMPLICIT_CONTACT, &["main"]);
     wgsl::validate("couple", voxcollide_sim::gpu::implicit::COUPLE, &["main"]);
     wgsl::validate("couple_gather", voxcollide_sim::gpu::implicit::COUPLE_GATHER, &["main"]);
+    wgsl::validate("couple_impulse", voxcollide_sim::gpu::implicit::COUPLE_IMPULSE, &["main"]);
+    wgsl::validate("couple_build", voxcollide_sim::gpu::implicit::COUPLE_BUILD, &["main"]);
+    wgsl::validate("couple_lists", voxcollide_sim::gpu::implicit::COUPLE_LISTS, &["count", "scan", "fill"]);
     // The surface contact's search, after the core's common part.
     let search = [voxcollide::gpu::shaders::COMMON, voxcollide_sim::gpu::surface::SURFACE_SEARCH].concat();
     wgsl::validate("surface_search", &search, &["main"]);
     use voxcollide_sim::gpu::surface::{SURFACE_FORCES, SURFACE_FORCES_ENTRIES, SURFACE_GATHER};
     wgsl::validate("surface_forces", SURFACE_FORCES, &SURFACE_FORCES_ENTRIES);
     wgsl::validate("surface_gather", SURFACE_GATHER, &["main"]);
+    wgsl::validate("surface_embed", voxcollide_sim::gpu::surface::SURFACE_EMBED, &["main"]);
 }
 
 #[test]

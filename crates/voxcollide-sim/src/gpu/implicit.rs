@@ -107,6 +107,7 @@ pub const COUPLE_GATHER: &str = concat!(
 pub const COUPLE_BUILD: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
     include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/carried.wgsl"),
     include_str!("../../shaders/couple_build.wgsl")
 );
 /// The pass that lists a coupled body's couplings per vertex on the device, with their blocks.

@@ -394,8 +394,11 @@ pub const SURFACE_FORCES: &str = concat!(
 );
 /// A lattice's points where it carries a surface (`shaders/surface_embed.wgsl`), composed with
 /// `sim_common.wgsl`.
-pub const SURFACE_EMBED: &str =
-    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/surface_embed.wgsl"));
+pub const SURFACE_EMBED: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/carried.wgsl"),
+    include_str!("../../shaders/surface_embed.wgsl")
+);
 /// The forces on one body's vertices (`shaders/surface_gather.wgsl`), composed with
 /// `sim_common.wgsl`.
 pub const SURFACE_GATHER: &str = concat!(
@@ -438,7 +441,7 @@ struct GpuGather {
     _pad: [u32; 2],
 }
 
-/// A carried point. Keep in sync with `Carried` in `shaders/surface_embed.wgsl`.
+/// A carried point. Keep in sync with `Carried` in `shaders/carried.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 struct GpuCarried {
