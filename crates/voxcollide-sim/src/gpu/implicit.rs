@@ -42,6 +42,7 @@ use crate::body::StepInputs;
 use crate::integrator::implicit::{Residual, StepStats};
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot, workgroups};
+use voxcollide::gpu::scoped;
 
 /// An implicit stem composed after what the solve's passes share (`implicit_solve.wgsl`, and the
 /// laws and modes it calls).
@@ -958,165 +959,13 @@ impl Couplings {
         implicit: &[ImplicitBody],
         (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
         h: f32,
-    ) {
-        use Slot::{Read, ReadWrite, Uniform};
+    ) -> Result<(), Error> {
         self.h = h;
         if self.on_device.is_none() {
-            // Every probe's coupling, every step: the room is known once. Side 0 is b's points
-            // probing a's surface, side 1 a's probing b's.
-            let sides: Vec<[crate::gpu::surface::SideLists<'_>; 2]> =
-                surfaces.iter().map(|s| [s.side_lists(0), s.side_lists(1)]).collect();
-            let carries = sides.iter().flatten().any(|s| s.probe.1.is_some() || s.partner.1.is_some());
-            let stride = if carries { STRIDE_CARRIED } else { STRIDE_OWN };
-            self.ranges.clear();
-            let mut first = 0u32;
-            for [s0, s1] in &sides {
-                let count = s0.n_probes + s1.n_probes;
-                self.ranges.push((first, count));
-                first += count;
-            }
-            let total = u64::from(first).max(1);
-            self.couplings = storage_buffer(device, "couplings", 48 * total);
-            self.entries = storage_buffer(device, "coupling entries", 8 * u64::from(stride) * total);
-            self.push = storage_buffer(device, "coupling pushes", 16 * total);
-            self.active = storage_buffer(device, "coupling flags", 4 * total);
-            // A body's items: one a point of its points per vertex (at most 8 a carried point),
-            // and up to 3 a probe of its partner (each over up to 8 vertices where it carries).
-            let spread = if carries { 8 } else { 1 };
-            let room: Vec<u64> = self
-                .gathers
-                .iter()
-                .map(|g| {
-                    self.pairs
-                        .iter()
-                        .zip(&sides)
-                        .filter(|(p, _)| p.a == g.body || p.b == g.body)
-                        .map(|(p, sides)| {
-                            // The side where this body probes, and the other.
-                            let (own, other) =
-                                if p.b == g.body { (&sides[0], &sides[1]) } else { (&sides[1], &sides[0]) };
-                            spread * (u64::from(own.n_probes) + 3 * u64::from(other.n_probes))
-                        })
-                        .sum::<u64>()
-                })
-                .collect();
-            for (g, room) in self.gathers.iter_mut().zip(room) {
-                g.items_capacity = room.max(1);
-                g.items = storage_buffer(device, "coupling gather items", 8 * g.items_capacity);
-            }
-            self.bind(device, implicit, (vel, info, red));
-            let build = Kernel::new(
-                device,
-                "voxcollide coupling build",
-                COUPLE_BUILD,
-                &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, Read],
-            );
-            let list_slots = [Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, ReadWrite];
-            let lists = ["count", "scan", "fill"].map(|entry| {
-                Kernel::entry(device, "voxcollide coupling lists", COUPLE_LISTS, &list_slots, entry)
-            });
-            let uniform = |label: &str, bytes: &[u8]| {
-                use wgpu::util::DeviceExt as _;
-                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                    label: Some(label),
-                    contents: bytes,
-                    usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                })
-            };
-            // Where a body carries no surface, its carried points' binding is a placeholder.
-            let none = storage_buffer(device, "no carried points", 80);
-            let build_groups = self
-                .pairs
-                .iter()
-                .zip(&self.ranges)
-                .zip(&sides)
-                .map(|((p, &(first, _)), sides)| {
-                    let firsts = [first, first + sides[0].n_probes];
-                    let (probes, partners) = ([p.b, p.a], [p.a, p.b]);
-                    let params: [GpuBuild; 2] = std::array::from_fn(|s| {
-                        let side = &sides[s];
-                        GpuBuild {
-                            n_probes: side.n_probes,
-                            first: firsts[s],
-                            of_a: s as u32,
-                            stiffness: side.stiffness,
-                            stride,
-                            probe_n: side.probe.0,
-                            partner_n: side.partner.0,
-                            carries: u32::from(side.probe.1.is_some())
-                                | (u32::from(side.partner.1.is_some()) << 1),
-                        }
-                    });
-                    let groups = std::array::from_fn(|s| {
-                        let side = &sides[s];
-                        let params = uniform("coupling build", bytemuck::bytes_of(&params[s]));
-                        build.bind(
-                            device,
-                            &[
-                                &params,
-                                side.hits,
-                                side.topology,
-                                vel[probes[s]],
-                                vel[partners[s]],
-                                &self.couplings,
-                                &self.entries,
-                                &self.active,
-                                side.probe.1.unwrap_or(&none),
-                                side.partner.1.unwrap_or(&none),
-                            ],
-                        )
-                    });
-                    (params, groups)
-                })
-                .collect();
-            let lists_groups = self
-                .gathers
-                .iter()
-                .map(|g| {
-                    // Per vertex, how far the contacts before have filled its list.
-                    let cursor = storage_buffer(device, "coupling lists cursor", 4 * u64::from(g.n));
-                    self.pairs
-                        .iter()
-                        .enumerate()
-                        .filter(|(_, p)| p.a == g.body || p.b == g.body)
-                        .enumerate()
-                        .map(|(nth, (c, p))| {
-                            let first = self.ranges[c].0;
-                            let is_b = p.b == g.body;
-                            // Its partner's probes on its surface: the side where it is the
-                            // partner (side 0 for a, side 1 for b).
-                            let other = &sides[c][usize::from(is_b)];
-                            let values = GpuLists {
-                                n: g.n,
-                                own_first: u32::from(is_b),
-                                own: if is_b { first } else { first + sides[c][0].n_probes },
-                                other: if is_b { first + sides[c][0].n_probes } else { first },
-                                starts_at: other.starts_at,
-                                keys_at: other.keys_at,
-                                h,
-                                carried: u32::from(other.partner.1.is_some()),
-                                after: u32::from(nth > 0),
-                                _pad: [0; 3],
-                            };
-                            let params = uniform("coupling lists", bytemuck::bytes_of(&values));
-                            let buffers = [
-                                &params,
-                                other.hits,
-                                other.scratch,
-                                &self.couplings,
-                                &g.offsets,
-                                &g.items,
-                                &implicit[g.body].work,
-                                other.partner_points,
-                                &cursor,
-                            ];
-                            let groups = lists.each_ref().map(|k| k.bind(device, &buffers));
-                            (params, values, groups)
-                        })
-                        .collect()
-                })
-                .collect();
-            self.on_device = Some(OnDevice { build, lists, build_groups, lists_groups });
+            // (A device that refuses the room is an error, not a panic.)
+            let made =
+                scoped(device, || self.make_on_device(device, surfaces, implicit, (vel, info, red), h))?;
+            self.on_device = Some(made);
         }
         let Some(d) = self.on_device.as_ref() else { unreachable!("made above") };
         for (params, values, _) in d.lists_groups.iter().flatten() {
@@ -1145,6 +994,175 @@ impl Couplings {
                 d.lists[2].dispatch(&mut pass, fill, values.n, max_per_dim);
             }
         }
+        Ok(())
+    }
+
+    /// The room for every probe's coupling and each coupled body's lists, and the build's and
+    /// the lists' passes bound over it ([`record_built`](Self::record_built), once).
+    fn make_on_device(
+        &mut self,
+        device: &wgpu::Device,
+        surfaces: &[&crate::gpu::surface::DeviceSurface],
+        implicit: &[ImplicitBody],
+        (vel, info, red): (&[&Buffer], &[&Buffer], &Buffer),
+        h: f32,
+    ) -> OnDevice {
+        use Slot::{Read, ReadWrite, Uniform};
+        // Every probe's coupling, every step: the room is known once. Side 0 is b's points
+        // probing a's surface, side 1 a's probing b's.
+        let sides: Vec<[crate::gpu::surface::SideLists<'_>; 2]> =
+            surfaces.iter().map(|s| [s.side_lists(0), s.side_lists(1)]).collect();
+        let carries = sides.iter().flatten().any(|s| s.probe.1.is_some() || s.partner.1.is_some());
+        let stride = if carries { STRIDE_CARRIED } else { STRIDE_OWN };
+        self.ranges.clear();
+        let mut first = 0u32;
+        for [s0, s1] in &sides {
+            let count = s0.n_probes + s1.n_probes;
+            self.ranges.push((first, count));
+            first += count;
+        }
+        let total = u64::from(first).max(1);
+        self.couplings = storage_buffer(device, "couplings", 48 * total);
+        self.entries = storage_buffer(device, "coupling entries", 8 * u64::from(stride) * total);
+        self.push = storage_buffer(device, "coupling pushes", 16 * total);
+        self.active = storage_buffer(device, "coupling flags", 4 * total);
+        // A body's items: one a point of its points per vertex (at most 8 a carried point),
+        // and up to 3 a probe of its partner (each over up to 8 vertices where it carries).
+        let spread = if carries { 8 } else { 1 };
+        let room: Vec<u64> = self
+            .gathers
+            .iter()
+            .map(|g| {
+                self.pairs
+                    .iter()
+                    .zip(&sides)
+                    .filter(|(p, _)| p.a == g.body || p.b == g.body)
+                    .map(|(p, sides)| {
+                        // The side where this body probes, and the other.
+                        let (own, other) =
+                            if p.b == g.body { (&sides[0], &sides[1]) } else { (&sides[1], &sides[0]) };
+                        spread * (u64::from(own.n_probes) + 3 * u64::from(other.n_probes))
+                    })
+                    .sum::<u64>()
+            })
+            .collect();
+        for (g, room) in self.gathers.iter_mut().zip(room) {
+            g.items_capacity = room.max(1);
+            g.items = storage_buffer(device, "coupling gather items", 8 * g.items_capacity);
+        }
+        self.bind(device, implicit, (vel, info, red));
+        let build = Kernel::new(
+            device,
+            "voxcollide coupling build",
+            COUPLE_BUILD,
+            &[Uniform, Read, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, Read],
+        );
+        let list_slots = [Uniform, Read, Read, Read, ReadWrite, ReadWrite, ReadWrite, Read, ReadWrite];
+        let lists = ["count", "scan", "fill"].map(|entry| {
+            Kernel::entry(device, "voxcollide coupling lists", COUPLE_LISTS, &list_slots, entry)
+        });
+        let uniform = |label: &str, bytes: &[u8]| {
+            use wgpu::util::DeviceExt as _;
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: bytes,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            })
+        };
+        // Where a body carries no surface, its carried points' binding is a placeholder.
+        let none = storage_buffer(device, "no carried points", 80);
+        let build_groups = self
+            .pairs
+            .iter()
+            .zip(&self.ranges)
+            .zip(&sides)
+            .map(|((p, &(first, _)), sides)| {
+                let firsts = [first, first + sides[0].n_probes];
+                let (probes, partners) = ([p.b, p.a], [p.a, p.b]);
+                let params: [GpuBuild; 2] = std::array::from_fn(|s| {
+                    let side = &sides[s];
+                    GpuBuild {
+                        n_probes: side.n_probes,
+                        first: firsts[s],
+                        of_a: s as u32,
+                        stiffness: side.stiffness,
+                        stride,
+                        probe_n: side.probe.0,
+                        partner_n: side.partner.0,
+                        carries: u32::from(side.probe.1.is_some())
+                            | (u32::from(side.partner.1.is_some()) << 1),
+                    }
+                });
+                let groups = std::array::from_fn(|s| {
+                    let side = &sides[s];
+                    let params = uniform("coupling build", bytemuck::bytes_of(&params[s]));
+                    build.bind(
+                        device,
+                        &[
+                            &params,
+                            side.hits,
+                            side.topology,
+                            vel[probes[s]],
+                            vel[partners[s]],
+                            &self.couplings,
+                            &self.entries,
+                            &self.active,
+                            side.probe.1.unwrap_or(&none),
+                            side.partner.1.unwrap_or(&none),
+                        ],
+                    )
+                });
+                (params, groups)
+            })
+            .collect();
+        let lists_groups = self
+            .gathers
+            .iter()
+            .map(|g| {
+                // Per vertex, how far the contacts before have filled its list.
+                let cursor = storage_buffer(device, "coupling lists cursor", 4 * u64::from(g.n));
+                self.pairs
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| p.a == g.body || p.b == g.body)
+                    .enumerate()
+                    .map(|(nth, (c, p))| {
+                        let first = self.ranges[c].0;
+                        let is_b = p.b == g.body;
+                        // Its partner's probes on its surface: the side where it is the
+                        // partner (side 0 for a, side 1 for b).
+                        let other = &sides[c][usize::from(is_b)];
+                        let values = GpuLists {
+                            n: g.n,
+                            own_first: u32::from(is_b),
+                            own: if is_b { first } else { first + sides[c][0].n_probes },
+                            other: if is_b { first + sides[c][0].n_probes } else { first },
+                            starts_at: other.starts_at,
+                            keys_at: other.keys_at,
+                            h,
+                            carried: u32::from(other.partner.1.is_some()),
+                            after: u32::from(nth > 0),
+                            _pad: [0; 3],
+                        };
+                        let params = uniform("coupling lists", bytemuck::bytes_of(&values));
+                        let buffers = [
+                            &params,
+                            other.hits,
+                            other.scratch,
+                            &self.couplings,
+                            &g.offsets,
+                            &g.items,
+                            &implicit[g.body].work,
+                            other.partner_points,
+                            &cursor,
+                        ];
+                        let groups = lists.each_ref().map(|k| k.bind(device, &buffers));
+                        (params, values, groups)
+                    })
+                    .collect()
+            })
+            .collect();
+        OnDevice { build, lists, build_groups, lists_groups }
     }
 
     /// Whether `body` is coupled.

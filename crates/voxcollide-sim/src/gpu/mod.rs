@@ -785,7 +785,7 @@ impl Stepper for GpuWorld {
                 &imp.bodies,
                 (&vel, &info, sums.red()),
                 h,
-            );
+            )?;
         }
         let solved = crate::gpu::implicit::solve(
             &self.ctx,

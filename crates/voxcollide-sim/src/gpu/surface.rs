@@ -594,8 +594,8 @@ impl DeviceSurface {
     /// The contact `penalty` between bodies `a` and `b` as they are now.
     ///
     /// # Errors
-    /// [`Error::Invalid`] for a body that carries a surface, an empty one or a bad `penalty`;
-    /// [`Error::Gpu`] when the device refuses a pipeline or a buffer.
+    /// [`Error::Invalid`] for an empty surface or a bad `penalty`; [`Error::Gpu`] when the
+    /// device refuses a pipeline or a buffer.
     pub fn new(
         ctx: &GpuContext,
         penalty: SurfacePenalty,
@@ -713,6 +713,9 @@ impl DeviceSurface {
                             lists[*c as usize].push(((n + k) as u32, *w));
                         }
                     }
+                    // (The gather's rounds take each point once: a cell's kept corners are
+                    // distinct.)
+                    debug_assert!(lists.iter().all(|l| l.windows(2).all(|p| p[0].0 < p[1].0)));
                     let mut offsets = Vec::with_capacity(n + 1);
                     let mut pairs = Vec::new();
                     for l in &lists {
