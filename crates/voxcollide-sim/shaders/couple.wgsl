@@ -19,25 +19,6 @@ const MODE_ARRIVE: u32 = 3u;  // the new velocity: which couplings the solve end
 // Not a slot: the velocities, in `vel_a` and `vel_b`.
 const VELOCITY: u32 = 99u;
 
-struct RelativeParams {
-    h: f32,
-    round: u32,       // MODE_ARRIVE: the solve's round (1: pairs join and leave; later: join)
-    first: u32,       // the contact's first coupling
-    count: u32,       // its couplings
-    n_a: u32,         // the vertices of the contact's bodies a and b
-    n_b: u32,
-    _pad0: u32,
-    _pad1: u32,
-}
-
-// Keep in sync with couple_build.wgsl (which writes them) and couple_impulse.wgsl.
-struct Coupling {
-    normal: vec4<f32>,   // xyz: the push's direction (unit); w: its stiffness k
-    terms: vec4<f32>,    // x: its critical damping d; y: its depth (gap − s at the step's start)
-    range: vec4<u32>,    // x: its first entry; y: the partner's first; z: the end; w: 1 where
-                         // the pushed point is a's (the triangle then b's)
-}
-
 @group(0) @binding(0) var<uniform> rp: RelativeParams;
 @group(0) @binding(1) var<storage, read> couplings: array<Coupling>;
 @group(0) @binding(2) var<storage, read> entries: array<vec2<u32>>;   // (vertex, weight's bits)

@@ -20,13 +20,6 @@ struct Build {
     carries: u32,      // bit 0: the probing body carries its surface; bit 1: the partner
 }
 
-// Keep in sync with `Coupling` in couple.wgsl.
-struct Coupling {
-    normal: vec4<f32>,
-    terms: vec4<f32>,
-    range: vec4<u32>,
-}
-
 @group(0) @binding(0) var<uniform> build: Build;
 @group(0) @binding(1) var<storage, read> hits: array<SurfaceHit>;
 @group(0) @binding(2) var<storage, read> topology: array<u32>;        // the partner's triangles

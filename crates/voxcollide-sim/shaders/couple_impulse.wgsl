@@ -5,26 +5,6 @@
 // the velocities the couplings before it left, so one invocation walks one contact's couplings
 // in order, and the contacts' passes run in contact order: the CPU's order.
 
-// Keep in sync with `RelativeParams` in src/gpu/implicit.rs (and couple.wgsl).
-struct RelativeParams {
-    h: f32,
-    round: u32,
-    first: u32,       // the contact's first coupling
-    count: u32,       // its couplings
-    n_a: u32,
-    n_b: u32,
-    _pad0: u32,
-    _pad1: u32,
-}
-
-// Keep in sync with `Coupling` in couple.wgsl (and couple_build.wgsl, which writes them).
-struct Coupling {
-    normal: vec4<f32>,   // xyz: the push's direction (unit); w: its stiffness
-    terms: vec4<f32>,    // x: its critical damping; y: its depth (> 0: pushed now)
-    range: vec4<u32>,    // x: its first entry; y: the partner's first; z: the end; w: 1 where
-                         // the pushed point is a's
-}
-
 @group(0) @binding(0) var<uniform> rp: RelativeParams;
 @group(0) @binding(1) var<storage, read> couplings: array<Coupling>;
 @group(0) @binding(2) var<storage, read> entries: array<vec2<u32>>;   // (vertex, weight's bits)

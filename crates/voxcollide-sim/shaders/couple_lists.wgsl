@@ -29,13 +29,6 @@ struct Lists {
     _pad2: u32,
 }
 
-// Keep in sync with `Coupling` in couple.wgsl.
-struct Coupling {
-    normal: vec4<f32>,
-    terms: vec4<f32>,
-    range: vec4<u32>,
-}
-
 @group(0) @binding(0) var<uniform> lists: Lists;
 @group(0) @binding(1) var<storage, read> other_hits: array<SurfaceHit>;
 @group(0) @binding(2) var<storage, read> scratch: array<u32>;

@@ -93,11 +93,15 @@ pub const IMPLICIT_STEMS: [(&str, &str, &[&str]); 5] = [
 pub const COUPLE: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
     include_str!("../../shaders/implicit_slots.wgsl"),
+    include_str!("../../shaders/coupling.wgsl"),
     include_str!("../../shaders/couple.wgsl")
 );
 /// The couplings' inelastic impulses' WGSL, after the step's update.
-pub const COUPLE_IMPULSE: &str =
-    concat!(include_str!("../../shaders/sim_common.wgsl"), include_str!("../../shaders/couple_impulse.wgsl"));
+pub const COUPLE_IMPULSE: &str = concat!(
+    include_str!("../../shaders/sim_common.wgsl"),
+    include_str!("../../shaders/coupling.wgsl"),
+    include_str!("../../shaders/couple_impulse.wgsl")
+);
 /// The couplings' gather pass's WGSL.
 pub const COUPLE_GATHER: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
@@ -109,6 +113,7 @@ pub const COUPLE_BUILD: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
     include_str!("../../shaders/surface_hit.wgsl"),
     include_str!("../../shaders/carried.wgsl"),
+    include_str!("../../shaders/coupling.wgsl"),
     include_str!("../../shaders/couple_build.wgsl")
 );
 /// The pass that lists a coupled body's couplings per vertex on the device, with their blocks.
@@ -116,6 +121,7 @@ pub const COUPLE_LISTS: &str = concat!(
     include_str!("../../shaders/sim_common.wgsl"),
     include_str!("../../shaders/implicit_slots.wgsl"),
     include_str!("../../shaders/surface_hit.wgsl"),
+    include_str!("../../shaders/coupling.wgsl"),
     include_str!("../../shaders/couple_lists.wgsl")
 );
 /// The contact stiffness pass's WGSL.
@@ -738,7 +744,7 @@ pub(crate) fn stats(solved: &[Solved], scale: f32, taken: bool) -> Vec<StepStats
         .collect()
 }
 
-/// Keep in sync with `RelativeParams` in `shaders/couple.wgsl`.
+/// Keep in sync with `RelativeParams` in `shaders/coupling.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 struct RelativeParams {
