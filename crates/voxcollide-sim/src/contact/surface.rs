@@ -24,20 +24,26 @@
 //! face's normal, the sum of an edge's two faces' normals, or a vertex's angle-weighted normal
 //! (Bærentzen and Aanæs 2005), exact for a closed, outward-oriented surface.
 //!
-//! **Finding the nearest triangle.** Each side keeps, per probing vertex, the partner's triangles
-//! within `reach + skin` of it (binned into cells of that size), rebuilt only when the vertices
-//! have moved more than the skin since (a Verlet list): a triangle's distance changes by no more
-//! than its corners move. A vertex deeper than `reach` is not pushed (the run's contact check
-//! reports it): from beyond the middle of a thin body the nearest point is on its far side.
+//! **Finding the nearest triangle: the voxel model.** Each step the partner's points are binned
+//! by voxel, as the core bins a body ([`Binned`]), on a grid that follows them, its voxel the
+//! cutoff plus [`STRETCH`] times the surface's longest edge (a power of two), and each probing
+//! point walks the block of voxels about its own to the triangles at the points binned there
+//! ([`Side::hits`]). The device's search is the same design in WGSL (`crate::gpu::surface`,
+//! docs/contacts.md), and finds the same pushes and clearances, bit for bit. A probe farther
+//! from every push than the bodies have since moved (its clearance) is not searched. A vertex
+//! deeper than `reach` is not pushed (the run's contact check reports it): from beyond the
+//! middle of a thin body the nearest point is on its far side.
 //!
 //! **Determinism.** Each vertex's nearest triangle is found in parallel (ties to the smaller
 //! index); the forces are then summed in probe order on one thread, so the result is the same on
 //! any number of threads.
 
 use crate::geometry::{HashMap, Region, closest_region};
+use voxcollide::VoxelGrid;
+use voxcollide::voxel_data::voxel_hash;
 use std::borrow::Cow;
 
-use glam::{IVec3, Mat3, Vec3};
+use glam::{Mat3, UVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{Embedding, MassSpring, Mode};
@@ -244,13 +250,24 @@ struct Side {
     probes: Vec<u32>,
     /// The partner's triangles' edge neighbours.
     neighbours: Vec<[u32; 3]>,
-    /// Per probe, the partner's triangles near it (CSR).
+    /// The grid the partner's points are binned in, following them (`None`: the partner had no
+    /// finite point or triangle when the side was made, and nothing is found).
+    grid: Option<VoxelGrid>,
+    /// The partner's points binned by voxel.
+    binned: Binned,
+    /// Per probe, the partner's triangles near it (CSR), found through the voxel model.
     offsets: Vec<u32>,
     near: Vec<u32>,
-    /// Where the probes and the partner's vertices were when the lists were made.
+    /// Where the probes and the partner's points were when the lists were made, and how far
+    /// they have moved since, at most (the probes' and the partner's largest moves summed).
     probes_then: Vec<Vec3>,
     partner_then: Vec<Vec3>,
-    /// Per probe, the last step's nearest triangle (`u32::MAX`: none).
+    moved_since: f32,
+    /// The range the lists were made for (the cutoff plus the skin).
+    range: f32,
+    built: bool,
+    /// Per probe, the last step's nearest triangle (`u32::MAX`: none), which the next search
+    /// tries first.
     last: Vec<u32>,
     /// Per probe, how far it and the partner may still move relative to each other before it
     /// could be pushed (a lower bound of its distance beyond the push's reach, less the motion
@@ -266,7 +283,110 @@ struct Side {
     /// Per probe inside the partner at the last step: the way that step pushed it out (its
     /// side of the partner's surface); zero for one outside. See [`Side::hits`].
     entry: Vec<Vec3>,
-    built: bool,
+}
+
+/// The partner's points binned by voxel as the device's binning lays them out (the core's
+/// counting sort, `voxcollide::GpuCollision::record_binning`): sorted by the slot of their
+/// voxel in the voxel model's hash table ([`voxel_hash`]: the voxels of a row in consecutive
+/// slots), in index order within a slot. A slot may hold other voxels' points too (the table
+/// has as many slots as the partner has points), so a walk keeps only the voxel's own.
+#[derive(Clone, Debug, Default)]
+struct Binned {
+    /// Per slot, where its points start in `sorted`; then their count.
+    starts: Vec<u32>,
+    /// The binned points: position, index and voxel.
+    sorted: Vec<(Vec3, u32, UVec3)>,
+    /// Per point, its voxel (`None`: outside the grid or not finite); and a cursor per slot.
+    voxels: Vec<Option<UVec3>>,
+    cursor: Vec<u32>,
+}
+
+impl Binned {
+    /// Bins the points of `pos` that lie in `grid`; returns how many.
+    fn bin(&mut self, grid: &VoxelGrid, pos: &[Vec3]) -> u32 {
+        let slots = pos.len().max(1).next_power_of_two();
+        self.voxels.clear();
+        self.voxels.extend(pos.iter().map(|p| grid.voxel_of(*p)));
+        self.starts.clear();
+        self.starts.resize(slots + 1, 0);
+        for v in self.voxels.iter().flatten() {
+            self.starts[Binned::slot_in(*v, slots) + 1] += 1;
+        }
+        for s in 0..slots {
+            self.starts[s + 1] += self.starts[s];
+        }
+        self.cursor.clear();
+        self.cursor.extend_from_slice(&self.starts[..slots]);
+        let n = self.starts[slots];
+        self.sorted.clear();
+        self.sorted.resize(n as usize, (Vec3::ZERO, 0, UVec3::ZERO));
+        for (i, v) in self.voxels.iter().enumerate() {
+            if let Some(v) = *v {
+                let c = &mut self.cursor[Binned::slot_in(v, slots)];
+                self.sorted[*c as usize] = (pos[i], i as u32, v);
+                *c += 1;
+            }
+        }
+        n
+    }
+
+    fn slot_in(v: UVec3, slots: usize) -> usize {
+        voxel_hash(v) as usize & (slots - 1)
+    }
+
+    /// The points in the slot of voxel `v` (its own and any other voxel's that shares it).
+    fn slot_of(&self, v: UVec3) -> &[(Vec3, u32, UVec3)] {
+        let s = Binned::slot_in(v, self.starts.len() - 1);
+        &self.sorted[self.starts[s] as usize..self.starts[s + 1] as usize]
+    }
+}
+
+/// How far the surface's edges may stretch beyond their length as given before a probe walks
+/// more than one voxel each way: the binning's voxel is the cutoff plus this times the longest
+/// edge ([`search_grid`]).
+pub const STRETCH: f32 = 1.5;
+
+/// The squared longest edge of `mesh` over `pos`, each triangle's three edges; one whose square
+/// is not finite is passed over (`longest_edge` in `shaders/surface_search.wgsl`).
+fn longest_edge2(mesh: &TriangleMesh, pos: &[Vec3]) -> f32 {
+    mesh.triangles
+        .iter()
+        .map(|t| {
+            let [a, b, c] = t.map(|v| pos[v as usize]);
+            b.distance_squared(a).max(c.distance_squared(b)).max(a.distance_squared(c))
+        })
+        .filter(|e2| e2.is_finite())
+        .fold(0.0f32, f32::max)
+}
+
+/// The grid a surface contact's search bins the partner's points in, on the CPU and the device
+/// alike: its voxel the power of two at or above the cutoff plus [`STRETCH`] times the
+/// surface's longest edge now, and room for the partner to grow to twice its widest, every way
+/// (a shell deflated flat fills out in its thinnest direction), and a block past each side.
+/// The table is hashed, its memory the points', not the voxels'. `voxel` keeps a voxel chosen
+/// before (the grid made again for a partner that grew past it). `None` where the partner has
+/// no finite point.
+pub(crate) fn search_grid(
+    cutoff: f32,
+    mesh: &TriangleMesh,
+    partner: &[Vec3],
+    voxel: Option<f32>,
+) -> Result<Option<VoxelGrid>, Error> {
+    let voxel = voxel.unwrap_or_else(|| {
+        let longest = longest_edge2(mesh, partner).sqrt();
+        // (The core's grids take a power of two.)
+        2f32.powi((cutoff + STRETCH * longest).log2().ceil() as i32)
+    });
+    let (lo, hi) = partner
+        .iter()
+        .filter(|p| p.is_finite())
+        .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), p| (l.min(*p), h.max(*p)));
+    if lo.cmpgt(hi).any() {
+        return Ok(None);
+    }
+    let across = (2.0 * (hi - lo).max_element() / voxel).ceil() + 4.0;
+    let dims = Vec3::splat(across.min(1e6)).as_uvec3();
+    VoxelGrid::new(0.5 * (lo + hi), voxel, dims).map(Some)
 }
 
 /// What a probe found: the nearest triangle, its weights, the push's direction and its depth
@@ -285,71 +405,140 @@ pub struct SurfaceHit {
 }
 
 impl Side {
-    fn new(probing: &View, partner: &View) -> Side {
+    /// A side whose lists reach `range` (the cutoff plus the skin).
+    fn new(probing: &View, partner: &View, range: f32) -> Result<Side, Error> {
         // Every point probes, not only the surface's: where a load pushes the surface's
         // vertices aside (a ball pressed deep into a lattice), the ones beneath must not come
         // in between them unseen.
         let probes = (0..probing.len() as u32).collect();
-        Side { probes, neighbours: edge_neighbours(partner.mesh), ..Side::default() }
+        let grid = if partner.mesh.triangles.is_empty() {
+            None
+        } else {
+            search_grid(range, partner.mesh, &partner.pos, None)?
+        };
+        Ok(Side { probes, neighbours: edge_neighbours(partner.mesh), grid, range, ..Side::default() })
     }
 
-    /// Makes the lists anew when the vertices moved farther than `skin` since they were made.
-    fn refresh(&mut self, probing: &View, partner: &View, cutoff: f32, skin: f32) -> bool {
+    /// Makes the lists anew when the probes and the partner have moved farther than the skin
+    /// since they were made (`range` less the cutoff); returns whether it did.
+    ///
+    /// **Through the voxel model.** The partner's points are binned by voxel ([`Binned`]) in
+    /// the grid moved to follow them (a partner that grew past it gets a grid of the same voxel
+    /// made anew about it, where the device's search says so and stops). A triangle within
+    /// `range` has every corner within `range` plus its longest edge of the probe (every
+    /// point of a triangle lies within its longest edge of each corner), so each probe walks
+    /// the block of voxels about its own that reaches as far as the surface's longest edge now
+    /// allows, to the points binned there that near, and lists the triangles at them whose box
+    /// lies within `range`, each once (at its first corner that near). Where the block holds
+    /// more voxels than the partner has points (a surface stretched past all sense), the
+    /// binned points are gone through instead, those in the block kept: the same lists.
+    fn refresh(&mut self, probing: &View, partner: &View, skin: f32) -> bool {
+        let moved = |now: &[Vec3], then: &[Vec3]| {
+            now.iter().zip(then).map(|(p, q)| p.distance_squared(*q)).fold(0.0f32, f32::max).sqrt()
+        };
         if self.built {
-            let moved = |now: &[Vec3], then: &[Vec3]| {
-                now.iter().zip(then).map(|(p, q)| p.distance_squared(*q)).fold(0.0f32, f32::max).sqrt()
-            };
             // (Every vertex probes, in order: the probes' positions are the body's.)
-            if moved(&probing.pos, &self.probes_then) + moved(&partner.pos, &self.partner_then) < skin {
+            self.moved_since = moved(&probing.pos, &self.probes_then) + moved(&partner.pos, &self.partner_then);
+            if self.moved_since < skin {
                 return false;
-            }
-        }
-        let range = cutoff + skin;
-        let cell_of = |p: Vec3| (p / range).floor().as_ivec3();
-        let mut cells: HashMap<IVec3, Vec<u32>> = HashMap::default();
-        let pos = &partner.pos;
-        for (t, tri) in partner.mesh.triangles.iter().enumerate() {
-            let [a, b, c] = tri.map(|v| pos[v as usize]);
-            let (lo, hi) = (a.min(b).min(c) - range, a.max(b).max(c) + range);
-            if !(lo.is_finite() && hi.is_finite()) {
-                continue;
-            }
-            let (l, h) = (cell_of(lo), cell_of(hi));
-            // A triangle larger than the scene's reach by far (a bad input) is not binned.
-            if (h - l).max_element() > 64 {
-                continue;
-            }
-            for z in l.z..=h.z {
-                for y in l.y..=h.y {
-                    for x in l.x..=h.x {
-                        cells.entry(IVec3::new(x, y, z)).or_default().push(t as u32);
-                    }
-                }
             }
         }
         self.offsets.clear();
         self.near.clear();
         self.offsets.push(0);
-        for &i in &self.probes {
-            let p = probing.pos[i as usize];
-            if p.is_finite()
-                && let Some(ts) = cells.get(&cell_of(p))
-            {
-                for &t in ts {
-                    let [a, b, c] = partner.mesh.triangles[t as usize].map(|v| pos[v as usize]);
-                    let (lo, hi) = (a.min(b).min(c), a.max(b).max(c));
-                    let outside = (lo - p).max(p - hi).max(Vec3::ZERO);
-                    if outside.length_squared() <= range * range {
-                        self.near.push(t);
-                    }
-                }
-            }
-            self.offsets.push(self.near.len() as u32);
-        }
+        self.moved_since = 0.0;
         self.probes_then = self.probes.iter().map(|&i| probing.pos[i as usize]).collect();
         self.partner_then.clear();
         self.partner_then.extend_from_slice(&partner.pos);
         self.built = true;
+        let Some(grid) = self.grid else {
+            self.offsets.resize(self.probes.len() + 1, 0);
+            return true;
+        };
+        let grid = voxcollide::cpu::step_grid(&grid, voxcollide::Anchor::FollowA, &partner.pos).unwrap_or(grid);
+        let finite = partner.pos.iter().filter(|p| p.is_finite()).count() as u32;
+        self.grid = Some(grid);
+        if self.binned.bin(&grid, &partner.pos) < finite
+            && let Ok(Some(wider)) = search_grid(self.range, partner.mesh, &partner.pos, Some(grid.voxel_size()))
+        {
+            self.grid = Some(wider);
+            self.binned.bin(&wider, &partner.pos);
+        }
+        let grid = self.grid.unwrap_or(grid);
+        let (pos, tris) = (&partner.pos, &partner.mesh.triangles);
+        let range = self.range;
+        let longest = longest_edge2(partner.mesh, pos).sqrt();
+        let near = range + longest;
+        let near2 = near * near;
+        let voxel = grid.voxel_size();
+        // (At most the grid across: a surface stretched past all sense is walked whole.)
+        let reach = (near / voxel).ceil().max(1.0).min(grid.dims().max_element() as f32) as i32;
+        let every_point = (2 * u64::from(reach.unsigned_abs()) + 1).pow(3) > self.binned.sorted.len() as u64;
+        let dims = grid.dims().as_ivec3();
+        let binned = &self.binned;
+        let lists: Vec<Vec<u32>> = self
+            .probes
+            .par_iter()
+            .with_min_len(256)
+            .map(|&i| {
+                let p = probing.pos[i as usize];
+                // A probe outside the grid is farther than a block from every point binned.
+                let Some(v) = grid.voxel_of(p) else { return Vec::new() };
+                let (lo, hi) = (v.as_ivec3() - reach, v.as_ivec3() + reach);
+                let mut list = Vec::new();
+                let mut at = |pi: Vec3, j: u32| {
+                    if pi.distance_squared(p) > near2 {
+                        return;
+                    }
+                    let (s, e) = (partner.tri_offsets[j as usize] as usize, partner.tri_offsets[j as usize + 1] as usize);
+                    for &t in &partner.tri_adjacency[s..e] {
+                        let tri = tris[t as usize];
+                        let c = tri.map(|c| pos[c as usize]);
+                        // Each triangle once: at its first corner that near.
+                        let first = if c[0].distance_squared(p) <= near2 {
+                            tri[0]
+                        } else if c[1].distance_squared(p) <= near2 {
+                            tri[1]
+                        } else {
+                            tri[2]
+                        };
+                        // (A triangle with a corner not finite is never one.)
+                        if first != j || !c.iter().all(|c| c.is_finite()) {
+                            continue;
+                        }
+                        let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                        if (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range {
+                            list.push(t);
+                        }
+                    }
+                };
+                if every_point {
+                    for &(pi, j, q) in &binned.sorted {
+                        if q.as_ivec3().cmpge(lo).all() && q.as_ivec3().cmple(hi).all() {
+                            at(pi, j);
+                        }
+                    }
+                } else {
+                    for z in lo.z.max(0)..=hi.z.min(dims.z - 1) {
+                        for y in lo.y.max(0)..=hi.y.min(dims.y - 1) {
+                            for x in lo.x.max(0)..=hi.x.min(dims.x - 1) {
+                                let q = UVec3::new(x as u32, y as u32, z as u32);
+                                for &(pi, j, _) in binned.slot_of(q).iter().filter(|r| r.2 == q) {
+                                    at(pi, j);
+                                }
+                            }
+                        }
+                    }
+                }
+                // (In ascending order: the walk's is the hash's.)
+                list.sort_unstable();
+                list
+            })
+            .collect();
+        for list in lists {
+            self.near.extend_from_slice(&list);
+            self.offsets.push(self.near.len() as u32);
+        }
         true
     }
 
@@ -411,8 +600,11 @@ impl Side {
                 }
                 let p = probing.pos[self.probes[k] as usize];
                 let mut best: Option<(f32, u32, [f32; 3], Feature)> = None;
-                // A lower bound of the distance to every triangle passed over or measured.
-                let mut lower = f32::INFINITY;
+                // A lower bound of the distance to every triangle passed over or measured; and
+                // those not listed were farther than the lists' range when they were made, and
+                // have come no nearer since than the probes and the partner have moved.
+                let unlisted = (self.range - self.moved_since).max(0.0);
+                let mut lower = unlisted * unlisted;
                 // Nothing beyond the cutoff pushes: a triangle whose box is farther than it, or
                 // than the nearest found so far, is passed over before the exact test. The last
                 // step's nearest goes first, so that most boxes are passed over (the answer is
@@ -450,8 +642,7 @@ impl Side {
                 // (Clearances are shaved by a thousandth, so that rounding never skips a push.)
                 let Some((d2, t, w, feature)) = best else {
                     // Nothing within the cutoff: no push until something comes within it.
-                    let clear = if lower.is_finite() { (lower.sqrt() - cutoff) * 0.999 } else { 0.0 };
-                    return (None, u32::MAX, clear);
+                    return (None, u32::MAX, (lower.sqrt() - cutoff) * 0.999);
                 };
                 let (hit, s) = self.hit(p, partner, penalty, d2, t, w, feature);
                 // Outside beyond the gap (and the margin): no push until it comes within it.
@@ -588,8 +779,8 @@ pub fn nearest_pushes(
     };
     let (probing, partner) = (view(probes), view(partner));
     let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
-    let mut side = Side::new(&probing, &partner);
-    side.refresh(&probing, &partner, cutoff, 0.5 * cutoff);
+    let Ok(mut side) = Side::new(&probing, &partner, 1.5 * cutoff) else { return vec![None; probes.len()] };
+    side.refresh(&probing, &partner, 0.5 * cutoff);
     side.age(&probing, &partner);
     side.entry = (0..probes.len()).map(|k| entry.get(k).copied().unwrap_or(Vec3::ZERO)).collect();
     side.hits(&probing, &partner, penalty).into_iter().map(|(hit, _, _)| hit).collect()
@@ -671,7 +862,8 @@ impl SurfaceContact {
         penalty.validate()?;
         let shown = [Shown::of(a), Shown::of(b)];
         let (va, vb) = (View::new(a, shown[0].as_ref()), View::new(b, shown[1].as_ref()));
-        let sides = [Side::new(&vb, &va), Side::new(&va, &vb)];
+        let range = 1.5 * penalty.reach.max(penalty.gap + penalty.margin);
+        let sides = [Side::new(&vb, &va, range)?, Side::new(&va, &vb, range)?];
         Ok(SurfaceContact { penalty, sides, shown })
     }
 
@@ -694,7 +886,7 @@ impl SurfaceContact {
         let views = [View::new(a, self.shown[0].as_ref()), View::new(b, self.shown[1].as_ref())];
         for (s, side) in self.sides.iter_mut().enumerate() {
             let (probing, partner) = if s == 0 { (&views[1], &views[0]) } else { (&views[0], &views[1]) };
-            stats.rebuilt |= side.refresh(probing, partner, cutoff, skin);
+            stats.rebuilt |= side.refresh(probing, partner, skin);
             side.age(probing, partner);
             let found = side.hits(probing, partner, &p);
             let mut hits = Vec::with_capacity(found.len());

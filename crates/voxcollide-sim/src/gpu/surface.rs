@@ -31,7 +31,7 @@ use crate::mesh::TriangleMesh;
 use voxcollide::error::Error;
 use voxcollide::gpu::kernel::{Kernel, Slot};
 use voxcollide::gpu::{GpuContext, read_buffers, scoped};
-use voxcollide::{Anchor, ContactParams, Direction, GpuCollision, Search, VoxelGrid};
+use voxcollide::{Anchor, ContactParams, Direction, GpuCollision, Search};
 
 /// A device buffer of `label` holding `contents`, for `usage`.
 fn init(device: &wgpu::Device, label: &str, contents: &[u8], usage: BufferUsages) -> Buffer {
@@ -39,9 +39,7 @@ fn init(device: &wgpu::Device, label: &str, contents: &[u8], usage: BufferUsages
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage })
 }
 
-/// How far the surface's edges may stretch beyond their length as given before a probe walks
-/// more than one voxel each way: the voxel is the cutoff plus this times the longest edge.
-pub const STRETCH: f32 = 1.5;
+pub use crate::contact::surface::STRETCH;
 
 /// The search's passes (`main`, `longest_edge`) and the result they write; its shader is the
 /// core's `common.wgsl` ([`voxcollide::gpu::shaders::COMMON`]) followed by this.
@@ -144,28 +142,9 @@ impl SurfaceSearch {
             return Err(empty("probing point"));
         }
         let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
-        let longest = mesh
-            .triangles
-            .iter()
-            .flat_map(|t| [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])])
-            .map(|(u, v)| partner[u as usize].distance(partner[v as usize]))
-            .filter(|l| l.is_finite())
-            .fold(0.0f32, f32::max);
-        // (The core's grids take a power of two.)
-        let voxel = 2f32.powi((cutoff + STRETCH * longest).log2().ceil() as i32);
-        let (lo, hi) = partner
-            .iter()
-            .filter(|p| p.is_finite())
-            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), p| (l.min(*p), h.max(*p)));
-        if lo.cmpgt(hi).any() {
-            return Err(empty("finite partner point"));
-        }
-        // Room for the partner to grow to twice its size across its widest, every way (a shell
-        // deflated flat fills out in its thinnest direction), and a block past each side. The
-        // table is hashed, its memory the points', not the voxels'.
-        let across = (2.0 * (hi - lo).max_element() / voxel).ceil() + 4.0;
-        let dims = Vec3::splat(across.min(1e6)).as_uvec3();
-        let grid = VoxelGrid::new(0.5 * (lo + hi), voxel, dims)?;
+        let grid = crate::contact::surface::search_grid(cutoff, mesh, partner, None)?
+            .ok_or_else(|| empty("finite partner point"))?;
+        let voxel = grid.voxel_size();
         let params = ContactParams {
             magnitude: 1.0,
             search: Search::Voxel,
