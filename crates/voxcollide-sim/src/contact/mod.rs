@@ -164,6 +164,8 @@ pub fn contacts_of(bodies: usize, pairs: &[ContactPair]) -> Vec<Vec<(usize, bool
 }
 
 /// One contact's state on the CPU, by its model.
+// (A world holds a handful: their sizes do not matter.)
+#[allow(clippy::large_enum_variant)]
 enum CpuContact {
     Voxel(ParallelCpuCollision),
     Surface { contact: SurfaceContact, forces: SurfaceForces },

@@ -39,9 +39,9 @@
 //! any number of threads.
 
 use crate::geometry::{HashMap, Region, closest_region};
+use std::borrow::Cow;
 use voxcollide::VoxelGrid;
 use voxcollide::voxel_data::voxel_hash;
-use std::borrow::Cow;
 
 use glam::{Mat3, UVec3, Vec3};
 use rayon::prelude::*;
@@ -438,7 +438,8 @@ impl Side {
         };
         if self.built {
             // (Every vertex probes, in order: the probes' positions are the body's.)
-            self.moved_since = moved(&probing.pos, &self.probes_then) + moved(&partner.pos, &self.partner_then);
+            self.moved_since =
+                moved(&probing.pos, &self.probes_then) + moved(&partner.pos, &self.partner_then);
             if self.moved_since < skin {
                 return false;
             }
@@ -455,11 +456,13 @@ impl Side {
             self.offsets.resize(self.probes.len() + 1, 0);
             return true;
         };
-        let grid = voxcollide::cpu::step_grid(&grid, voxcollide::Anchor::FollowA, &partner.pos).unwrap_or(grid);
+        let grid =
+            voxcollide::cpu::step_grid(&grid, voxcollide::Anchor::FollowA, &partner.pos).unwrap_or(grid);
         let finite = partner.pos.iter().filter(|p| p.is_finite()).count() as u32;
         self.grid = Some(grid);
         if self.binned.bin(&grid, &partner.pos) < finite
-            && let Ok(Some(wider)) = search_grid(self.range, partner.mesh, &partner.pos, Some(grid.voxel_size()))
+            && let Ok(Some(wider)) =
+                search_grid(self.range, partner.mesh, &partner.pos, Some(grid.voxel_size()))
         {
             self.grid = Some(wider);
             self.binned.bin(&wider, &partner.pos);
@@ -490,7 +493,10 @@ impl Side {
                     if pi.distance_squared(p) > near2 {
                         return;
                     }
-                    let (s, e) = (partner.tri_offsets[j as usize] as usize, partner.tri_offsets[j as usize + 1] as usize);
+                    let (s, e) = (
+                        partner.tri_offsets[j as usize] as usize,
+                        partner.tri_offsets[j as usize + 1] as usize,
+                    );
                     for &t in &partner.tri_adjacency[s..e] {
                         let tri = tris[t as usize];
                         let c = tri.map(|c| pos[c as usize]);
@@ -986,5 +992,168 @@ mod tests {
             closest_on_triangle(Vec3::Z, [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X])
                 .is_some_and(|(_, f)| f != Feature::Face)
         );
+    }
+
+    /// A side over `partner` and `mesh` probed by one point, stepped as
+    /// [`SurfaceContact::step`] steps it (lists, aging, the search, the clearance kept).
+    struct OneSide {
+        side: Side,
+        mesh: TriangleMesh,
+        offsets: Vec<u32>,
+        adjacency: Vec<u32>,
+        partner: Vec<Vec3>,
+    }
+
+    impl OneSide {
+        fn new(mesh: TriangleMesh, partner: Vec<Vec3>, probe: Vec3, cutoff: f32) -> OneSide {
+            let (offsets, adjacency) = mesh.triangles_at(partner.len());
+            let mut one = OneSide { side: Side::default(), mesh, offsets, adjacency, partner };
+            let (probing, view) = one.views(probe);
+            let side = Side::new(&probing, &view, 1.5 * cutoff).unwrap();
+            one.side = side;
+            one
+        }
+
+        fn views(&self, probe: Vec3) -> (View<'_>, View<'_>) {
+            let view = |pos: &[Vec3]| View {
+                pos: Cow::Owned(pos.to_vec()),
+                mesh: &self.mesh,
+                tri_offsets: &self.offsets,
+                tri_adjacency: &self.adjacency,
+                vertices: pos.len(),
+                embedding: None,
+            };
+            (view(&[probe]), view(&self.partner))
+        }
+
+        fn step(&mut self, probe: Vec3, penalty: &SurfacePenalty) -> Option<SurfaceHit> {
+            let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
+            let mut side = std::mem::take(&mut self.side);
+            let (probing, partner) = self.views(probe);
+            side.refresh(&probing, &partner, 0.5 * cutoff);
+            side.age(&probing, &partner);
+            let (hit, last, clear) = side.hits(&probing, &partner, penalty)[0];
+            (side.last, side.clear) = (vec![last], vec![clear]);
+            self.side = side;
+            hit
+        }
+    }
+
+    #[test]
+    fn a_probe_is_searched_again_before_a_triangle_its_lists_left_out_could_push_it() {
+        // A large slanted triangle whose box holds the probe, its plane 2.9 away, and a small
+        // one facing the probe 1.6 away: beyond the lists' range (1.5), so not listed. The
+        // probe then walks toward the small one, 0.2 a step. Its clearance from the listed
+        // triangle alone would be 1.9, and would skip it past the step (the sixth) where the
+        // small one first pushes it: the clearance must also bound what the lists left out.
+        let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.5, reach: 1.0, margin: 0.0 };
+        let partner = vec![
+            Vec3::new(5.0, -5.0, -5.0),
+            Vec3::new(-5.0, 5.0, -5.0),
+            Vec3::new(-5.0, -5.0, 5.0),
+            Vec3::new(1.6, -0.5, -0.5),
+            Vec3::new(1.6, 0.0, 0.5),
+            Vec3::new(1.6, 0.5, -0.5),
+        ];
+        let mesh = TriangleMesh { triangles: vec![[0, 1, 2], [3, 4, 5]] };
+        let mut one = OneSide::new(mesh.clone(), partner.clone(), Vec3::ZERO, 1.0);
+        let mut pushed = 0;
+        for step in 0..8 {
+            let probe = Vec3::new(0.2 * step as f32, 0.0, 0.0);
+            let kept = one.step(probe, &penalty);
+            let fresh = nearest_pushes(&penalty, &[probe], &partner, &mesh, &[])[0];
+            assert_eq!(kept, fresh, "step {step}, the probe at {probe}");
+            pushed += usize::from(kept.is_some());
+        }
+        // (x = 1.2 and 1.4: within the gap of the small triangle.)
+        assert_eq!(pushed, 2);
+    }
+
+    /// The nearest triangle within the cutoff of every probe, over every triangle.
+    fn nearest_by_every_triangle(
+        probe: Vec3,
+        partner: &[Vec3],
+        mesh: &TriangleMesh,
+        cutoff: f32,
+    ) -> Option<(u32, f32)> {
+        let mut best: Option<(f32, u32)> = None;
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            let c = tri.map(|v| partner[v as usize]);
+            let Some((w, _)) = closest_on_triangle(probe, c) else { continue };
+            let d2 = probe.distance_squared(w[0] * c[0] + w[1] * c[1] + w[2] * c[2]);
+            if d2 <= cutoff * cutoff && best.is_none_or(|(b, bt)| d2 < b || (d2 == b && (t as u32) < bt)) {
+                best = Some((d2, t as u32));
+            }
+        }
+        best.map(|(d2, t)| (t, d2))
+    }
+
+    #[test]
+    fn the_voxel_walk_lists_every_triangle_within_reach_on_a_surface_stretched_and_grown() {
+        // A wavy sheet (a grid of 24 × 24 points, two triangles a cell), probed from points
+        // scattered about it: as given; stretched along x to ten times its length (edges far
+        // past the voxel its search was set up for: a probe walks two voxels each way), and to
+        // thirty (the block holds more voxels than the sheet has points, which are gone
+        // through instead); and moved 400 away (out of the grid its points were binned in).
+        // The nearest triangle within the cutoff is every triangle's nearest, each time.
+        let n = 24;
+        let sheet = |stretch: f32, shift: f32| -> Vec<Vec3> {
+            (0..n * n)
+                .map(|k| {
+                    let (i, j) = ((k % n) as f32, (k / n) as f32);
+                    Vec3::new(stretch * i + shift, j, 0.6 * (0.7 * i).sin() * (0.5 * j).cos())
+                })
+                .collect()
+        };
+        let mut triangles = Vec::new();
+        for j in 0..n as u32 - 1 {
+            for i in 0..n as u32 - 1 {
+                let (a, b, c, d) = (
+                    i + n as u32 * j,
+                    i + 1 + n as u32 * j,
+                    i + 1 + n as u32 * (j + 1),
+                    i + n as u32 * (j + 1),
+                );
+                triangles.push([a, b, c]);
+                triangles.push([a, c, d]);
+            }
+        }
+        let mesh = TriangleMesh { triangles };
+        let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.2, reach: 1.5, margin: 0.3 };
+        let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
+        let given = sheet(1.0, 0.0);
+        for (stretch, shift) in [(1.0, 0.0), (10.0, 0.0), (30.0, 0.0), (1.0, 400.0)] {
+            let partner = sheet(stretch, shift);
+            let probes: Vec<Vec3> = (0..2000)
+                .map(|k| {
+                    let h = (k as u32).wrapping_mul(2_654_435_761);
+                    let f = |s: u32| ((h >> s) & 1023) as f32 / 1023.0;
+                    Vec3::new(shift + f(0) * stretch * n as f32, f(10) * n as f32, 4.0 * f(20) - 2.0)
+                })
+                .collect();
+            // The side set up on the sheet as given, then searching the sheet as it is now.
+            let (offsets, adjacency) = mesh.triangles_at(given.len());
+            let view = |pos: &[Vec3]| View {
+                pos: Cow::Owned(pos.to_vec()),
+                mesh: &mesh,
+                tri_offsets: &offsets,
+                tri_adjacency: &adjacency,
+                vertices: pos.len(),
+                embedding: None,
+            };
+            let mut side = Side::new(&view(&probes), &view(&given), 1.5 * cutoff).unwrap();
+            side.refresh(&view(&probes), &view(&partner), 0.5 * cutoff);
+            side.age(&view(&probes), &view(&partner));
+            side.entry = vec![Vec3::ZERO; probes.len()];
+            let hits = side.hits(&view(&probes), &view(&partner), &penalty);
+            let mut found = 0;
+            for (k, (probe, (_, t, _))) in probes.iter().zip(&hits).enumerate() {
+                let want = nearest_by_every_triangle(*probe, &partner, &mesh, cutoff).map(|(t, _)| t);
+                let got = (*t != u32::MAX).then_some(*t);
+                assert_eq!(got, want, "stretched {stretch}, moved {shift}: probe {k} at {probe}");
+                found += usize::from(got.is_some());
+            }
+            assert!(found > 300, "stretched {stretch}, moved {shift}: only {found} probes near the sheet");
+        }
     }
 }
