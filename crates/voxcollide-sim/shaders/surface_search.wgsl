@@ -168,6 +168,135 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
     return vec4<f32>(1.0 - v - w, v, w, bitcast<f32>(FACE));
 }
 
+// One probe's search, as it goes (per invocation): where it is, the nearest triangle so far
+// and what bounds the others.
+var<private> probe_p: vec3<f32>;
+var<private> probe_entry: vec3<f32>;
+var<private> near2: f32;
+var<private> found: bool;
+var<private> best_d2: f32;
+var<private> best_t: u32;
+var<private> best: vec4<f32>;
+// The squared distance within which a triangle may still be nearer.
+var<private> bound: f32;
+// A lower bound of the squared distance to every triangle passed over or measured.
+var<private> lower: f32;
+// How near, squared, a point must be for its triangles to be looked at: `near2` until one is
+// found, then its distance plus the longest edge (every point of a triangle lies within its
+// longest edge of each corner), a little more for rounding.
+var<private> corners2: f32;
+var<private> longest: f32;
+// The nearest point beyond `near`, squared, if any.
+var<private> beyond: f32;
+var<private> any_beyond: bool;
+
+// Triangle t at d2, its nearest point `near` (weights and feature): the nearest so far where it
+// is within the bound and nearer (ties to the smaller index).
+fn offer(t: u32, d2: f32, near: vec4<f32>) {
+    if d2 <= bound && (!found || d2 < best_d2 || (d2 == best_d2 && t < best_t)) {
+        found = true;
+        best_d2 = d2;
+        best_t = t;
+        best = near;
+        bound = d2;
+        let r = (sqrt(d2) + longest) * 1.001;
+        corners2 = min(r * r, near2);
+    }
+}
+
+// Triangle t measured before the walk (the last step's nearest), as the walk would: only what it
+// finds, no bound (the walk meets it again where it counts).
+fn try_first(t: u32) {
+    let p = probe_p;
+    let c0 = point(corner_of(t, 0u));
+    let c1 = point(corner_of(t, 1u));
+    let c2 = point(corner_of(t, 2u));
+    if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
+        return;
+    }
+    let out = max(max(min(min(c0, c1), c2) - p, p - max(max(c0, c1), c2)), vec3<f32>(0.0));
+    if dot3(out, out) > bound {
+        return;
+    }
+    if any(probe_entry != vec3<f32>(0.0)) && dot3(face_normal(t), probe_entry) < 0.0 {
+        return;
+    }
+    let near = closest_on_triangle(p, c0, c1, c2);
+    if bitcast<u32>(near.w) == NONE {
+        return;
+    }
+    offer(t, dist2(p, near.x * c0 + near.y * c1 + near.z * c2), near);
+}
+
+// The triangles at partner point i (within `near`), each at its first corner that near.
+fn triangles_at(i: u32) {
+    let p = probe_p;
+    for (var a = topology[search.off_at + i]; a < topology[search.off_at + i + 1u]; a++) {
+        let t = topology[search.adj_at + a];
+        let c0 = point(corner_of(t, 0u));
+        let c1 = point(corner_of(t, 1u));
+        let c2 = point(corner_of(t, 2u));
+        // Each triangle once: at its first corner that near (in the block).
+        var first = corner_of(t, 2u);
+        if dist2(c0, p) <= near2 {
+            first = corner_of(t, 0u);
+        } else if dist2(c1, p) <= near2 {
+            first = corner_of(t, 1u);
+        }
+        if first != i {
+            continue;
+        }
+        // (A triangle with a corner not finite is never one: the CPU's lists leave it out.)
+        if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
+            continue;
+        }
+        let box_lo = min(min(c0, c1), c2);
+        let box_hi = max(max(c0, c1), c2);
+        let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
+        let box_d2 = dot3(out, out);
+        if box_d2 > bound {
+            lower = min(lower, box_d2);
+            continue;
+        }
+        // Facing away from the way it came in: the far side (still a bound).
+        if any(probe_entry != vec3<f32>(0.0)) && dot3(face_normal(t), probe_entry) < 0.0 {
+            lower = min(lower, box_d2);
+            continue;
+        }
+        let near = closest_on_triangle(p, c0, c1, c2);
+        if bitcast<u32>(near.w) == NONE {
+            continue;
+        }
+        let d2 = dist2(p, near.x * c0 + near.y * c1 + near.z * c2);
+        lower = min(lower, d2);
+        offer(t, d2, near);
+    }
+}
+
+// The points binned in voxel q (a hashed slot holds other voxels' points too, passed over).
+fn walk(q: vec3<u32>, origin: vec3<f32>) {
+    let s = slot_of(q);
+    for (var e = starts[s]; e < starts[s + 1u]; e++) {
+        let i = sorted[e].w;
+        let pi = point(i);
+        if any(voxel_of(pi, origin).xyz != q) {
+            continue;
+        }
+        let di2 = dist2(pi, probe_p);
+        if di2 > near2 {
+            // A point farther than `near` is no corner of a triangle within the cutoff; its
+            // distance less the longest edge bounds the triangles at it (taken once, after the
+            // walk: the bound grows with the distance, so the nearest gives the least).
+            if !any_beyond || di2 < beyond {
+                beyond = di2;
+            }
+            any_beyond = true;
+        } else if di2 <= corners2 {
+            triangles_at(i);
+        }
+    }
+}
+
 @compute @workgroup_size(WORKGROUP_SIZE)
 fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let k = item_index(gid, nwg);
@@ -179,6 +308,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     }
     let p = probes[k].xyz;
     let entry = hits[k].entry.xyz;
+    // The last step's nearest (NONE: none, or not searched), tried first.
+    let last = hits[k].triangle;
     // Farther from any push than the bodies have moved since it was measured: not searched.
     if hits[k].clear > 0.0 {
         var skipped = SurfaceHit();
@@ -189,16 +320,21 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         return;
     }
     let origin = state.origin.xyz;
-    var found = false;
-    var best_d2 = 0.0;
-    var best_t = NONE;
-    var best = vec4<f32>(0.0);
-    var bound = search.cutoff * search.cutoff;
+    probe_p = p;
+    probe_entry = entry;
+    found = false;
+    best_d2 = 0.0;
+    best_t = NONE;
+    best = vec4<f32>(0.0);
+    bound = search.cutoff * search.cutoff;
+    any_beyond = false;
+    beyond = 0.0;
     // The longest edge now: a triangle within the cutoff has a corner within `near`, and every
     // point that near is binned within `reach` voxels of the probe's own, each way.
-    let longest = sqrt(bitcast<f32>(atomicLoad(&edge[0])));
+    longest = sqrt(bitcast<f32>(atomicLoad(&edge[0])));
     let near = search.cutoff + longest;
-    let near2 = near * near;
+    near2 = near * near;
+    corners2 = near2;
     // (At most the grid across: a surface stretched past all sense is walked whole.)
     let across = f32(max(max(params.dims.x, params.dims.y), params.dims.z));
     let reach = i32(clamp(ceil(near / search.voxel), 1.0, across));
@@ -206,9 +342,25 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     // or measured, those with a corner in the block but none near (that corner's distance less
     // the longest edge), and those with no corner in the block (`reach` voxels less that).
     let far = max(f32(reach) * search.voxel - longest, 0.0);
-    var lower = far * far;
+    lower = far * far;
     let v = voxel_of(p, origin);
     if v.w == 1u {
+        // The last step's nearest first, so that most triangles are passed over (the answer
+        // is the same without it: the nearest, ties to the smaller index).
+        if last < search.n_triangles {
+            try_first(last);
+        }
+        // The probe's own voxel first, then the others that the sphere of `near` about it
+        // reaches: only their points can be corners of a candidate, and once one is found,
+        // only those within its distance plus the longest edge. The other voxels' points only
+        // bound the distance (`beyond`), which only counts where nothing is found; and a voxel
+        // whose box lies farther than what is bounded by then is passed over (no point in it
+        // could lower the bound: the same bound as walking it, sooner). A box's distance is
+        // shaved by a thousandth of a voxel, so that rounding never passes over a point that
+        // counts.
+        walk(v.xyz, origin);
+        var later: array<vec4<f32>, 27>;
+        var n_later = 0u;
         let lo = vec3<i32>(v.xyz) - vec3<i32>(reach);
         let dims = vec3<i32>(params.dims.xyz);
         let side = 2 * reach + 1;
@@ -216,75 +368,38 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
             for (var y = 0; y < side; y++) {
                 for (var x = 0; x < side; x++) {
                     let q = lo + vec3<i32>(x, y, z);
-                    if any(q < vec3<i32>(0)) || any(q >= dims) {
+                    if any(q < vec3<i32>(0)) || any(q >= dims) || all(vec3<u32>(q) == v.xyz) {
                         continue;
                     }
-                    let s = slot_of(vec3<u32>(q));
-                    for (var e = starts[s]; e < starts[s + 1u]; e++) {
-                        let i = sorted[e].w;
-                        // A hashed slot holds other voxels' points too; and a point farther
-                        // than `near` is no corner of a triangle within the cutoff.
-                        let pi = point(i);
-                        if any(voxel_of(pi, origin).xyz != vec3<u32>(q)) {
-                            continue;
-                        }
-                        let di2 = dist2(pi, p);
-                        if di2 > near2 {
-                            let d = max(sqrt(di2) - longest, 0.0);
-                            lower = min(lower, d * d);
-                            continue;
-                        }
-                        for (var a = topology[search.off_at + i]; a < topology[search.off_at + i + 1u]; a++) {
-                            let t = topology[search.adj_at + a];
-                            let c0 = point(corner_of(t, 0u));
-                            let c1 = point(corner_of(t, 1u));
-                            let c2 = point(corner_of(t, 2u));
-                            // Each triangle once: at its first corner that near (in the block).
-                            var first = corner_of(t, 2u);
-                            if dist2(c0, p) <= near2 {
-                                first = corner_of(t, 0u);
-                            } else if dist2(c1, p) <= near2 {
-                                first = corner_of(t, 1u);
-                            }
-                            if first != i {
-                                continue;
-                            }
-                            // (A triangle with a corner not finite is never one: the CPU's
-                            // lists leave it out.)
-                            if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
-                                continue;
-                            }
-                            let box_lo = min(min(c0, c1), c2);
-                            let box_hi = max(max(c0, c1), c2);
-                            let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
-                            let box_d2 = dot3(out, out);
-                            if box_d2 > bound {
-                                lower = min(lower, box_d2);
-                                continue;
-                            }
-                            // Facing away from the way it came in: the far side (still a bound).
-                            if any(entry != vec3<f32>(0.0)) && dot3(face_normal(t), entry) < 0.0 {
-                                lower = min(lower, box_d2);
-                                continue;
-                            }
-                            let near = closest_on_triangle(p, c0, c1, c2);
-                            if bitcast<u32>(near.w) == NONE {
-                                continue;
-                            }
-                            let qn = near.x * c0 + near.y * c1 + near.z * c2;
-                            let d2 = dist2(p, qn);
-                            lower = min(lower, d2);
-                            if d2 <= bound && (!found || d2 < best_d2 || (d2 == best_d2 && t < best_t)) {
-                                found = true;
-                                best_d2 = d2;
-                                best_t = t;
-                                best = near;
-                                bound = d2;
-                            }
-                        }
+                    let box_lo = origin + vec3<f32>(q) * search.voxel;
+                    let out = max(max(box_lo - p, p - (box_lo + vec3<f32>(search.voxel))), vec3<f32>(0.0));
+                    let d = sqrt(dot3(out, out)) - 1e-3 * search.voxel;
+                    if d > near && n_later < 27u {
+                        later[n_later] = vec4<f32>(vec3<f32>(q), d);
+                        n_later++;
+                    } else if !found || d <= 0.0 || d * d <= corners2 {
+                        walk(vec3<u32>(q), origin);
                     }
                 }
             }
+        }
+        for (var l = 0u; l < n_later; l++) {
+            if found {
+                break;
+            }
+            var lowest = lower;
+            if any_beyond {
+                let bounded = max(sqrt(beyond) - longest, 0.0);
+                lowest = min(lowest, bounded * bounded);
+            }
+            let could = max(later[l].w - longest, 0.0);
+            if could * could <= lowest {
+                walk(vec3<u32>(later[l].xyz), origin);
+            }
+        }
+        if any_beyond {
+            let d = max(sqrt(beyond) - longest, 0.0);
+            lower = min(lower, d * d);
         }
     }
     var hit = SurfaceHit();
