@@ -343,8 +343,24 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     // the longest edge), and those with no corner in the block (`reach` voxels less that).
     let far = max(f32(reach) * search.voxel - longest, 0.0);
     lower = far * far;
+    // The probe's voxel, as `voxel_of` counts them, or where it would be past the grid's faces
+    // (kept within a block of them): a probe just outside the grid walks the part of its block
+    // inside it, since the points binned near a face may be near it. One whose block misses
+    // the grid is searched again at the next step.
     let v = voxel_of(p, origin);
-    if v.w == 1u {
+    let dims = vec3<i32>(params.dims.xyz);
+    var at = vec3<i32>(0);
+    var searched = false;
+    if is_finite3(p) {
+        let g = clamp(
+            floor((p - origin) * params.inv),
+            vec3<f32>(-1.0 - f32(reach)),
+            vec3<f32>(params.dims.xyz) + f32(reach)
+        );
+        at = vec3<i32>(g);
+        searched = all(at - vec3<i32>(reach) < dims) && all(at + vec3<i32>(reach) >= vec3<i32>(0));
+    }
+    if searched {
         // The last step's nearest first, so that most triangles are passed over (the answer
         // is the same without it: the nearest, ties to the smaller index).
         if last < search.n_triangles {
@@ -358,17 +374,18 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         // could lower the bound: the same bound as walking it, sooner). A box's distance is
         // shaved by a thousandth of a voxel, so that rounding never passes over a point that
         // counts.
-        walk(v.xyz, origin);
+        if v.w == 1u {
+            walk(v.xyz, origin);
+        }
         var later: array<vec4<f32>, 27>;
         var n_later = 0u;
-        let lo = vec3<i32>(v.xyz) - vec3<i32>(reach);
-        let dims = vec3<i32>(params.dims.xyz);
+        let lo = at - vec3<i32>(reach);
         let side = 2 * reach + 1;
         for (var z = 0; z < side; z++) {
             for (var y = 0; y < side; y++) {
                 for (var x = 0; x < side; x++) {
                     let q = lo + vec3<i32>(x, y, z);
-                    if any(q < vec3<i32>(0)) || any(q >= dims) || all(vec3<u32>(q) == v.xyz) {
+                    if any(q < vec3<i32>(0)) || any(q >= dims) || (v.w == 1u && all(vec3<u32>(q) == v.xyz)) {
                         continue;
                     }
                     let box_lo = origin + vec3<f32>(q) * search.voxel;
@@ -405,9 +422,8 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
     var hit = SurfaceHit();
     hit.entry = hits[k].entry;
     hit.triangle = best_t;
-    // (Clearances are shaved by a thousandth, so that rounding never skips a push; a probe
-    // outside the grid is searched again at the next step.)
-    if !found && v.w == 1u {
+    // (Clearances are shaved by a thousandth, so that rounding never skips a push.)
+    if !found && searched {
         hit.clear = (sqrt(lower) - search.cutoff) * 0.999;
     }
     if found {

@@ -186,3 +186,49 @@ fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
     let e = search.read_hits().unwrap_err().to_string();
     assert!(e.contains("grew past the grid") && e.contains("--backend cpu"), "{e}");
 }
+
+/// A surface grown in place almost to the faces of the grid its search was set up for (the
+/// ball 78 times its size: its poles 4 inside the grid's faces, which lie 160 from its middle)
+/// is still binned whole, and a probe just outside the grid walks the part of its block inside
+/// it: the device finds the pushes and the margin's listings beyond the faces as the CPU does,
+/// to the bit. (Before, a probe outside the grid was not searched at all.)
+#[test]
+fn the_device_searches_from_just_outside_its_grid() {
+    let Some(ctx) = adapter::gpu() else { return };
+    let material = voxcollide_sim::Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
+    let ball =
+        voxcollide_sim::bodies::ellipsoid_shell(Vec3::ZERO, Vec3::splat(2.0), 4, 8, 2.0, 10.0, material)
+            .unwrap();
+    let grown: Vec<Vec3> = ball.pos.iter().map(|p| 78.0 * *p).collect();
+    let probes: Vec<Vec3> = points(Vec3::splat(-190.0), Vec3::splat(190.0), 6.5)
+        .into_iter()
+        .filter(|p| (p.length() - 156.0).abs() < 25.0)
+        .collect();
+    // (Listed within 20 outside the surface: probes past the grid's faces get a hit.)
+    let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.0, reach: 30.0, margin: 20.0 };
+    let cpu = nearest_pushes(&penalty, &probes, &grown, &ball.surface, &[]);
+    let device = ctx.device();
+    let mut search = SurfaceSearch::new(&ctx, penalty, &ball.surface, &ball.pos, probes.len()).unwrap();
+    assert_eq!(search.voxel_size(), 64.0);
+    let (probe_buffer, partner_buffer) = (upload(&ctx, &probes), upload(&ctx, &grown));
+    let mut encoder = device.create_command_encoder(&Default::default());
+    search.record(&mut encoder, &probe_buffer, &partner_buffer).unwrap();
+    ctx.queue().submit([encoder.finish()]);
+    let gpu = search.read_hits().unwrap();
+    let outside = |p: &Vec3| p.abs().max_element() > 160.0;
+    let beyond = probes.iter().zip(&cpu).filter(|(p, h)| outside(p) && h.is_some()).count();
+    assert!(beyond > 20, "only {beyond} probes past the grid's faces have a hit");
+    let differ: Vec<String> = probes
+        .iter()
+        .zip(cpu.iter().zip(&gpu))
+        .filter(|(_, (c, g))| c != g)
+        .map(|(p, (c, g))| format!("{p}: cpu {c:?}, gpu {g:?}"))
+        .collect();
+    assert!(
+        differ.is_empty(),
+        "{} of {} probes differ:\n{}",
+        differ.len(),
+        probes.len(),
+        differ[..differ.len().min(4)].join("\n")
+    );
+}

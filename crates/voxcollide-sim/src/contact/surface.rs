@@ -43,7 +43,7 @@ use std::borrow::Cow;
 use voxcollide::VoxelGrid;
 use voxcollide::voxel_data::voxel_hash;
 
-use glam::{Mat3, UVec3, Vec3};
+use glam::{IVec3, Mat3, UVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::body::{Embedding, MassSpring, Mode};
@@ -485,9 +485,20 @@ impl Side {
             .with_min_len(256)
             .map(|&i| {
                 let p = probing.pos[i as usize];
-                // A probe outside the grid is farther than a block from every point binned.
-                let Some(v) = grid.voxel_of(p) else { return Vec::new() };
-                let (lo, hi) = (v.as_ivec3() - reach, v.as_ivec3() + reach);
+                if !p.is_finite() {
+                    return Vec::new();
+                }
+                // The probe's voxel, as the grid counts them (`VoxelGrid::voxel_of`), or where
+                // it would be past the grid's faces: a probe just outside the grid walks the
+                // part of its block inside it (the points binned near a face may be near it).
+                let v = ((p - grid.origin()) * grid.inv_voxel_size())
+                    .floor()
+                    .clamp(Vec3::splat(-1.0 - reach as f32), dims.as_vec3() + reach as f32)
+                    .as_ivec3();
+                let (lo, hi) = (v - reach, v + reach);
+                if lo.cmpge(dims).any() || hi.cmplt(IVec3::ZERO).any() {
+                    return Vec::new();
+                }
                 let mut list = Vec::new();
                 let mut at = |pi: Vec3, j: u32| {
                     if pi.distance_squared(p) > near2 {
@@ -1094,8 +1105,11 @@ mod tests {
         // scattered about it: as given; stretched along x to ten times its length (edges far
         // past the voxel its search was set up for: a probe walks two voxels each way), and to
         // thirty (the block holds more voxels than the sheet has points, which are gone
-        // through instead); and moved 400 away (out of the grid its points were binned in).
-        // The nearest triangle within the cutoff is every triangle's nearest, each time.
+        // through instead); moved 400 away (out of the grid its points were binned in); and
+        // grown 3.45 times along x about its middle, still inside its grid but a third of a
+        // unit from the grid's faces, probed from past them too (a probe just outside the grid
+        // walks the part of its block inside it). The nearest triangle within the cutoff is
+        // every triangle's nearest, each time.
         let n = 24;
         let sheet = |stretch: f32, shift: f32| -> Vec<Vec3> {
             (0..n * n)
@@ -1122,7 +1136,7 @@ mod tests {
         let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.2, reach: 1.5, margin: 0.3 };
         let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
         let given = sheet(1.0, 0.0);
-        for (stretch, shift) in [(1.0, 0.0), (10.0, 0.0), (30.0, 0.0), (1.0, 400.0)] {
+        for (stretch, shift) in [(1.0, 0.0), (10.0, 0.0), (30.0, 0.0), (1.0, 400.0), (3.45, -28.175)] {
             let partner = sheet(stretch, shift);
             let probes: Vec<Vec3> = (0..2000)
                 .map(|k| {
