@@ -3,8 +3,8 @@
 //! nearest triangle within the cutoff, its weights, the push's direction and depth, with and
 //! without the way each probe came in. On a closed breast-like bulge probed by a kidney bean
 //! pushed into it, and on the MakeHuman skin as scanned (an open sheet nobody here made)
-//! probed by points before and behind it; and on the bulge grown two and a half times past what
-//! its search was set up for.
+//! probed by points before and behind it; on a ball grown sixty times past what its search was
+//! set up for; and on one grown in place almost to its grid's faces, probed from past them.
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod adapter;
@@ -144,6 +144,37 @@ fn the_device_finds_the_pushes_out_of_a_scanned_skin_as_the_cpu_does() {
     assert!(pushed > 500, "only {pushed} of {} probes pushed", probes.len());
 }
 
+/// A coarse ball of radius 2 (a shell of 4 × 8 cells), its points scaled by `scale`, and the
+/// search set up on it as made, its voxel 64 for `penalty`'s cutoff of 30.
+fn ball_grown(
+    ctx: &voxcollide::GpuContext,
+    penalty: SurfacePenalty,
+    scale: f32,
+    n_probes: usize,
+) -> (TriangleMesh, Vec<Vec3>, SurfaceSearch) {
+    let material = voxcollide_sim::Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
+    let ball =
+        voxcollide_sim::bodies::ellipsoid_shell(Vec3::ZERO, Vec3::splat(2.0), 4, 8, 2.0, 10.0, material)
+            .unwrap();
+    let grown: Vec<Vec3> = ball.pos.iter().map(|p| scale * *p).collect();
+    let search = SurfaceSearch::new(ctx, penalty, &ball.surface, &ball.pos, n_probes).unwrap();
+    assert_eq!(search.voxel_size(), 64.0);
+    (ball.surface, grown, search)
+}
+
+/// `search`'s pushes of `probes` against the partner's points `partner`, read back.
+fn searched(
+    ctx: &voxcollide::GpuContext,
+    search: &mut SurfaceSearch,
+    probes: &voxcollide::wgpu::Buffer,
+    partner: &[Vec3],
+) -> Result<Vec<Option<SurfaceHit>>, voxcollide::Error> {
+    let mut encoder = ctx.device().create_command_encoder(&Default::default());
+    search.record(&mut encoder, probes, &upload(ctx, partner)).unwrap();
+    ctx.queue().submit([encoder.finish()]);
+    search.read_hits()
+}
+
 /// A surface that has grown since the search was set up for it (a shell filling from its
 /// deflated start): a coarse ball of radius 2 grown sixty times, its edges some 80 long against
 /// a voxel of 64 chosen for edges of 1.3. The walk widens with the longest edge it measures each
@@ -152,38 +183,24 @@ fn the_device_finds_the_pushes_out_of_a_scanned_skin_as_the_cpu_does() {
 #[test]
 fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
     let Some(ctx) = adapter::gpu() else { return };
-    let material = voxcollide_sim::Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
-    let ball =
-        voxcollide_sim::bodies::ellipsoid_shell(Vec3::ZERO, Vec3::splat(2.0), 4, 8, 2.0, 10.0, material)
-            .unwrap();
-    let grown: Vec<Vec3> = ball.pos.iter().map(|p| 60.0 * *p).collect();
     let probes: Vec<Vec3> = points(Vec3::splat(-150.0), Vec3::splat(150.0), 8.5)
         .into_iter()
         .filter(|p| (p.length() - 110.0).abs() < 40.0)
         .collect();
     let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.0, reach: 30.0, margin: 0.0 };
-    let cpu = nearest_pushes(&penalty, &probes, &grown, &ball.surface, &[]);
     // Set up on the ball as it was; searched on it grown.
-    let device = ctx.device();
-    let mut search = SurfaceSearch::new(&ctx, penalty, &ball.surface, &ball.pos, probes.len()).unwrap();
-    assert_eq!(search.voxel_size(), 64.0);
-    let (probe_buffer, partner_buffer) = (upload(&ctx, &probes), upload(&ctx, &grown));
-    let mut encoder = device.create_command_encoder(&Default::default());
-    search.record(&mut encoder, &probe_buffer, &partner_buffer).unwrap();
-    ctx.queue().submit([encoder.finish()]);
-    let gpu = search.read_hits().unwrap();
+    let (mesh, grown, mut search) = ball_grown(&ctx, penalty, 60.0, probes.len());
+    let cpu = nearest_pushes(&penalty, &probes, &grown, &mesh, &[]);
+    let probe_buffer = upload(&ctx, &probes);
+    let gpu = searched(&ctx, &mut search, &probe_buffer, &grown).unwrap();
     let pushed = cpu.iter().filter(|h| h.is_some()).count();
     assert!(pushed > 300, "only {pushed} of {} probes pushed", probes.len());
     let differ = cpu.iter().zip(&gpu).filter(|(c, g)| c != g).count();
     assert_eq!(differ, 0, "{differ} of {} probes differ", probes.len());
     // Grown past the grid that bins it (twice its widest as set up, and a few voxels), its points
     // there go unbinned: the search says so by name instead of missing their pushes.
-    let outgrown: Vec<Vec3> = ball.pos.iter().map(|p| 200.0 * *p).collect();
-    let mut encoder = device.create_command_encoder(&Default::default());
-    let outgrown = upload(&ctx, &outgrown);
-    search.record(&mut encoder, &probe_buffer, &outgrown).unwrap();
-    ctx.queue().submit([encoder.finish()]);
-    let e = search.read_hits().unwrap_err().to_string();
+    let outgrown: Vec<Vec3> = grown.iter().map(|p| p * (200.0 / 60.0)).collect();
+    let e = searched(&ctx, &mut search, &probe_buffer, &outgrown).unwrap_err().to_string();
     assert!(e.contains("grew past the grid") && e.contains("--backend cpu"), "{e}");
 }
 
@@ -195,26 +212,15 @@ fn the_device_still_finds_every_push_on_a_surface_grown_past_its_binning() {
 #[test]
 fn the_device_searches_from_just_outside_its_grid() {
     let Some(ctx) = adapter::gpu() else { return };
-    let material = voxcollide_sim::Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
-    let ball =
-        voxcollide_sim::bodies::ellipsoid_shell(Vec3::ZERO, Vec3::splat(2.0), 4, 8, 2.0, 10.0, material)
-            .unwrap();
-    let grown: Vec<Vec3> = ball.pos.iter().map(|p| 78.0 * *p).collect();
     let probes: Vec<Vec3> = points(Vec3::splat(-190.0), Vec3::splat(190.0), 6.5)
         .into_iter()
         .filter(|p| (p.length() - 156.0).abs() < 25.0)
         .collect();
     // (Listed within 20 outside the surface: probes past the grid's faces get a hit.)
     let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.0, reach: 30.0, margin: 20.0 };
-    let cpu = nearest_pushes(&penalty, &probes, &grown, &ball.surface, &[]);
-    let device = ctx.device();
-    let mut search = SurfaceSearch::new(&ctx, penalty, &ball.surface, &ball.pos, probes.len()).unwrap();
-    assert_eq!(search.voxel_size(), 64.0);
-    let (probe_buffer, partner_buffer) = (upload(&ctx, &probes), upload(&ctx, &grown));
-    let mut encoder = device.create_command_encoder(&Default::default());
-    search.record(&mut encoder, &probe_buffer, &partner_buffer).unwrap();
-    ctx.queue().submit([encoder.finish()]);
-    let gpu = search.read_hits().unwrap();
+    let (mesh, grown, mut search) = ball_grown(&ctx, penalty, 78.0, probes.len());
+    let cpu = nearest_pushes(&penalty, &probes, &grown, &mesh, &[]);
+    let gpu = searched(&ctx, &mut search, &upload(&ctx, &probes), &grown).unwrap();
     let outside = |p: &Vec3| p.abs().max_element() > 160.0;
     let beyond = probes.iter().zip(&cpu).filter(|(p, h)| outside(p) && h.is_some()).count();
     assert!(beyond > 20, "only {beyond} probes past the grid's faces have a hit");
