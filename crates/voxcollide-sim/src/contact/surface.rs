@@ -24,15 +24,18 @@
 //! face's normal, the sum of an edge's two faces' normals, or a vertex's angle-weighted normal
 //! (Bærentzen and Aanæs 2005), exact for a closed, outward-oriented surface.
 //!
-//! **Finding the nearest triangle: the voxel model.** Each step the partner's points are binned
-//! by voxel, as the core bins a body ([`Binned`]), on a grid that follows them, its voxel the
-//! cutoff plus [`STRETCH`] times the surface's longest edge (a power of two), and each probing
-//! point walks the block of voxels about its own to the triangles at the points binned there
-//! ([`Side::hits`]). The device's search is the same design in WGSL (`crate::gpu::surface`,
-//! docs/contacts.md), and finds the same pushes and clearances, bit for bit. A probe farther
-//! from every push than the bodies have since moved (its clearance) is not searched. A vertex
-//! deeper than `reach` is not pushed (the run's contact check reports it): from beyond the
-//! middle of a thin body the nearest point is on its far side.
+//! **Finding the nearest triangle: the voxel model.** Each side keeps, per probing point, a list
+//! of the partner's triangles within the cutoff plus a skin (half the cutoff), made anew only
+//! when the bodies have moved more than the skin since (a Verlet list). To make them, the
+//! partner's points are binned by voxel, as the core bins a body ([`Binned`]), on a grid that
+//! follows them, its voxel the lists' range plus [`STRETCH`] times the surface's longest edge (a
+//! power of two), and each probing point walks the block of voxels about its own to the
+//! triangles at the points binned there ([`Side::refresh`]). The device's search is the same
+//! design in WGSL, walked at every step (`crate::gpu::surface`, docs/contacts.md), and finds the
+//! same pushes, bit for bit. A probe farther from every push than the bodies have since moved
+//! (its clearance) is not searched. A vertex deeper than `reach` is not pushed (the run's
+//! contact check reports it): from beyond the middle of a thin body the nearest point is on its
+//! far side.
 //!
 //! **Determinism.** Each vertex's nearest triangle is found in parallel (ties to the smaller
 //! index); the forces are then summed in probe order on one thread, so the result is the same on
@@ -452,7 +455,12 @@ impl Side {
         self.partner_then.clear();
         self.partner_then.extend_from_slice(&partner.pos);
         self.built = true;
+        // (A partner with no finite point when the side was made gets its grid now.)
+        if self.grid.is_none() && !partner.mesh.triangles.is_empty() {
+            self.grid = search_grid(self.range, partner.mesh, &partner.pos, None).ok().flatten();
+        }
         let Some(grid) = self.grid else {
+            // No finite point: no triangle can push.
             self.offsets.resize(self.probes.len() + 1, 0);
             return true;
         };
@@ -460,16 +468,36 @@ impl Side {
             voxcollide::cpu::step_grid(&grid, voxcollide::Anchor::FollowA, &partner.pos).unwrap_or(grid);
         let finite = partner.pos.iter().filter(|p| p.is_finite()).count() as u32;
         self.grid = Some(grid);
-        if self.binned.bin(&grid, &partner.pos) < finite
+        let mut binned = self.binned.bin(&grid, &partner.pos);
+        if binned < finite
             && let Ok(Some(wider)) =
                 search_grid(self.range, partner.mesh, &partner.pos, Some(grid.voxel_size()))
         {
             self.grid = Some(wider);
-            self.binned.bin(&wider, &partner.pos);
+            binned = self.binned.bin(&wider, &partner.pos);
         }
         let grid = self.grid.unwrap_or(grid);
         let (pos, tris) = (&partner.pos, &partner.mesh.triangles);
         let range = self.range;
+        if binned < finite {
+            // A point past even a grid made anew (a million voxels across: a surface flung
+            // apart) is in no voxel: every triangle is measured against every probe instead,
+            // slowly but missing none.
+            for &i in &self.probes {
+                let p = probing.pos[i as usize];
+                for (t, tri) in tris.iter().enumerate() {
+                    let c = tri.map(|c| pos[c as usize]);
+                    let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                    if c.iter().all(|c| c.is_finite())
+                        && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
+                    {
+                        self.near.push(t as u32);
+                    }
+                }
+                self.offsets.push(self.near.len() as u32);
+            }
+            return true;
+        }
         let longest = longest_edge2(partner.mesh, pos).sqrt();
         let near = range + longest;
         let near2 = near * near;
@@ -1136,8 +1164,24 @@ mod tests {
         let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.2, reach: 1.5, margin: 0.3 };
         let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
         let given = sheet(1.0, 0.0);
-        for (stretch, shift) in [(1.0, 0.0), (10.0, 0.0), (30.0, 0.0), (1.0, 400.0), (3.45, -28.175)] {
-            let partner = sheet(stretch, shift);
+        // (Two more: one point flung a billion away, past any grid, which leaves the lists to
+        // every triangle; and the side set up on a sheet with no finite point, which gets its
+        // grid at the first list made.)
+        let cases = [
+            (1.0, 0.0, ""),
+            (10.0, 0.0, ""),
+            (30.0, 0.0, ""),
+            (1.0, 400.0, ""),
+            (3.45, -28.175, ""),
+            (1.0, 0.0, "flung"),
+            (1.0, 0.0, "set up on NaN"),
+        ];
+        for (stretch, shift, case) in cases {
+            let mut partner = sheet(stretch, shift);
+            if case == "flung" {
+                partner[n * n - 1] = Vec3::new(1e9, 0.0, 0.0);
+            }
+            let given = if case == "set up on NaN" { vec![Vec3::NAN; given.len()] } else { given.clone() };
             let probes: Vec<Vec3> = (0..2000)
                 .map(|k| {
                     let h = (k as u32).wrapping_mul(2_654_435_761);
@@ -1164,10 +1208,13 @@ mod tests {
             for (k, (probe, (_, t, _))) in probes.iter().zip(&hits).enumerate() {
                 let want = nearest_by_every_triangle(*probe, &partner, &mesh, cutoff).map(|(t, _)| t);
                 let got = (*t != u32::MAX).then_some(*t);
-                assert_eq!(got, want, "stretched {stretch}, moved {shift}: probe {k} at {probe}");
+                assert_eq!(got, want, "stretched {stretch}, moved {shift} {case}: probe {k} at {probe}");
                 found += usize::from(got.is_some());
             }
-            assert!(found > 300, "stretched {stretch}, moved {shift}: only {found} probes near the sheet");
+            assert!(
+                found > 300,
+                "stretched {stretch}, moved {shift} {case}: only {found} probes near the sheet"
+            );
         }
     }
 }
