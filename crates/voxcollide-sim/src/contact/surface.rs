@@ -483,17 +483,24 @@ impl Side {
             // A point past even a grid made anew (a million voxels across: a surface flung
             // apart) is in no voxel: every triangle is measured against every probe instead,
             // slowly but missing none.
-            for &i in &self.probes {
-                let p = probing.pos[i as usize];
-                for (t, tri) in tris.iter().enumerate() {
-                    let c = tri.map(|c| pos[c as usize]);
-                    let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    if c.iter().all(|c| c.is_finite())
-                        && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
-                    {
-                        self.near.push(t as u32);
-                    }
-                }
+            let lists: Vec<Vec<u32>> = self
+                .probes
+                .par_iter()
+                .map(|&i| {
+                    let p = probing.pos[i as usize];
+                    (0..tris.len() as u32)
+                        .filter(|&t| {
+                            let c = tris[t as usize].map(|c| pos[c as usize]);
+                            let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                            c.iter().all(|c| c.is_finite())
+                                && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared()
+                                    <= range * range
+                        })
+                        .collect()
+                })
+                .collect();
+            for list in lists {
+                self.near.extend_from_slice(&list);
                 self.offsets.push(self.near.len() as u32);
             }
             return true;
