@@ -168,6 +168,11 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
     return vec4<f32>(1.0 - v - w, v, w, bitcast<f32>(FACE));
 }
 
+// The largest of |x|, |y|, |z|.
+fn max_abs3(v: vec3<f32>) -> f32 {
+    return max(max(abs(v.x), abs(v.y)), abs(v.z));
+}
+
 // One probe's search, as it goes (per invocation): where it is, the nearest triangle so far
 // and what bounds the others.
 var<private> probe_p: vec3<f32>;
@@ -372,8 +377,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
         // bound the distance (`beyond`), which only counts where nothing is found; and a voxel
         // whose box lies farther than what is bounded by then is passed over (no point in it
         // could lower the bound: the same bound as walking it, sooner). A box's distance is
-        // shaved by a thousandth of a voxel, so that rounding never passes over a point that
-        // counts.
+        // shaved by a thousandth of a voxel, and by a millionth of the coordinates' size (some
+        // fifteen times their rounding, far from the origin), so that rounding never passes over
+        // a point that counts.
+        let size = max(max_abs3(p), max_abs3(origin));
+        let shave = 1e-3 * search.voxel + 1e-6 * size;
         if v.w == 1u {
             walk(v.xyz, origin);
         }
@@ -390,7 +398,7 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) 
                     }
                     let box_lo = origin + vec3<f32>(q) * search.voxel;
                     let out = max(max(box_lo - p, p - (box_lo + vec3<f32>(search.voxel))), vec3<f32>(0.0));
-                    let d = sqrt(dot3(out, out)) - 1e-3 * search.voxel;
+                    let d = sqrt(dot3(out, out)) - shave;
                     if d > near && n_later < 27u {
                         later[n_later] = vec4<f32>(vec3<f32>(q), d);
                         n_later++;
