@@ -209,28 +209,37 @@ fn offer(t: u32, d2: f32, near: vec4<f32>) {
     }
 }
 
-// Triangle t measured before the walk (the last step's nearest), as the walk would: only what it
-// finds, no bound (the walk meets it again where it counts).
-fn try_first(t: u32) {
+// Triangle t, its corners c0, c1, c2, measured from the probe and offered as the nearest: what
+// it adds to the lower bound (its box's squared distance where it is passed over, else its
+// own), or -1 where it adds nothing (a corner not finite, a degenerate face).
+fn measure(t: u32, c0: vec3<f32>, c1: vec3<f32>, c2: vec3<f32>) -> f32 {
     let p = probe_p;
-    let c0 = point(corner_of(t, 0u));
-    let c1 = point(corner_of(t, 1u));
-    let c2 = point(corner_of(t, 2u));
+    // (A triangle with a corner not finite is never one: the CPU's lists leave it out.)
     if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
-        return;
+        return -1.0;
     }
-    let out = max(max(min(min(c0, c1), c2) - p, p - max(max(c0, c1), c2)), vec3<f32>(0.0));
-    if dot3(out, out) > bound {
-        return;
-    }
-    if any(probe_entry != vec3<f32>(0.0)) && dot3(face_normal(t), probe_entry) < 0.0 {
-        return;
+    let box_lo = min(min(c0, c1), c2);
+    let box_hi = max(max(c0, c1), c2);
+    let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
+    let box_d2 = dot3(out, out);
+    // Farther than the cutoff, or than the nearest so far; or facing away from the way it came
+    // in: the far side (still a bound).
+    if box_d2 > bound || (any(probe_entry != vec3<f32>(0.0)) && dot3(face_normal(t), probe_entry) < 0.0) {
+        return box_d2;
     }
     let near = closest_on_triangle(p, c0, c1, c2);
     if bitcast<u32>(near.w) == NONE {
-        return;
+        return -1.0;
     }
-    offer(t, dist2(p, near.x * c0 + near.y * c1 + near.z * c2), near);
+    let d2 = dist2(p, near.x * c0 + near.y * c1 + near.z * c2);
+    offer(t, d2, near);
+    return d2;
+}
+
+// Triangle t measured before the walk (the last step's nearest), as the walk would: only what it
+// finds, no bound (the walk meets it again where it counts).
+fn try_first(t: u32) {
+    _ = measure(t, point(corner_of(t, 0u)), point(corner_of(t, 1u)), point(corner_of(t, 2u)));
 }
 
 // The triangles at partner point i (within `near`), each at its first corner that near.
@@ -251,30 +260,10 @@ fn triangles_at(i: u32) {
         if first != i {
             continue;
         }
-        // (A triangle with a corner not finite is never one: the CPU's lists leave it out.)
-        if !(is_finite3(c0) && is_finite3(c1) && is_finite3(c2)) {
-            continue;
+        let bounded = measure(t, c0, c1, c2);
+        if bounded >= 0.0 {
+            lower = min(lower, bounded);
         }
-        let box_lo = min(min(c0, c1), c2);
-        let box_hi = max(max(c0, c1), c2);
-        let out = max(max(box_lo - p, p - box_hi), vec3<f32>(0.0));
-        let box_d2 = dot3(out, out);
-        if box_d2 > bound {
-            lower = min(lower, box_d2);
-            continue;
-        }
-        // Facing away from the way it came in: the far side (still a bound).
-        if any(probe_entry != vec3<f32>(0.0)) && dot3(face_normal(t), probe_entry) < 0.0 {
-            lower = min(lower, box_d2);
-            continue;
-        }
-        let near = closest_on_triangle(p, c0, c1, c2);
-        if bitcast<u32>(near.w) == NONE {
-            continue;
-        }
-        let d2 = dist2(p, near.x * c0 + near.y * c1 + near.z * c2);
-        lower = min(lower, d2);
-        offer(t, d2, near);
     }
 }
 

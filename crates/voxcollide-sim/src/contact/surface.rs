@@ -499,10 +499,7 @@ impl Side {
                         .collect()
                 })
                 .collect();
-            for list in lists {
-                self.near.extend_from_slice(&list);
-                self.offsets.push(self.near.len() as u32);
-            }
+            self.set_lists(lists);
             return true;
         }
         let longest = longest_edge2(partner.mesh, pos).sqrt();
@@ -587,11 +584,16 @@ impl Side {
                 list
             })
             .collect();
+        self.set_lists(lists);
+        true
+    }
+
+    /// Each probe's list, in probe order, into the lists' CSR (`offsets` holds its first 0).
+    fn set_lists(&mut self, lists: Vec<Vec<u32>>) {
         for list in lists {
             self.near.extend_from_slice(&list);
             self.offsets.push(self.near.len() as u32);
         }
-        true
     }
 
     /// Each probe's push, if any.
