@@ -18,17 +18,20 @@ pub(crate) struct Stall {
     said: bool,
 }
 
-/// Settling frames without the residual falling by a tenth before [`Stall`] says so. (Eight
-/// were tried first: on the MakeHuman patient, six Mentor candidates at 6 mm (docs/patient.md)
-/// took 2,917 steps in all; at four, 2,339, each nipple within 0.6 mm and each volume added
-/// within 2 mL of the eight's. The residual had stopped falling: the longer wait bought the
-/// pocket's suction time to wind up, and the 400 cc ended deep at eight and held at four.)
-pub(crate) const STALL_FRAMES: u32 = 4;
+/// Settling windows without the residual falling by a tenth before [`Stall`] says so, over
+/// at least two frames. (Eight were tried first: on the MakeHuman patient, six Mentor
+/// candidates at 6 mm (docs/patient.md) took 2,917 steps in all; at four, 2,339, each nipple
+/// within 0.6 mm and each volume added within 2 mL of the eight's. The residual had stopped
+/// falling: the longer wait bought the pocket's suction time to wind up, and the 400 cc ended
+/// deep at eight and held at four. Those were counted in frames, which past the schedule are as
+/// far apart as on it: there, 50 steps against a window of 18.)
+pub(crate) const STALL_WINDOWS: u64 = 4;
 
 impl Stall {
-    /// The residual `r` at a settling frame at step `step`: the step since which it has not
-    /// fallen by a tenth, the first time that has lasted [`STALL_FRAMES`] frames (once a run).
-    pub(crate) fn stalled(&mut self, step: u64, r: f64) -> Option<u64> {
+    /// The residual `r` at a settling frame at step `step`, with a settling window of `window`
+    /// steps: the step since which it has not fallen by a tenth, the first time that has lasted
+    /// [`STALL_WINDOWS`] windows and two frames (once a run).
+    pub(crate) fn stalled(&mut self, step: u64, r: f64, window: u64) -> Option<u64> {
         match self.best {
             Some((best, _)) if r.is_nan() || r >= 0.9 * best => self.frames += 1,
             _ => {
@@ -36,7 +39,8 @@ impl Stall {
                 self.frames = 0;
             }
         }
-        if self.frames >= STALL_FRAMES && !self.said {
+        let lasted = self.best.is_some_and(|(_, at)| step - at >= STALL_WINDOWS * window);
+        if self.frames >= 2 && lasted && !self.said {
             self.said = true;
             return self.best.map(|(_, at)| at);
         }
@@ -137,6 +141,9 @@ pub(super) struct Rest {
     soft: Vec<bool>,
     /// Where the vertices were at the last frame, and its step.
     before: Option<(u64, Vec<Vec<Vec3>>)>,
+    /// Where they were a settling window before this frame, and its step, where frames are
+    /// farther apart than that ([`Rest::mark`]).
+    mark: Option<(u64, Vec<Vec<Vec3>>)>,
     stall: Stall,
     /// The step since which the implicit integrator's residual has stalled, once it has.
     pub stalled_since: Option<u64>,
@@ -150,9 +157,19 @@ impl Rest {
             spacings: world.bodies.iter().map(mean_spring).collect(),
             soft,
             before: None,
+            mark: None,
             stall: Stall::default(),
             stalled_since: None,
         }
+    }
+
+    /// Keeps where `world`'s vertices are at step `step`, a settling window before the next
+    /// frame: the next verdict judges their motion since then, over the window, not since the
+    /// last frame (frames past the schedule are as far apart as frames on it, which may be
+    /// longer than a window; judged over that, a body was held settling longer than the rule
+    /// says, with nothing in its summary saying so).
+    pub fn mark(&mut self, world: &World, step: u64) {
+        self.mark = Some((step, world.bodies.iter().map(|b| b.pos.clone()).collect()));
     }
 
     /// The verdict on `world` after `done` of the `planned` steps, with the implicit
@@ -169,9 +186,12 @@ impl Rest {
         (settles, max_steps): (bool, u64),
         note: &mut dyn FnMut(&str),
     ) -> Verdict {
-        let motion =
-            self.before.as_ref().map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &self.spacings));
-        let long_enough = self.before.as_ref().is_some_and(|(at, _)| done - at >= self.window);
+        // Judged since the mark, a window before this frame, where there is one; else since
+        // the last frame.
+        let mark = self.mark.take().filter(|(at, _)| *at < done);
+        let since = mark.as_ref().or(self.before.as_ref());
+        let motion = since.map_or(f32::INFINITY, |(_, was)| frame_motion(world, was, &self.spacings));
+        let long_enough = since.is_some_and(|(at, _)| done - at >= self.window);
         // At rest by motion (the explicit integrator), or by the residual force (the implicit
         // one). Under the implicit integrator motion is not a test of rest: its large steps
         // slow a body still out of balance (a fill judged still at a residual of 3e-3 had its
@@ -195,14 +215,14 @@ impl Rest {
             && residual.is_some()
             && self.stalled_since.is_some()
             && long_enough
-            && self.before.as_ref().is_some_and(|(_, was)| {
+            && since.is_some_and(|(_, was)| {
                 most_motion(world, was, &self.spacings, &self.soft) <= REST_TOLERANCE
             });
         let at_rest = still || balanced || stalled_still;
         // Settling whose residual has stopped falling is said as soon as it is seen, not only
         // after max_steps.
         if let Some(r) = residual.filter(|_| settles && done >= planned && !at_rest)
-            && let Some(since) = self.stall.stalled(done, r)
+            && let Some(since) = self.stall.stalled(done, r, self.window)
         {
             self.stalled_since = Some(since);
             let floor = floor.map_or(String::new(), |f| {
@@ -220,30 +240,34 @@ impl Rest {
 
 #[cfg(test)]
 mod stall_tests {
-    use super::{STALL_FRAMES, Stall};
+    use super::{STALL_WINDOWS, Stall};
 
     /// A residual falling steadily, even slowly, is not a stall; one that stops falling is said
-    /// once, after STALL_FRAMES frames, naming the step it stopped at; a NaN residual counts
-    /// as not falling.
+    /// once, after STALL_WINDOWS settling windows and at least two frames, naming the step it
+    /// stopped at; a NaN residual counts as not falling.
     #[test]
     fn settling_is_said_to_stall_once_its_residual_stops_falling() {
         let mut s = Stall::default();
         for k in 0..100u64 {
-            assert_eq!(s.stalled(100 * k, 0.85f64.powi(k as i32)), None, "frame {k}");
+            assert_eq!(s.stalled(100 * k, 0.85f64.powi(k as i32), 100), None, "frame {k}");
         }
-        let mut s = Stall::default();
-        let mut said = Vec::new();
-        for k in 0..40u64 {
-            // Falls to 1e-2 by frame 5, then wanders within a few percent.
-            let r = if k < 5 { 0.5f64.powi(k as i32) } else { 0.0625 * (1.0 + 0.05 * ((k % 3) as f64)) };
-            if let Some(since) = s.stalled(100 * k, r) {
-                said.push((k, since));
-            }
-        }
-        assert_eq!(said, [(4 + u64::from(STALL_FRAMES), 400)]);
+        // Falls to 1e-2 by frame 5, then wanders within a few percent.
+        let wandering =
+            |k: u64| if k < 5 { 0.5f64.powi(k as i32) } else { 0.0625 * (1.0 + 0.05 * ((k % 3) as f64)) };
+        let said = |window: u64| {
+            let mut s = Stall::default();
+            (0..40u64)
+                .filter_map(|k| s.stalled(100 * k, wandering(k), window).map(|since| (k, since)))
+                .collect::<Vec<_>>()
+        };
+        // Frames a window apart: four frames; farther apart, four windows' worth of frames;
+        // and never fewer than two frames.
+        assert_eq!(said(100), [(4 + STALL_WINDOWS, 400)]);
+        assert_eq!(said(60), [(4 + 3, 400)]);
+        assert_eq!(said(10), [(4 + 2, 400)]);
         let mut s = Stall::default();
         let said: Vec<u64> =
-            (0..20u64).filter_map(|k| s.stalled(k, if k == 0 { 1.0 } else { f64::NAN })).collect();
+            (0..20u64).filter_map(|k| s.stalled(k, if k == 0 { 1.0 } else { f64::NAN }, 1)).collect();
         assert_eq!(said, [0]);
     }
 }
