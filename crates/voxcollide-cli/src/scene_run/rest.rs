@@ -271,3 +271,45 @@ mod stall_tests {
         assert_eq!(said, [0]);
     }
 }
+
+#[cfg(test)]
+mod window_tests {
+    use super::Rest;
+    use glam::{UVec3, Vec3};
+    use voxcollide_sim::bodies::box_lattice;
+    use voxcollide_sim::{Material, Mode, StepInputs, World};
+
+    /// Past the schedule, frames farther apart than a settling window: a body that crept a
+    /// spacing since the last frame but moved a hundredth of one over the window before this
+    /// frame is judged by the hundredth where the window's start was marked, and by the whole
+    /// creep where it was not.
+    #[test]
+    fn settling_motion_is_judged_over_the_window_before_the_frame() {
+        let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
+        let body = box_lattice(UVec3::new(4, 4, 4), 2.0, Vec3::ZERO, 1.0, material, |_| Mode::Free).unwrap();
+        let schedule = std::sync::Arc::new(|_| vec![StepInputs::at_rest(1e-3)]);
+        let world = World::new(vec!["slab".into()], vec![body], Vec::new(), 1e3, schedule).unwrap();
+        let judged = |mark: bool| {
+            let mut world = world.clone();
+            let mut rest = Rest::new(&world, 1e-3, vec![true]);
+            let window = rest.window;
+            let frame = 4 * window;
+            let judge = |world: &World, done: u64, rest: &mut Rest| {
+                rest.judge(world, (done, 0), None, None, (true, 1_000_000), &mut |_| {})
+            };
+            judge(&world, 0, &mut rest);
+            let shift = |world: &mut World, by: f32| world.bodies[0].pos.iter_mut().for_each(|p| p.x += by);
+            shift(&mut world, 2.0);
+            if mark {
+                rest.mark(&world, frame - window);
+            }
+            shift(&mut world, 0.02);
+            judge(&world, frame, &mut rest)
+        };
+        // (In spacings of the body: the mean rest length of its springs, diagonals included.)
+        let h = super::mean_spring(&world.bodies[0]);
+        let (marked, unmarked) = (judged(true), judged(false));
+        assert!((marked.motion - 0.02 / h).abs() < 1e-4 && marked.at_rest, "{}", marked.motion);
+        assert!((unmarked.motion - 2.02 / h).abs() < 1e-4 && !unmarked.at_rest, "{}", unmarked.motion);
+    }
+}
