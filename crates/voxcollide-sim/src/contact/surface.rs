@@ -568,10 +568,21 @@ impl Side {
                         }
                     }
                 } else {
+                    // A voxel whose box lies farther than `near` holds no point that near: passed
+                    // over, as the device's walk passes over its far voxels (with the same
+                    // shave, so that rounding never passes over a point that counts).
+                    let origin = grid.origin();
+                    let shave = 1e-3 * voxel + 1e-6 * (p.abs().max_element() + origin.abs().max_element());
+                    let far = (near + shave) * (near + shave);
                     for z in lo.z.max(0)..=hi.z.min(dims.z - 1) {
                         for y in lo.y.max(0)..=hi.y.min(dims.y - 1) {
                             for x in lo.x.max(0)..=hi.x.min(dims.x - 1) {
                                 let q = UVec3::new(x as u32, y as u32, z as u32);
+                                let box_lo = origin + q.as_vec3() * voxel;
+                                if (box_lo - p).max(p - box_lo - voxel).max(Vec3::ZERO).length_squared() > far
+                                {
+                                    continue;
+                                }
                                 for &(pi, j, _) in binned.slot_of(q).iter().filter(|r| r.2 == q) {
                                     at(pi, j);
                                 }
@@ -1210,6 +1221,23 @@ mod tests {
             };
             let mut side = Side::new(&view(&probes), &view(&given), 1.5 * cutoff).unwrap();
             side.refresh(&view(&probes), &view(&partner), 0.5 * cutoff);
+            // Each probe's list is every triangle whose box lies within the lists' range.
+            let range = 1.5 * cutoff;
+            for (k, probe) in probes.iter().enumerate() {
+                let listed = &side.near[side.offsets[k] as usize..side.offsets[k + 1] as usize];
+                let want: Vec<u32> = (0..mesh.triangles.len() as u32)
+                    .filter(|&t| {
+                        let c = mesh.triangles[t as usize].map(|c| partner[c as usize]);
+                        let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                        c.iter().all(|c| c.is_finite())
+                            && (lo - *probe).max(*probe - hi).max(Vec3::ZERO).length_squared()
+                                <= range * range
+                    })
+                    .collect();
+                let mut got = listed.to_vec();
+                got.sort_unstable();
+                assert_eq!(got, want, "stretched {stretch}, moved {shift} {case}: probe {k}'s list");
+            }
             side.age(&view(&probes), &view(&partner));
             side.entry = vec![Vec3::ZERO; probes.len()];
             let hits = side.hits(&view(&probes), &view(&partner), &penalty);
