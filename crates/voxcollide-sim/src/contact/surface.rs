@@ -1221,22 +1221,25 @@ mod tests {
             };
             let mut side = Side::new(&view(&probes), &view(&given), 1.5 * cutoff).unwrap();
             side.refresh(&view(&probes), &view(&partner), 0.5 * cutoff);
-            // Each probe's list is every triangle whose box lies within the lists' range.
+            // Each probe's list holds every triangle within the lists' range, and only
+            // triangles whose box lies within it.
             let range = 1.5 * cutoff;
             for (k, probe) in probes.iter().enumerate() {
                 let listed = &side.near[side.offsets[k] as usize..side.offsets[k + 1] as usize];
-                let want: Vec<u32> = (0..mesh.triangles.len() as u32)
-                    .filter(|&t| {
-                        let c = mesh.triangles[t as usize].map(|c| partner[c as usize]);
-                        let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                        c.iter().all(|c| c.is_finite())
-                            && (lo - *probe).max(*probe - hi).max(Vec3::ZERO).length_squared()
-                                <= range * range
-                    })
-                    .collect();
-                let mut got = listed.to_vec();
-                got.sort_unstable();
-                assert_eq!(got, want, "stretched {stretch}, moved {shift} {case}: probe {k}'s list");
+                for (t, tri) in mesh.triangles.iter().enumerate() {
+                    let c = tri.map(|c| partner[c as usize]);
+                    let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                    let boxed = c.iter().all(|c| c.is_finite())
+                        && (lo - *probe).max(*probe - hi).max(Vec3::ZERO).length_squared() <= range * range;
+                    let within = closest_on_triangle(*probe, c).is_some_and(|(w, _)| {
+                        probe.distance_squared(w[0] * c[0] + w[1] * c[1] + w[2] * c[2]) <= range * range
+                    });
+                    let is_listed = listed.contains(&(t as u32));
+                    assert!(
+                        (!within || is_listed) && (!is_listed || boxed),
+                        "stretched {stretch}, moved {shift} {case}: probe {k} at {probe}, triangle {t}: within {within}, box within {boxed}, listed {is_listed}"
+                    );
+                }
             }
             side.age(&view(&probes), &view(&partner));
             side.entry = vec![Vec3::ZERO; probes.len()];
