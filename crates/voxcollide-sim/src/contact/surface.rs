@@ -253,6 +253,10 @@ struct Side {
     probes: Vec<u32>,
     /// The partner's triangles' edge neighbours.
     neighbours: Vec<[u32; 3]>,
+    /// The partner's triangles by their first corner (CSR over its points): the walk visits
+    /// each triangle once, at that corner.
+    first_offsets: Vec<u32>,
+    firsts: Vec<u32>,
     /// The grid the partner's points are binned in, following them (`None`: the partner had no
     /// finite point or triangle when the side was made, and nothing is found).
     grid: Option<VoxelGrid>,
@@ -419,7 +423,30 @@ impl Side {
         } else {
             search_grid(range, partner.mesh, &partner.pos, None)?
         };
-        Ok(Side { probes, neighbours: edge_neighbours(partner.mesh), grid, range, ..Side::default() })
+        let points = partner.mesh.triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
+        let mut first_offsets = vec![0u32; partner.pos.len().max(points) + 2];
+        for tri in &partner.mesh.triangles {
+            first_offsets[tri[0] as usize + 2] += 1;
+        }
+        for k in 2..first_offsets.len() {
+            first_offsets[k] += first_offsets[k - 1];
+        }
+        let mut firsts = vec![0u32; partner.mesh.triangles.len()];
+        for (t, tri) in partner.mesh.triangles.iter().enumerate() {
+            let at = &mut first_offsets[tri[0] as usize + 1];
+            firsts[*at as usize] = t as u32;
+            *at += 1;
+        }
+        first_offsets.pop();
+        Ok(Side {
+            probes,
+            neighbours: edge_neighbours(partner.mesh),
+            first_offsets,
+            firsts,
+            grid,
+            range,
+            ..Side::default()
+        })
     }
 
     /// Makes the lists anew when the probes and the partner have moved farther than the skin
@@ -428,11 +455,12 @@ impl Side {
     /// **Through the voxel model.** The partner's points are binned by voxel ([`Binned`]) in
     /// the grid moved to follow them (a partner that grew past it gets a grid of the same voxel
     /// made anew about it, where the device's search says so and stops). A triangle within
-    /// `range` has every corner within `range` plus its longest edge of the probe (every
-    /// point of a triangle lies within its longest edge of each corner), so each probe walks
-    /// the block of voxels about its own that reaches as far as the surface's longest edge now
-    /// allows, to the points binned there that near, and lists the triangles at them whose box
-    /// lies within `range`, each once (at its first corner that near). Where the block holds
+    /// `range` has its first corner within `range` plus its reach there (its longer edge at
+    /// that corner: every point of the triangle lies that near it), so each probe walks the
+    /// block of voxels about its own that reaches as far as all but the longest fiftieth of
+    /// the reaches now allow, to the points binned there that near, and lists the triangles
+    /// whose first corner they are and whose box lies within `range`; the longest fiftieth it
+    /// measures by their box, every one. Where the block holds
     /// more voxels than the partner has points (a surface stretched past all sense), the
     /// binned points are gone through instead, those in the block kept: the same lists.
     fn refresh(&mut self, probing: &View, partner: &View, skin: f32) -> bool {
@@ -502,22 +530,47 @@ impl Side {
             self.set_lists(lists);
             return true;
         }
-        let longest = longest_edge2(partner.mesh, pos).sqrt();
-        let near = range + longest;
+        // Each triangle's reach from its first corner (its longer edge there): every point of
+        // the triangle lies that near the corner, so a triangle within the range has its first
+        // corner within the range plus its reach. The walk goes as far as all but the longest
+        // fiftieth of them reach (`short`); those few (a shell's stretched rim, her tissue
+        // stretched over it) are measured against every probe instead, by their box.
+        let reach_of: Vec<f32> = tris
+            .par_iter()
+            .map(|t| {
+                let c = t.map(|v| pos[v as usize]);
+                c[1].distance(c[0]).max(c[2].distance(c[0]))
+            })
+            .collect();
+        let mut finite: Vec<f32> = reach_of.iter().copied().filter(|e| e.is_finite()).collect();
+        let short = match finite.len() {
+            0 => 0.0,
+            n => *finite.select_nth_unstable_by((n - 1) * 49 / 50, f32::total_cmp).1,
+        };
+        let long: Vec<u32> = (0..tris.len() as u32).filter(|&t| reach_of[t as usize] > short).collect();
+        let near = range + short;
         let near2 = near * near;
         let voxel = grid.voxel_size();
         // (At most the grid across: a surface stretched past all sense is walked whole.)
         let reach = (near / voxel).ceil().max(1.0).min(grid.dims().max_element() as f32) as i32;
         let every_point = (2 * u64::from(reach.unsigned_abs()) + 1).pow(3) > self.binned.sorted.len() as u64;
         let dims = grid.dims().as_ivec3();
-        let binned = &self.binned;
+        let (binned, first_offsets, firsts) = (&self.binned, &self.first_offsets, &self.firsts);
+        // The box around the partner's points: a probe farther than `near` from it has no
+        // point that near, and walks nothing (most of a body's vertices, away from the contact).
+        let (points_lo, points_hi) = binned
+            .sorted
+            .iter()
+            .fold((Vec3::splat(f32::MAX), Vec3::splat(f32::MIN)), |(l, h), r| (l.min(r.0), h.max(r.0)));
         let lists: Vec<Vec<u32>> = self
             .probes
             .par_iter()
             .with_min_len(256)
             .map(|&i| {
                 let p = probing.pos[i as usize];
-                if !p.is_finite() {
+                if !p.is_finite()
+                    || (points_lo - p).max(p - points_hi).max(Vec3::ZERO).length_squared() > near2
+                {
                     return Vec::new();
                 }
                 // The probe's voxel, as the grid counts them (`VoxelGrid::voxel_of`), or where
@@ -536,23 +589,16 @@ impl Side {
                     if pi.distance_squared(p) > near2 {
                         return;
                     }
-                    let (s, e) = (
-                        partner.tri_offsets[j as usize] as usize,
-                        partner.tri_offsets[j as usize + 1] as usize,
-                    );
-                    for &t in &partner.tri_adjacency[s..e] {
-                        let tri = tris[t as usize];
-                        let c = tri.map(|c| pos[c as usize]);
-                        // Each triangle once: at its first corner that near.
-                        let first = if c[0].distance_squared(p) <= near2 {
-                            tri[0]
-                        } else if c[1].distance_squared(p) <= near2 {
-                            tri[1]
-                        } else {
-                            tri[2]
-                        };
+                    // Each triangle once: at its first corner (every corner of a triangle
+                    // within the range lies that near).
+                    let (s, e) = (first_offsets[j as usize] as usize, first_offsets[j as usize + 1] as usize);
+                    for &t in &firsts[s..e] {
+                        if reach_of[t as usize] > short {
+                            continue;
+                        }
+                        let c = tris[t as usize].map(|c| pos[c as usize]);
                         // (A triangle with a corner not finite is never one.)
-                        if first != j || !c.iter().all(|c| c.is_finite()) {
+                        if !c.iter().all(|c| c.is_finite()) {
                             continue;
                         }
                         let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
@@ -590,6 +636,11 @@ impl Side {
                         }
                     }
                 }
+                list.extend(long.iter().copied().filter(|&t| {
+                    let c = tris[t as usize].map(|c| pos[c as usize]);
+                    let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
+                    (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
+                }));
                 // (In ascending order: the walk's is the hash's.)
                 list.sort_unstable();
                 list
