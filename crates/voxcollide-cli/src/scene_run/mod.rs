@@ -197,11 +197,11 @@ pub fn run_scene_on(
         // vertices are kept at its start (checked there too).
         let mark = target.saturating_sub(rest.window);
         if done >= schedule.planned && mark > done {
-            schedule
+            let rested = schedule
                 .step_to(&mut *run, mark, (&mut checks, &mut summary, frame), progress, note)
                 .map_err(|e| after_failures(e, &summary, &built.notes))?;
-            if schedule.done < mark {
-                // At rest by its residual already.
+            if rested {
+                // At rest by its residual already: judged at once.
                 continue;
             }
             let (world, reports) = run.frame().map_err(|e| after_failures(e, &summary, &built.notes))?;
@@ -347,7 +347,8 @@ impl Schedule {
 
     /// Steps `run` to `target` (sooner where the implicit integrator comes to rest while
     /// settling), checking the contacts every `check_every` steps on the way (as part of
-    /// `frame`, the frame being stepped to), calling `progress(done, planned)`.
+    /// `frame`, the frame being stepped to), calling `progress(done, planned)`. Returns whether
+    /// it stopped because the run came to rest (at `target` or before it).
     fn step_to(
         &mut self,
         run: &mut dyn Simulation,
@@ -355,8 +356,9 @@ impl Schedule {
         (checks, summary, frame): (&mut ContactChecks, &mut FileSummary, u32),
         progress: &mut dyn FnMut(u64, u64),
         note: &mut dyn FnMut(&str),
-    ) -> Result<(), Error> {
+    ) -> Result<bool, Error> {
         let mut started = Instant::now();
+        let mut rested = false;
         while self.done < target {
             run.step()?;
             self.done += 1;
@@ -366,6 +368,7 @@ impl Schedule {
                 && done >= self.planned
                 && run.residual().map(|r| r.relative()).is_some_and(|r| r <= RESIDUAL_TOLERANCE)
             {
+                rested = true;
                 break;
             }
             if done.is_multiple_of(16) || done == target {
@@ -379,7 +382,7 @@ impl Schedule {
             }
         }
         self.seconds += started.elapsed().as_secs_f64();
-        Ok(())
+        Ok(rested)
     }
 }
 

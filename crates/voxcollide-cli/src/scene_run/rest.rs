@@ -127,12 +127,14 @@ fn motions<'a>(
 pub(super) struct Verdict {
     /// Whether the bodies are at rest by their integrator's test.
     pub at_rest: bool,
-    /// The farthest a vertex not held moved since the last frame, in spacings of its body
+    /// The farthest a vertex not held moved since the last frame, or since the mark a settling
+    /// window before this frame where there is one ([`Rest::mark`]), in spacings of its body
     /// (infinite at the first frame).
     pub motion: f32,
 }
 
-/// Whether a run has come to rest, judged at each frame against the last.
+/// Whether a run has come to rest, judged at each frame against the last, or against the mark
+/// a settling window before it ([`Rest::mark`]).
 pub(super) struct Rest {
     /// The settling window, in steps ([`settling_window`]).
     pub window: u64,

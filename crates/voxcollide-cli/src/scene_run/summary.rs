@@ -331,7 +331,8 @@ pub(super) fn measure(world: &World, summary: &mut FileSummary) {
 
 /// How the last frame found the run: its residual force and the floor positions resolve it to
 /// (the implicit integrator's), the step its residual stalled at (if it did), and the farthest
-/// a vertex moved since the frame before, in spacings.
+/// a vertex moved since the frame before (or the mark a settling window before it,
+/// `Rest::mark`), in spacings.
 pub(super) struct Last {
     pub residual: Option<f64>,
     pub floor: Option<f64>,

@@ -639,7 +639,9 @@ impl Side {
                 list.extend(long.iter().copied().filter(|&t| {
                     let c = tris[t as usize].map(|c| pos[c as usize]);
                     let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
+                    // (A triangle with a corner not finite is never one.)
+                    c.iter().all(|c| c.is_finite())
+                        && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
                 }));
                 // (In ascending order: the walk's is the hash's.)
                 list.sort_unstable();
@@ -1235,9 +1237,9 @@ mod tests {
         let penalty = SurfacePenalty { stiffness: 1.0, gap: 0.2, reach: 1.5, margin: 0.3 };
         let cutoff = penalty.reach.max(penalty.gap + penalty.margin);
         let given = sheet(1.0, 0.0);
-        // (Two more: one point flung a billion away, past any grid, which leaves the lists to
-        // every triangle; and the side set up on a sheet with no finite point, which gets its
-        // grid at the first list made.)
+        // (Three more: one point flung a billion away, past any grid, which leaves the lists to
+        // every triangle; the side set up on a sheet with no finite point, which gets its grid
+        // at the first list made; and one point at infinity.)
         let cases = [
             (1.0, 0.0, ""),
             (10.0, 0.0, ""),
@@ -1246,11 +1248,17 @@ mod tests {
             (3.45, -28.175, ""),
             (1.0, 0.0, "flung"),
             (1.0, 0.0, "set up on NaN"),
+            (1.0, 0.0, "infinite"),
         ];
         for (stretch, shift, case) in cases {
             let mut partner = sheet(stretch, shift);
             if case == "flung" {
                 partner[n * n - 1] = Vec3::new(1e9, 0.0, 0.0);
+            }
+            if case == "infinite" {
+                // (Its triangles reach infinitely far from their first corner: the longest,
+                // measured by their box, and never listed.)
+                partner[n * n - 2] = Vec3::new(f32::INFINITY, 0.0, 0.0);
             }
             let given = if case == "set up on NaN" { vec![Vec3::NAN; given.len()] } else { given.clone() };
             let probes: Vec<Vec3> = (0..2000)
