@@ -27,9 +27,21 @@ impl TriangleMesh {
     /// are `list[offsets[v]..offsets[v + 1]]`, ascending.
     #[must_use]
     pub fn triangles_at(&self, n: usize) -> (Vec<u32>, Vec<u32>) {
+        self.triangles_by(n, |t| &t[..])
+    }
+
+    /// The triangles by their first corner, as [`triangles_at`](Self::triangles_at) lays them
+    /// out: each triangle once.
+    #[must_use]
+    pub fn triangles_by_first_corner(&self, n: usize) -> (Vec<u32>, Vec<u32>) {
+        self.triangles_by(n, |t| &t[..1])
+    }
+
+    /// Per vertex (of `n`), the triangles that `corners` names it a corner of, in order (CSR).
+    fn triangles_by(&self, n: usize, corners: impl Fn(&[u32; 3]) -> &[u32]) -> (Vec<u32>, Vec<u32>) {
         let mut offsets = vec![0u32; n + 1];
         for t in &self.triangles {
-            for &v in t {
+            for &v in corners(t) {
                 offsets[v as usize + 1] += 1;
             }
         }
@@ -39,7 +51,7 @@ impl TriangleMesh {
         let mut fill = offsets.clone();
         let mut list = vec![0u32; offsets[n] as usize];
         for (k, t) in self.triangles.iter().enumerate() {
-            for &v in t {
+            for &v in corners(t) {
                 list[fill[v as usize] as usize] = k as u32;
                 fill[v as usize] += 1;
             }

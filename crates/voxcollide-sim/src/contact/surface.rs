@@ -424,20 +424,7 @@ impl Side {
             search_grid(range, partner.mesh, &partner.pos, None)?
         };
         let points = partner.mesh.triangles.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
-        let mut first_offsets = vec![0u32; partner.pos.len().max(points) + 2];
-        for tri in &partner.mesh.triangles {
-            first_offsets[tri[0] as usize + 2] += 1;
-        }
-        for k in 2..first_offsets.len() {
-            first_offsets[k] += first_offsets[k - 1];
-        }
-        let mut firsts = vec![0u32; partner.mesh.triangles.len()];
-        for (t, tri) in partner.mesh.triangles.iter().enumerate() {
-            let at = &mut first_offsets[tri[0] as usize + 1];
-            firsts[*at as usize] = t as u32;
-            *at += 1;
-        }
-        first_offsets.pop();
+        let (first_offsets, firsts) = partner.mesh.triangles_by_first_corner(partner.pos.len().max(points));
         Ok(Side {
             probes,
             neighbours: edge_neighbours(partner.mesh),
@@ -643,7 +630,7 @@ impl Side {
                     c.iter().all(|c| c.is_finite())
                         && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
                 }));
-                // (In ascending order: the walk's is the hash's.)
+                // (In ascending order: the walk's is the hash's, and the longest come last.)
                 list.sort_unstable();
                 list
             })
