@@ -914,6 +914,16 @@ pub struct ImplantShape {
 /// cylinder, beyond which the outline is a spike rather than an implant.
 pub const MAX_IMPLANT_EXPONENT: f64 = 10.0;
 
+/// The profile exponent below which an implant started deflated flat is warned of: its outline
+/// is then nearly a cylinder (a manufacturer's round implants lie between 0.19 and 0.51,
+/// `scenes/catalogues/mentor-memorygel-round.toml`), its rim standing almost upright. Flattened
+/// onto its base, that whole rim is pressed into its springs, which throw it open in the first
+/// steps: on the MakeHuman patient at a 9 mm spacing, 400 mL on a 120 mm base at 36 mm
+/// (exponent 0.018) moved at 7.6·10³ mm/s in its first step, over the blow-up limit (a tenth of
+/// the scene a step, there 7.57·10³), where exponent 0.13 moved at 5.1·10³ and the catalogue's
+/// at about 2.9·10³ (docs/patient.md, "A nearly cylindrical implant").
+pub const FLAT_START_EXPONENT: f64 = 0.1;
+
 impl ImplantShape {
     /// The profile exponent `α = π (base/2)² · projection / volume − 1`.
     ///

@@ -678,6 +678,7 @@ fn body(file: &SceneFile, spec: &BodySpec) -> Result<(MassSpring, BodyNote, f32)
                 for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
                     p.z = base + (p.z - base) * f as f32;
                 }
+                note.remarks.extend(flat_start_warning(&spec.geometry, f));
             }
             if spec.sink > 0.0 {
                 for p in shell.pos.iter_mut().chain(shell.rest_pos.iter_mut()) {
@@ -1108,6 +1109,33 @@ fn pocket(
     let stiffness = (crate::pocket::SUCTION * young * s) as f32;
     let volume = fills[k].map_or_else(|| bodies[k].enclosed_volume(), |(_, target)| target);
     Some(crate::pocket::Pocket { tissue: t, implant: k, faces, stiffness, volume, hold, held: 0.0 })
+}
+
+/// The warning for an implant started flattened to `f` of its height whose outline is nearly a
+/// cylinder ([`crate::bodies::FLAT_START_EXPONENT`]); `None` for any other shell.
+fn flat_start_warning(geometry: &Geometry, f: f64) -> Option<String> {
+    let Geometry::Shape(Shape::Implant { volume_ml, base_mm, projection_mm, .. }) = geometry else {
+        return None;
+    };
+    // (mm and mm³: the exponent has no units.)
+    let shape = ImplantShape {
+        volume: volume_ml * 1e3,
+        base: *base_mm,
+        projection: *projection_mm,
+        anatomical: false,
+    };
+    let alpha = shape.exponent().ok()?;
+    (alpha < crate::bodies::FLAT_START_EXPONENT).then(|| {
+        // The base and projection that would hold the volume at the fullest exponent not warned of.
+        let cylinder = |base: f64, projection: f64| std::f64::consts::PI * (0.5 * base).powi(2) * projection;
+        let fits = 1e3 * volume_ml * (1.0 + crate::bodies::FLAT_START_EXPONENT);
+        format!(
+            "warning: {volume_ml} mL on a {base_mm} mm base at {projection_mm} mm is nearly a cylinder (profile exponent {alpha:.3}; a manufacturer's round implants are 0.19 to 0.51): started flattened to {:.0} % of its height, its upright rim springs open in the first steps, fast enough that the run may stop as a blow-up; a base of {:.0} mm, or a projection of {:.0} mm, gives it a rounder outline",
+            100.0 * f,
+            2.0 * (fits / (std::f64::consts::PI * projection_mm)).sqrt(),
+            fits / cylinder(*base_mm, 1.0),
+        )
+    })
 }
 
 /// A shell filled to a volume: the volume it encloses at first and its target, in cubic file

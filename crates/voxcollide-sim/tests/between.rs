@@ -597,3 +597,33 @@ fn the_pockets_suction_falls_as_it_draws_and_the_solve_takes_its_stiffness() {
     eprintln!("shut {shut:.4} mm³ along w, against Σ|w|²·ε = {want:.4}");
     assert!((shut / want - 1.0).abs() < 0.05, "shut {shut} against {want}");
 }
+
+#[test]
+fn an_implant_nearly_a_cylinder_started_flat_is_warned_of_and_a_rounder_one_is_not() {
+    // 200 mL on a 100 mm base at 30 mm (moderate): profile exponent 0.178, rounder than the
+    // warning's 0.1; 230 mL on the same base and projection: 0.024, nearly the cylinder
+    // (235.6 mL). Both started as `voxcollide compare` starts them, flattened to a fifth.
+    let dir = folder("cylinder");
+    write_breast(&dir, 120.0);
+    let warned = |text: &str| -> Vec<String> {
+        let built = deflated(&dir, text);
+        built.notes[1].remarks.iter().filter(|r| r.starts_with("warning: ")).cloned().collect()
+    };
+    let round = filling(&dir);
+    assert!(warned(&round).iter().all(|w| !w.contains("cylinder")), "{:?}", warned(&round));
+    let full = round.replace("volume_ml = 200", "volume_ml = 230");
+    assert_ne!(full, round);
+    let w = warned(&full);
+    let w = w.iter().find(|w| w.contains("nearly a cylinder")).unwrap_or_else(|| panic!("{w:?}"));
+    // It names the exponent, the flattening and what would hold the volume rounder: the base
+    // or the projection of a cylinder 1.1 times the volume (2·√(1.1·230e3 / (π·30)) = 103.9 mm;
+    // 1.1·230e3 / (π·50²) = 32.2 mm).
+    for said in ["profile exponent 0.024", "flattened to 20 %", "a base of 104 mm", "a projection of 32 mm"] {
+        assert!(w.contains(said), "{said:?} not in {w}");
+    }
+    // Not flattened (as `voxcollide run` builds a scene not placed), nothing is said.
+    let path = dir.join("breast.toml");
+    std::fs::write(&path, &full).unwrap();
+    let built = build_world(&SceneFile::read(&path).unwrap()).unwrap();
+    assert!(built.notes[1].remarks.iter().all(|r| !r.contains("cylinder")), "{:?}", built.notes[1].remarks);
+}
