@@ -268,6 +268,16 @@ pub fn volume_between(body: &MassSpring, wall_faces: &[u32], start: &[Vec3], pos
         .sum()
 }
 
+/// The whole spacings `h` a box of `size` spans along each axis, from its `min` corner. A side
+/// a whole number of spacings long, to a ten-thousandth of one, spans that many, so that its
+/// far face carries lattice points however `size / h` rounds: a 180 mm side at 6 mm spans 30,
+/// and so must 18 cm at 0.6 cm, which single precision makes 29.999998 (floored, the lattice
+/// lost the box's far faces and the plan changed with the units).
+#[must_use]
+pub fn spans(size: Vec3, h: f32) -> UVec3 {
+    (size.as_dvec3() / f64::from(h) + 1e-4).floor().as_uvec3()
+}
+
 /// What [`between_body`] makes: the body, what it found, and its tetrahedra (six per cell).
 pub type Made = (MassSpring, BetweenReport, Vec<[u32; 4]>);
 
@@ -288,8 +298,7 @@ pub fn between_body(
 ) -> Result<Made, Result<BetweenError, voxcollide::Error>> {
     let skin = Sheet::new(outer, f64::from(h)).ok_or(Ok(BetweenError::Flat("outer")))?;
     let wall = Sheet::new(inner, f64::from(h)).ok_or(Ok(BetweenError::Flat("inner")))?;
-    let size = max - min;
-    let n = (size / h).floor().as_uvec3() + UVec3::ONE;
+    let n = spans(max - min, h) + UVec3::ONE;
     let count = (n.x * n.y * n.z) as usize;
     if n.min_element() < 2 || count as u64 > crate::bodies::MAX_LATTICE_VERTICES {
         return Err(Err(voxcollide::Error::Invalid {

@@ -252,7 +252,7 @@ fn place_on_wall(
     // The pocket: the tissue held on the wall over the base and its margin is let go (a vertex
     // held on the wall lies within a cell's diagonal of it); the box's faces stay held.
     let tissue = &mut bodies[t];
-    let n = ((bmax - bmin) / h).floor();
+    let n = crate::between::spans(bmax - bmin, h).as_vec3();
     let on_face = |p: Vec3| {
         let c = (p - bmin) / h;
         c.cmple(Vec3::splat(1e-4)).any() || (c - n).cmpge(Vec3::splat(-1e-4)).any()

@@ -627,3 +627,63 @@ fn an_implant_nearly_a_cylinder_started_flat_is_warned_of_and_a_rounder_one_is_n
     let built = build_world(&SceneFile::read(&path).unwrap()).unwrap();
     assert!(built.notes[1].remarks.iter().all(|r| !r.contains("cylinder")), "{:?}", built.notes[1].remarks);
 }
+
+/// A plan written in centimetres is the plan written in millimetres (docs/patient.md, "The same
+/// plan in other units and axes"): the same breast, wall, box, landmark and spacings, every
+/// length in the file and its meshes a tenth, the implant's catalogue sizes still in mm and mL.
+/// Built, the two are the same to a rounding: the same lattice, held and let go alike (in cm
+/// the box's 18 / 0.6 rounded to 29.999998 and, floored, the lattice lost its far faces: 3,515
+/// vertices against 3,698). Stepped, they part: the contact's voxel is a power of two in file
+/// units (8 mm against 1 cm), and its reach and the solve's margin follow it; the fill is the
+/// same to a thousandth 40 steps later.
+#[test]
+fn a_plan_in_centimetres_is_the_plan_in_millimetres() {
+    use voxcollide_sim::mesh_io::Surface;
+    let dir = folder("units");
+    write_breast(&dir, 120.0);
+    let cm = dir.join("cm");
+    std::fs::create_dir_all(&cm).unwrap();
+    let tenth =
+        |s: Surface| Surface { positions: s.positions.iter().map(|p| *p * 0.1).collect(), mesh: s.mesh };
+    write_stl(&cm.join("skin.stl"), &tenth(height_sheet(120.0, 48, breast_skin(15.0, 40.0, 60.0, 0.0))));
+    write_stl(&cm.join("wall.stl"), &tenth(height_sheet(120.0, 8, |_, _| 0.0)));
+    let mm_text = filling(&dir);
+    let cm_text = mm_text
+        .replace("units = \"mm\"", "units = \"cm\"")
+        .replace(
+            "min = [-90.0, -90.0, -10.0], max = [90.0, 90.0, 70.0]",
+            "min = [-9.0, -9.0, -1.0], max = [9.0, 9.0, 7.0]",
+        )
+        .replace("nipple = [0, 0, 55]", "nipple = [0, 0, 5.5]")
+        .replace("spacing = 6\n", "spacing = 0.6\n");
+    assert_eq!(cm_text.matches("0.6\n").count(), 2, "{cm_text}");
+    assert!(cm_text.contains("[-9.0, -9.0, -1.0]") && cm_text.contains("5.5]"), "{cm_text}");
+    // Started as `voxcollide compare` starts it ([`deflated`]: a fifth of its 30 mm, sunk 6.3 mm).
+    let start = |folder: &std::path::Path, text: &str, unit: f64| {
+        let path = folder.join("breast.toml");
+        std::fs::write(&path, text).unwrap();
+        let mut file = SceneFile::read(&path).unwrap();
+        file.bodies[1].flatten = Some(0.2);
+        file.bodies[1].sink = 6.3 / unit;
+        voxcollide_sim::CpuWorld::new(build_world(&file).unwrap().world).unwrap()
+    };
+    let (mut mm, mut cm) = (start(&dir, &mm_text, 1.0), start(&cm, &cm_text, 10.0));
+    let mut far = 0.0f32;
+    for (a, b) in mm.world.bodies.iter().zip(&cm.world.bodies) {
+        assert_eq!(a.pos.len(), b.pos.len(), "the same lattice");
+        assert_eq!(a.mode, b.mode, "the same vertices held and let go");
+        for (p, q) in a.pos.iter().zip(&b.pos) {
+            far = far.max(p.distance(*q * 10.0));
+        }
+    }
+    assert!(far < 1e-3, "built {far} mm apart");
+    assert_eq!(mm.world.pockets[0].faces, cm.world.pockets[0].faces, "the same pocket");
+    let voxels = [&mm, &cm].map(|w| w.world.contacts[0].grid.voxel_size());
+    assert_eq!(voxels, [8.0, 1.0], "powers of two in file units");
+    for _ in 0..40 {
+        mm.step().unwrap();
+        cm.step().unwrap();
+    }
+    let filled = [&mm, &cm].map(|w| w.world.bodies[1].enclosed_volume());
+    assert!((filled[0] - filled[1] * 1e3).abs() < 1e-3 * filled[0], "{filled:?}");
+}
