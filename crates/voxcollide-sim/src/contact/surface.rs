@@ -504,13 +504,7 @@ impl Side {
                 .map(|&i| {
                     let p = probing.pos[i as usize];
                     (0..tris.len() as u32)
-                        .filter(|&t| {
-                            let c = tris[t as usize].map(|c| pos[c as usize]);
-                            let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                            c.iter().all(|c| c.is_finite())
-                                && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared()
-                                    <= range * range
-                        })
+                        .filter(|&t| boxed_within(tris[t as usize].map(|c| pos[c as usize]), p, range))
                         .collect()
                 })
                 .collect();
@@ -555,9 +549,7 @@ impl Side {
             .with_min_len(256)
             .map(|&i| {
                 let p = probing.pos[i as usize];
-                if !p.is_finite()
-                    || (points_lo - p).max(p - points_hi).max(Vec3::ZERO).length_squared() > near2
-                {
+                if !p.is_finite() || box_distance2(points_lo, points_hi, p) > near2 {
                     return Vec::new();
                 }
                 // The probe's voxel, as the grid counts them (`VoxelGrid::voxel_of`), or where
@@ -583,13 +575,7 @@ impl Side {
                         if reach_of[t as usize] > short {
                             continue;
                         }
-                        let c = tris[t as usize].map(|c| pos[c as usize]);
-                        // (A triangle with a corner not finite is never one.)
-                        if !c.iter().all(|c| c.is_finite()) {
-                            continue;
-                        }
-                        let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                        if (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range {
+                        if boxed_within(tris[t as usize].map(|c| pos[c as usize]), p, range) {
                             list.push(t);
                         }
                     }
@@ -623,13 +609,11 @@ impl Side {
                         }
                     }
                 }
-                list.extend(long.iter().copied().filter(|&t| {
-                    let c = tris[t as usize].map(|c| pos[c as usize]);
-                    let (box_lo, box_hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    // (A triangle with a corner not finite is never one.)
-                    c.iter().all(|c| c.is_finite())
-                        && (box_lo - p).max(p - box_hi).max(Vec3::ZERO).length_squared() <= range * range
-                }));
+                list.extend(
+                    long.iter()
+                        .copied()
+                        .filter(|&t| boxed_within(tris[t as usize].map(|c| pos[c as usize]), p, range)),
+                );
                 // (In ascending order: the walk's is the hash's, and the longest come last.)
                 list.sort_unstable();
                 list
@@ -725,7 +709,7 @@ impl Side {
                         corners[0].min(corners[1]).min(corners[2]),
                         corners[0].max(corners[1]).max(corners[2]),
                     );
-                    let box_d2 = (lo - p).max(p - hi).max(Vec3::ZERO).length_squared();
+                    let box_d2 = box_distance2(lo, hi, p);
                     if box_d2 > bound {
                         lower = lower.min(box_d2);
                         continue;
@@ -1069,6 +1053,18 @@ impl SurfaceContact {
     }
 }
 
+/// The squared distance from `p` to the box `lo`..`hi` (0 inside it).
+fn box_distance2(lo: Vec3, hi: Vec3, p: Vec3) -> f32 {
+    (lo - p).max(p - hi).max(Vec3::ZERO).length_squared()
+}
+
+/// Whether the triangle of corners `c` belongs in the list of a probe at `p`: its corners
+/// finite (a triangle with one that is not is never listed) and its box within `range` of `p`.
+fn boxed_within(c: [Vec3; 3], p: Vec3, range: f32) -> bool {
+    c.iter().all(|c| c.is_finite())
+        && box_distance2(c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]), p) <= range * range
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1275,8 +1271,8 @@ mod tests {
                 for (t, tri) in mesh.triangles.iter().enumerate() {
                     let c = tri.map(|c| partner[c as usize]);
                     let (lo, hi) = (c[0].min(c[1]).min(c[2]), c[0].max(c[1]).max(c[2]));
-                    let boxed = c.iter().all(|c| c.is_finite())
-                        && (lo - *probe).max(*probe - hi).max(Vec3::ZERO).length_squared() <= range * range;
+                    let boxed =
+                        c.iter().all(|c| c.is_finite()) && box_distance2(lo, hi, *probe) <= range * range;
                     let within = closest_on_triangle(*probe, c).is_some_and(|(w, _)| {
                         probe.distance_squared(w[0] * c[0] + w[1] * c[1] + w[2] * c[2]) <= range * range
                     });
