@@ -791,6 +791,12 @@ fn run_candidate(
         .reduce(|a, b| format!("{a}; {b}"));
     result.steps = summary.steps;
     result.unfinished = unfinished(&result);
+    // What the run itself found makes it no result either (an unloaded shape not recovered, a
+    // shell through itself).
+    if !summary.not_a_result.is_empty() {
+        let found = summary.not_a_result.join("; ");
+        result.unfinished = Some(result.unfinished.map_or(found.clone(), |u| format!("{u}; {found}")));
+    }
     result.finished = result.unfinished.is_none();
     result.warning =
         [untouched(&result, units), wide].into_iter().flatten().reduce(|a, b| format!("{a}; {b}"));

@@ -183,7 +183,11 @@ pub fn run_scene_on(
             frames.write_end(world, &mut summary)?;
             let at =
                 summary::Last { residual, floor, stalled_since: rest.stalled_since, motion: verdict.motion };
+            let before = summary.not_a_result.len();
             summary::at_end(&mut summary, (world, &reports), file, &built, &at);
+            for why in &summary.not_a_result[before..] {
+                note(&format!("warning: {why}; the run is not a result"));
+            }
             frames.finish(world, &mut summary);
             break;
         }
