@@ -738,27 +738,6 @@ pub const SMOOTH_SHELL_FRICTION: f64 = 0.46;
 /// the implant to sit flat, not so much that it turns).
 pub const POCKET_MARGIN_MM: f64 = 10.0;
 
-/// The material of a shell placed on a patient (`place`) whose file gives it none: 30 kPa,
-/// damping 0.5 ([`PLACED_SHELL_YOUNG_KPA`]), at a body's default density and Poisson's ratio.
-#[must_use]
-pub fn placed_shell_material() -> MaterialSpec {
-    MaterialSpec {
-        young_kpa: PLACED_SHELL_YOUNG_KPA,
-        damping: PLACED_SHELL_DAMPING,
-        ..MaterialSpec::default()
-    }
-}
-
-/// The Young's modulus of a placed shell given no material, kPa: what every shipped plan gives
-/// its implant. A body's default, 3 kPa, is as soft as her fat: such a shell, filling under her
-/// breast standing, crumpled and passed through itself (168 mL of a 300 mL implant's volume
-/// counted twice, docs/patient.md). An implant's silicone shell and cohesive gel are far
-/// stiffer than fat; this is the least the plans were checked at, not a measured implant's.
-pub const PLACED_SHELL_YOUNG_KPA: f64 = 30.0;
-
-/// The damping ratio of a placed shell given no material: what every shipped plan gives it.
-pub const PLACED_SHELL_DAMPING: f64 = 0.5;
-
 /// A default value, at no place in the file (defaults are valid, so no error points there).
 fn unspanned<T: Default>() -> Spanned<T> {
     Spanned::new(0..0, T::default())
@@ -1242,10 +1221,7 @@ fn body_spec(
         ));
     }
     let material_span = b.material.span();
-    let mut material = b.material.into_inner();
-    if material_span.is_empty() && b.kind == BodyKind::Shell && b.place.is_some() {
-        material = placed_shell_material();
-    }
+    let material = b.material.into_inner();
     check_material(&material).map_err(|(what, m)| {
         at(file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
     })?;

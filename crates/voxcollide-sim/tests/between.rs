@@ -229,25 +229,6 @@ fn tissue_presets_give_published_parameters() {
     }
 }
 
-/// A shell placed on a patient with no material is an implant's, 30 kPa (a body's default,
-/// 3 kPa, crumples through itself under her weight, docs/patient.md); a written material is
-/// kept, and a shell not placed keeps a body's default.
-#[test]
-fn a_placed_shell_given_no_material_is_stiffer_than_her_fat_and_a_written_one_is_kept() {
-    use voxcollide_sim::scene_file::{PLACED_SHELL_DAMPING, PLACED_SHELL_YOUNG_KPA};
-    let dir = folder("placed-material");
-    let read = |text: String| SceneFile::parse("p.toml", &text).unwrap();
-    let s = read(placed(&dir, "place = { under = \"breast.nipple\" }", ""));
-    let m = &s.bodies[1].material;
-    assert_eq!((m.young_kpa, m.damping), (PLACED_SHELL_YOUNG_KPA, PLACED_SHELL_DAMPING));
-    assert_eq!((PLACED_SHELL_YOUNG_KPA, PLACED_SHELL_DAMPING), (30.0, 0.5));
-    assert_eq!((m.density, m.poisson), (1000.0, 0.45));
-    let s = read(placed(&dir, "place = { under = \"breast.nipple\" }", "material = { young_kpa = 3.0 }"));
-    assert_eq!((s.bodies[1].material.young_kpa, s.bodies[1].material.damping), (3.0, 0.1));
-    let s = read(placed(&dir, "", "position = [0, 0, 20]"));
-    assert_eq!((s.bodies[1].material.young_kpa, s.bodies[1].material.damping), (3.0, 0.1));
-}
-
 /// An implant `extra`-placed on the parametric breast's chest wall (docs/design.md §15).
 fn placed(dir: &std::path::Path, place: &str, extra: &str) -> String {
     let box_ = ([-90.0, -90.0, -10.0], [90.0, 90.0, 70.0]);

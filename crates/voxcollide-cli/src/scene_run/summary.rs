@@ -401,8 +401,8 @@ pub(super) fn at_end(
 
 /// A shell whose volume counts more than this share of itself twice passes through itself: its
 /// fill holds a volume its surface does not enclose. (A shell as soft as fat, 3 kPa, planned on
-/// the MakeHuman patient standing, crumpled until 168 mL of its 299 were counted twice; at
-/// 30 kPa, 0.5 mL: docs/patient.md.)
+/// the MakeHuman patient standing, crumpled until 165.3 mL of its 298.9 were counted twice;
+/// at 30 kPa, 4.2 mL: docs/patient.md.)
 pub const SELF_OVERLAP: f64 = 0.02;
 
 /// The lines [`TriangleMesh::coverage`](voxcollide_sim::mesh::TriangleMesh::coverage) measures
