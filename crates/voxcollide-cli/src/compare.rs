@@ -793,8 +793,18 @@ fn run_candidate(
     result.unfinished = unfinished(&result);
     // What the run itself found makes it no result either (an unloaded shape not recovered, a
     // shell through itself).
-    if !summary.not_a_result.is_empty() {
-        let found = summary.not_a_result.join("; ");
+    let found: Vec<&str> = summary
+        .not_a_result
+        .iter()
+        .map(String::as_str)
+        // (What `compare` says itself, the run says of its body: once is enough.)
+        .filter(|f| {
+            let what = f.split_once(": ").map_or(*f, |(_, what)| what);
+            !result.unfinished.as_deref().is_some_and(|u| u.contains(what))
+        })
+        .collect();
+    if !found.is_empty() {
+        let found = found.join("; ");
         result.unfinished = Some(result.unfinished.map_or(found.clone(), |u| format!("{u}; {found}")));
     }
     result.finished = result.unfinished.is_none();
@@ -851,16 +861,22 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
     }
     // On a patient: what the operation added between her skin and chest wall is the implant,
     // or the breast did not follow it (a space left open, or tissue stretched or squeezed).
-    if let Some(gain) = r.volume_gain_ml
-        && ((gain - r.volume_ml).abs() > GAIN_TOLERANCE * r.volume_ml || gain.is_nan())
-    {
-        why.push(format!(
-            "the volume added between her skin and chest wall, {gain:.1} mL, is not the implant's {:.1} mL to {:.0} % (docs/patient.md, \"Planning\")",
-            r.volume_ml,
-            100.0 * GAIN_TOLERANCE
-        ));
-    }
+    why.extend(r.volume_gain_ml.and_then(|gain| gain_off(gain, r.volume_ml)));
     (!why.is_empty()).then(|| why.join("; "))
+}
+
+/// Why a plan that added `gain` mL between her skin and chest wall around an implant of
+/// `implant` mL is not an answer, if it is not: the two more than [`GAIN_TOLERANCE`] apart (or
+/// either not a number). `run` and `compare` say it alike.
+#[must_use]
+pub fn gain_off(gain: f64, implant: f64) -> Option<String> {
+    if (gain - implant).abs() <= GAIN_TOLERANCE * implant {
+        return None;
+    }
+    Some(format!(
+        "the volume added between her skin and chest wall, {gain:.1} mL, is not the implant's {implant:.1} mL to {:.0} % (docs/patient.md, \"Planning\")",
+        100.0 * GAIN_TOLERANCE
+    ))
 }
 
 /// A warning for a candidate that does not touch the tissue at the end (no tissue surface

@@ -382,6 +382,18 @@ pub(super) fn at_end(
             }
         }
     }
+    // A placed implant's plan: the volume added between her skin and chest wall is the
+    // implant's, as `compare` asks of a candidate, or the run is not a result.
+    for p in &world.pockets {
+        let (tissue, implant) = (&summary.bodies[p.tissue], &summary.bodies[p.implant]);
+        if let (Some(start), Some(end), Some(volume)) =
+            (tissue.volume_ml, tissue.volume_ml_end, implant.volume_ml)
+            && let Some(why) = crate::compare::gain_off(end - start, volume)
+        {
+            let why = format!("{}: {why}", tissue.name);
+            summary.not_a_result.push(why);
+        }
+    }
     summary.rest_motion = if last.motion.is_finite() { last.motion } else { 0.0 };
     summary.residual = last.residual;
     summary.residual_floor = last.floor;
