@@ -2,6 +2,7 @@
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
+mod sheets;
 
 use std::process::Command;
 
@@ -571,29 +572,6 @@ fn a_body_scanned_standing_is_recovered_and_run_in_a_posture() {
     }
 }
 
-/// An open sheet `z = height(x, y)` over `[-half, half]²` as ASCII STL, facing +z.
-fn sheet_stl(half: f32, cells: u32, height: impl Fn(f32, f32) -> f32) -> String {
-    let at = |i: u32, j: u32| {
-        let (x, y) =
-            (-half + 2.0 * half * i as f32 / cells as f32, -half + 2.0 * half * j as f32 / cells as f32);
-        [x, y, height(x, y)]
-    };
-    let mut out = String::from("solid sheet\n");
-    for j in 0..cells {
-        for i in 0..cells {
-            for t in [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]]
-            {
-                out += "facet normal 0 0 0\nouter loop\n";
-                for v in t {
-                    out += &format!("vertex {:e} {:e} {:e}\n", v[0], v[1], v[2]);
-                }
-                out += "endloop\nendfacet\n";
-            }
-        }
-    }
-    out + "endsolid sheet\n"
-}
-
 /// A breast between a skin sheet and a chest wall (docs/design.md §14), standing (gravity
 /// along −x, the patient's feet): `summary.json` gives its tissue's volume at the start and at
 /// the end (the same, to a percent, at ν = 0.45) and its nipple, moved onto the skin and carried
@@ -607,8 +585,8 @@ fn a_breast_between_its_skin_and_chest_wall_reports_its_landmarks_and_volume() {
         let r = (x * x + y * y).sqrt() / 60.0;
         15.0 + if r < 1.0 { 40.0 * (0.5 + 0.5 * (std::f32::consts::PI * r).cos()) } else { 0.0 }
     };
-    std::fs::write(dir.join("skin.stl"), sheet_stl(120.0, 48, skin)).unwrap();
-    std::fs::write(dir.join("wall.stl"), sheet_stl(120.0, 4, |_, _| 0.0)).unwrap();
+    std::fs::write(dir.join("skin.stl"), sheets::sheet_stl(120.0, 48, skin)).unwrap();
+    std::fs::write(dir.join("wall.stl"), sheets::sheet_stl(120.0, 4, |_, _| 0.0)).unwrap();
     let scene = r#"
 units = "mm"
 [time]

@@ -4,6 +4,7 @@
 
 #[path = "../../voxcollide/tests/common/adapter.rs"]
 mod common;
+mod sheets;
 
 use std::path::{Path, PathBuf};
 
@@ -609,26 +610,8 @@ fn a_candidate_is_finished_only_within_two_percent_of_its_volume_and_at_rest() {
 #[test]
 fn compare_on_a_patient_places_candidates_on_her_wall_and_reports_landmarks_and_volume_gain() {
     let d = dir("patient");
-    let sheet = |z: f32| {
-        let mut out = String::from("solid s\n");
-        let at = |i: i32, j: i32| [i as f32 * 20.0 - 100.0, j as f32 * 20.0 - 100.0, z];
-        for j in 0..10 {
-            for i in 0..10 {
-                for t in
-                    [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]]
-                {
-                    out += "facet normal 0 0 0\nouter loop\n";
-                    for v in t {
-                        out += &format!("vertex {} {} {}\n", v[0], v[1], v[2]);
-                    }
-                    out += "endloop\nendfacet\n";
-                }
-            }
-        }
-        out + "endsolid s\n"
-    };
-    std::fs::write(d.join("skin.stl"), sheet(30.0)).unwrap();
-    std::fs::write(d.join("wall.stl"), sheet(0.0)).unwrap();
+    std::fs::write(d.join("skin.stl"), sheets::sheet_stl(100.0, 10, |_, _| 30.0)).unwrap();
+    std::fs::write(d.join("wall.stl"), sheets::sheet_stl(100.0, 10, |_, _| 0.0)).unwrap();
     let scene = r#"
 units = "mm"
 [[body]]

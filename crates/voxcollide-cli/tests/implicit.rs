@@ -2,6 +2,8 @@
 //! the console say of it, the explicit integrator's answer at rest, and the GPU backend's
 //! answer (its WGSL passes) against the CPU's.
 
+mod sheets;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -267,26 +269,8 @@ fn a_shell_through_itself_is_no_result_and_says_how_much() {
 #[test]
 fn a_placed_implant_that_does_not_add_its_volume_is_no_result() {
     let d = dir("gain");
-    let sheet = |z: f32| {
-        let mut out = String::from("solid s\n");
-        let at = |i: i32, j: i32| [i as f32 * 20.0 - 100.0, j as f32 * 20.0 - 100.0, z];
-        for j in 0..10 {
-            for i in 0..10 {
-                for t in
-                    [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]]
-                {
-                    out += "facet normal 0 0 0\nouter loop\n";
-                    for v in t {
-                        out += &format!("vertex {} {} {}\n", v[0], v[1], v[2]);
-                    }
-                    out += "endloop\nendfacet\n";
-                }
-            }
-        }
-        out + "endsolid s\n"
-    };
-    std::fs::write(d.join("skin.stl"), sheet(30.0)).unwrap();
-    std::fs::write(d.join("wall.stl"), sheet(0.0)).unwrap();
+    std::fs::write(d.join("skin.stl"), sheets::sheet_stl(100.0, 10, |_, _| 30.0)).unwrap();
+    std::fs::write(d.join("wall.stl"), sheets::sheet_stl(100.0, 10, |_, _| 0.0)).unwrap();
     let scene = |material: &str| {
         format!(
             r#"units = "mm"
