@@ -371,15 +371,14 @@ pub(super) fn at_end(
             });
         }
         if spec.kind == BodyKind::Shell {
-            let volume = b.enclosed_volume();
-            out.volume = Some(volume);
+            out.volume = Some(b.enclosed_volume());
             let coverage = b.surface.coverage(&b.pos, COVERAGE_COLUMNS);
             out.self_overlap = Some(coverage.excess());
             if coverage.excess().abs() > SELF_OVERLAP * coverage.signed.abs() {
-                summary.not_a_result.push(through_itself(&spec.name, coverage, file, cubic_ml));
+                summary.not_a_result.push(through_itself(&spec.name, coverage, file));
             }
             if file.units.is_physical() {
-                out.volume_ml = Some(volume * cubic_ml);
+                out.volume_ml = Some(b.enclosed_volume() * file.metres().powi(3) * 1e6);
             }
         }
     }
@@ -424,16 +423,10 @@ pub const SELF_OVERLAP: f64 = 0.05;
 /// a shell along, per side of its bounds.
 const COVERAGE_COLUMNS: usize = 128;
 
-/// Why a shell whose surface passes through itself (`coverage`) is not a result, in mL
-/// (`cubic_ml` of them a cubic file unit) where the file's units are physical.
-fn through_itself(
-    name: &str,
-    coverage: voxcollide_sim::mesh::Coverage,
-    file: &SceneFile,
-    cubic_ml: f64,
-) -> String {
+/// Why a shell whose surface passes through itself (`coverage`) is not a result.
+fn through_itself(name: &str, coverage: voxcollide_sim::mesh::Coverage, file: &SceneFile) -> String {
     let (scale, unit) = if file.units.is_physical() {
-        (cubic_ml, " mL".to_string())
+        (file.metres().powi(3) * 1e6, " mL".to_string())
     } else {
         (1.0, format!(" cubic {}", file.units.symbol()))
     };
