@@ -154,6 +154,13 @@ pub struct CandidateResult {
     /// (the `between` body's `volume_ml_end` minus its `volume_ml` at the start).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub volume_gain_ml: Option<f64>,
+    /// On a patient: her tissue's Poisson's ratio as its model has it (1/4 for the paper's
+    /// springs, `poisson` for finite elements; the least over her tissue bodies). The volume
+    /// added is held to the implant's ([`GAIN_TOLERANCE`]) only at
+    /// [`INCOMPRESSIBLE_POISSON`] or more: compressible tissue under an implant gives up some of
+    /// its own volume.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tissue_poisson: Option<f64>,
     /// On a patient: where the candidate's base stood on her chest wall, and how far it moved
     /// from under the landmark to keep within her borders (`place.within`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -774,6 +781,9 @@ fn run_candidate(
         .iter()
         .filter_map(|&t| Some(summary.bodies[t].volume_ml_end? - summary.bodies[t].volume_ml?))
         .reduce(|a, b| a + b);
+    result.tissue_poisson = result
+        .volume_gain_ml
+        .and_then(|_| tissue.iter().map(|&t| s.bodies[t].material.model_poisson()).reduce(f64::min));
     result.max_tissue_displacement =
         tissue.iter().map(|&t| summary.bodies[t].max_displacement).fold(0.0, f32::max);
     result.max_penetration = summary
@@ -840,6 +850,13 @@ pub const VOLUME_TOLERANCE: f64 = 0.02;
 /// implant's, relative, for the operated shape to be an answer.
 pub const GAIN_TOLERANCE: f64 = 0.05;
 
+/// The Poisson's ratio from which a patient's tissue is taken for incompressible, and the
+/// volume a plan adds between her skin and chest wall is held to the implant's: breast models
+/// take 0.49 (docs/patient.md, "Tissue presets"). Softer in bulk, tissue squeezed by an
+/// implant gives up some of its own volume: on the paper's springs (ν = 1/4), a 40 mL implant
+/// at 30 kPa under a 30 mm flat breast added 36.1 mL.
+pub const INCOMPRESSIBLE_POISSON: f64 = 0.49;
+
 /// Why a candidate's run is not finished, if it is not: its shell short of (or past) its own
 /// volume by more than [`VOLUME_TOLERANCE`], the scene not at rest when `max_steps` ran out, or
 /// on a patient the volume added not the implant's within [`GAIN_TOLERANCE`].
@@ -861,16 +878,19 @@ pub fn unfinished(r: &CandidateResult) -> Option<String> {
     }
     // On a patient: what the operation added between her skin and chest wall is the implant,
     // or the breast did not follow it (a space left open, or tissue stretched or squeezed).
-    why.extend(r.volume_gain_ml.and_then(|gain| gain_off(gain, r.volume_ml)));
+    if let (Some(gain), Some(nu)) = (r.volume_gain_ml, r.tissue_poisson) {
+        why.extend(gain_off(gain, r.volume_ml, nu));
+    }
     (!why.is_empty()).then(|| why.join("; "))
 }
 
 /// Why a plan that added `gain` mL between her skin and chest wall around an implant of
-/// `implant` mL is not an answer, if it is not: the two more than [`GAIN_TOLERANCE`] apart (or
-/// either not a number). `run` and `compare` say it alike.
+/// `implant` mL is not an answer, if it is not: in tissue of Poisson's ratio `tissue_poisson`
+/// at [`INCOMPRESSIBLE_POISSON`] or more, the two more than [`GAIN_TOLERANCE`] apart (or either
+/// not a number). `run` and `compare` say it alike.
 #[must_use]
-pub fn gain_off(gain: f64, implant: f64) -> Option<String> {
-    if (gain - implant).abs() <= GAIN_TOLERANCE * implant {
+pub fn gain_off(gain: f64, implant: f64, tissue_poisson: f64) -> Option<String> {
+    if tissue_poisson < INCOMPRESSIBLE_POISSON || (gain - implant).abs() <= GAIN_TOLERANCE * implant {
         return None;
     }
     Some(format!(
@@ -1513,7 +1533,12 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             patient += &format!("<tr{valid}><th scope=\"row\">{}</th>", escape(&c.name));
             match c.volume_gain_ml {
                 Some(g) if c.target_volume_ml > 0.0 => {
-                    patient += &format!("<td>{g:.1}</td><td>{:.1} %</td>", 100.0 * g / c.target_volume_ml);
+                    let mark =
+                        if c.tissue_poisson.is_some_and(|nu| nu < INCOMPRESSIBLE_POISSON) { "*" } else { "" };
+                    patient += &format!(
+                        "<td>{g:.1}{mark}</td><td>{:.1} %{mark}</td>",
+                        100.0 * g / c.target_volume_ml
+                    );
                 }
                 _ => patient += "<td>–</td><td>–</td>",
             }
@@ -1543,6 +1568,16 @@ fn report_html(comparison: &Comparison, out: &Path) -> Result<String, Error> {
             patient += "</tr>\n";
         }
         patient += "</tbody></table>\n<p>Volume added: the volume between the skin and the chest wall at the end less at the start. A row not marked as a result (a failed or unfinished run) is where its run stopped.";
+        if let Some(nu) = comparison
+            .candidates
+            .iter()
+            .filter_map(|c| c.tissue_poisson)
+            .find(|nu| *nu < INCOMPRESSIBLE_POISSON)
+        {
+            patient += &format!(
+                " *&nbsp;Her tissue is compressible in this scene (Poisson's ratio {nu:.2} as its model has it; the paper's springs have 1/4): squeezed by the implant, it gives up some of its own volume, so the volume added is not held to the implant's. Give it <code>model = \"neo-hookean\"</code> at <code>poisson = 0.49</code> (or a tissue <code>preset</code>) for a plan whose volume added is checked."
+            );
+        }
         if placed {
             patient += " Base moved: how far each base's centre stood across her chest wall from under the landmark it was placed under, to keep its rim within the borders the scene names (<code>place.within</code>); 0 where it stands under the landmark.";
         }

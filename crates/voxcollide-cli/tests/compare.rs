@@ -604,6 +604,38 @@ fn a_candidate_is_finished_only_within_two_percent_of_its_volume_and_at_rest() {
     assert!(r.not_a_result().unwrap().starts_with("contact implant – tissue"));
 }
 
+/// On a patient, the volume added between her skin and chest wall is held to the implant's
+/// within 5 % where her tissue is taken for incompressible (ν ≥ 0.49), and not where it is
+/// compressible (the springs' ν = 1/4 gives up some of its volume under an implant).
+#[test]
+fn the_volume_added_is_held_to_the_implants_in_incompressible_tissue_only() {
+    use voxcollide_cli::compare::{CandidateResult, INCOMPRESSIBLE_POISSON, gain_off, unfinished};
+    let at = |gain: f64, nu: f64| CandidateResult {
+        name: "c".into(),
+        volume_ml: 300.0,
+        target_volume_ml: 300.0,
+        settled: true,
+        held: true,
+        volume_gain_ml: Some(gain),
+        tissue_poisson: Some(nu),
+        ..CandidateResult::default()
+    };
+    assert_eq!(INCOMPRESSIBLE_POISSON, 0.49);
+    for nu in [0.49, 0.495] {
+        assert_eq!(unfinished(&at(285.1, nu)), None, "4.97 % short");
+        assert_eq!(unfinished(&at(314.9, nu)), None, "4.97 % over");
+        for off in [284.9, 315.1, f64::NAN] {
+            let why = unfinished(&at(off, nu)).unwrap_or_else(|| panic!("{off} mL added at ν = {nu}"));
+            assert!(why.contains("is not the implant's 300.0 mL to 5 %"), "{why}");
+        }
+    }
+    for nu in [0.25, 0.45, 0.489] {
+        assert_eq!(unfinished(&at(270.0, nu)), None, "ν = {nu}: compressible, not held to it");
+        assert_eq!(gain_off(270.0, 300.0, nu), None);
+    }
+    assert!(gain_off(270.0, 300.0, 0.49).is_some());
+}
+
 /// A patient's tissue between her skin and chest wall (docs/design.md §14): a candidate not
 /// placed on her wall is refused, naming the body and the key that places it; placed under her
 /// landmark (§15), each candidate's `landmarks` and `volume_gain_ml` are in compare.json.
@@ -641,6 +673,7 @@ b = "breast"
             "spacing = 8
 [[body]]",
             "spacing = 8
+material = { model = \"neo-hookean\", preset = \"fat\" }
 landmarks = { nipple = [0, 0, 30], fold = [0, -45, 30] }
 [[body]]",
         )

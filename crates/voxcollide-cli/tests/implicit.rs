@@ -262,12 +262,14 @@ fn a_shell_through_itself_is_no_result_and_says_how_much() {
     assert!(said.contains("warning: bag: its shell passes through itself"), "{said}");
 }
 
-/// A plan on a patient run alone says, as `compare` does of a candidate, when the volume added
-/// between her skin and chest wall is not the implant's to 5 %. Her tissue here is the
-/// springs' lattice (ν = 1/4): a 40 mL implant at a body's 3 kPa adds 37.5 mL of its 39.2
-/// (4.2 % short, a result); at 30 kPa, squeezing her more, 37.5 of 39.9 (6.0 %, not).
+/// A plan on a patient run alone holds, as `compare` does of a candidate, the volume added
+/// between her skin and chest wall to the implant's within 5 %, in tissue taken for
+/// incompressible (ν ≥ 0.49): a 40 mL implant placed with no material (30 kPa) under her fat
+/// adds its own volume. Under the springs' lattice (ν = 1/4) the same implant squeezes her
+/// tissue, which gives up some of its volume (37.6 of its 39.9 mL are added): that is not
+/// checked, and is no finding.
 #[test]
-fn a_placed_implant_that_does_not_add_its_volume_is_no_result() {
+fn a_placed_implant_adds_its_volume_to_incompressible_tissue_and_is_not_held_to_it_in_compressible() {
     let d = dir("gain");
     std::fs::write(d.join("skin.stl"), sheets::sheet_stl(100.0, 10, |_, _| 30.0)).unwrap();
     std::fs::write(d.join("wall.stl"), sheets::sheet_stl(100.0, 10, |_, _| 0.0)).unwrap();
@@ -283,6 +285,7 @@ name = "breast"
 kind = "soft"
 shape = {{ between = {{ outer = "skin.stl", inner = "wall.stl", min = [-60, -60, -5], max = [60, 60, 40] }} }}
 spacing = 8
+{material}
 landmarks = {{ nipple = [0, 0, 30] }}
 [[body]]
 name = "implant"
@@ -290,7 +293,6 @@ kind = "shell"
 shape = {{ implant = {{ volume_ml = 40, base_mm = 60, profile = "moderate" }} }}
 spacing = 8
 place = {{ under = "breast.nipple" }}
-{material}
 inflate = {{ volume_ml = 40, ramp = 0.3 }}
 [[contact]]
 a = "implant"
@@ -305,17 +307,22 @@ vtk = false
     let gain = |s: &serde_json::Value| {
         s["bodies"][0]["volume_ml_end"].as_f64().unwrap() - s["bodies"][0]["volume_ml"].as_f64().unwrap()
     };
-    let (_, soft) = run(&d, "soft", &scene(""));
-    let implant = soft["bodies"][1]["volume_ml"].as_f64().unwrap();
-    assert!((gain(&soft) / implant - 1.0).abs() <= 0.05, "{} of {implant}", gain(&soft));
-    assert_eq!(soft["not_a_result"], serde_json::json!([]), "{soft}");
-    let (_, stiff) = run(&d, "stiff", &scene("material = { young_kpa = 30.0, damping = 0.5 }"));
-    let implant = stiff["bodies"][1]["volume_ml"].as_f64().unwrap();
-    assert!((gain(&stiff) / implant - 1.0).abs() > 0.05, "{} of {implant}", gain(&stiff));
-    let why = stiff["not_a_result"][0].as_str().unwrap_or_default();
+    let (_, fat) = run(&d, "fat", &scene("material = { model = \"neo-hookean\", preset = \"fat\" }"));
+    let implant = fat["bodies"][1]["volume_ml"].as_f64().unwrap();
+    eprintln!("fat: {} mL added by {implant} mL", gain(&fat));
+    assert!((implant / 40.0 - 1.0).abs() < 0.02, "{implant}");
+    assert!((gain(&fat) / implant - 1.0).abs() <= 0.05, "{} of {implant}", gain(&fat));
+    assert_eq!(fat["not_a_result"], serde_json::json!([]), "{fat}");
+    let (_, springs) = run(&d, "springs", &scene(""));
+    let implant = springs["bodies"][1]["volume_ml"].as_f64().unwrap();
+    eprintln!("springs: {} mL added by {implant} mL", gain(&springs));
+    assert!(gain(&springs) < 0.95 * implant, "{} of {implant}", gain(&springs));
     assert!(
-        why.starts_with("breast: the volume added between her skin and chest wall")
-            && why.contains(&format!("{:.1} mL, is not the implant's {implant:.1} mL to 5 %", gain(&stiff))),
-        "{why}"
+        springs["not_a_result"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|w| !w.as_str().unwrap().contains("volume added")),
+        "{springs}"
     );
 }

@@ -497,6 +497,33 @@ fn default_damping() -> f64 {
     0.1
 }
 
+impl MaterialSpec {
+    /// The Poisson's ratio its model gives: `poisson` for finite elements, 1/4 for the paper's
+    /// spring lattice whatever `poisson` says.
+    #[must_use]
+    pub fn model_poisson(&self) -> f64 {
+        match self.model {
+            MaterialModel::Springs => 0.25,
+            MaterialModel::NeoHookean => self.poisson,
+        }
+    }
+}
+
+/// The material of a shell placed on a patient's chest wall (`place`) that gives no `material`:
+/// a body's default but for its modulus, 30 kPa. A body's own default, 3 kPa, is as soft as her
+/// fat, and under her breast's weight such a shell crumples and passes through itself. On the
+/// MakeHuman patient standing at a 6 mm spacing, a 300 mL implant counted 165 of its 299 mL twice
+/// at 3 kPa, 69 mL at 10 kPa and 5 mL at 30 kPa (docs/patient.md).
+pub const PLACED_SHELL_MATERIAL: MaterialSpec = MaterialSpec {
+    young_kpa: 30.0,
+    poisson: 0.45,
+    density: 1000.0,
+    damping: 0.1,
+    spring_damping: None,
+    model: MaterialModel::Springs,
+    preset: None,
+};
+
 impl Default for MaterialSpec {
     fn default() -> MaterialSpec {
         MaterialSpec {
@@ -1221,6 +1248,8 @@ fn body_spec(
         ));
     }
     let material_span = b.material.span();
+    // (A default's span is empty at the file's start: no `material` was written.)
+    let material_given = material_span != (0..0);
     let material = b.material.into_inner();
     check_material(&material).map_err(|(what, m)| {
         at(file, text, material_span.clone(), Some(&key(&format!("material.{what}"))), m)
@@ -1299,6 +1328,7 @@ fn body_spec(
     };
     let place = place_of(src, (&name, b.kind), b.position != [0.0; 3] || b.rotation != [0.0; 3], b.place)?;
     let landmarks = landmarks_of(src, (&name, b.kind), b.landmarks)?;
+    let material = if place.is_some() && !material_given { PLACED_SHELL_MATERIAL } else { material };
     let spec = BodySpec {
         place: None,
         reference,

@@ -229,6 +229,31 @@ fn tissue_presets_give_published_parameters() {
     }
 }
 
+/// A shell placed on a chest wall that gives no `material` is 30 kPa, not a body's 3 kPa (it
+/// would crumple under her tissue, docs/patient.md); one that gives a material, or is not
+/// placed, keeps it or the body's default.
+#[test]
+fn a_placed_shell_without_a_material_is_stiffer_than_her_fat() {
+    use voxcollide_sim::scene_file::{MaterialSpec, PLACED_SHELL_MATERIAL};
+    let text = |implant: &str| {
+        format!(
+            "units = \"mm\"\n[[body]]\nname = \"breast\"\nkind = \"soft\"\nshape = {{ between = {{ outer = \"skin.stl\", inner = \"wall.stl\", min = [-60, -60, -5], max = [60, 60, 40] }} }}\nspacing = 8\nlandmarks = {{ nipple = [0, 0, 30] }}\n[[body]]\nname = \"implant\"\nkind = \"shell\"\nshape = {{ implant = {{ volume_ml = 40, base_mm = 60, projection_mm = 20 }} }}\nspacing = 8\n{implant}\n"
+        )
+    };
+    let material = |implant: &str| SceneFile::parse("p.toml", &text(implant)).unwrap().bodies[1].material;
+    assert_eq!(material("place = { under = \"breast.nipple\" }"), PLACED_SHELL_MATERIAL);
+    assert_eq!(PLACED_SHELL_MATERIAL.young_kpa, 30.0);
+    assert_eq!(
+        PLACED_SHELL_MATERIAL,
+        MaterialSpec { young_kpa: 30.0, ..MaterialSpec::default() },
+        "a body's default but for its modulus"
+    );
+    let given = material("place = { under = \"breast.nipple\" }\nmaterial = { young_kpa = 12.0 }");
+    assert_eq!(given, MaterialSpec { young_kpa: 12.0, ..MaterialSpec::default() });
+    assert_eq!(material(""), MaterialSpec::default());
+    assert_eq!(MaterialSpec::default().young_kpa, 3.0);
+}
+
 /// An implant `extra`-placed on the parametric breast's chest wall (docs/design.md §15).
 fn placed(dir: &std::path::Path, place: &str, extra: &str) -> String {
     let box_ = ([-90.0, -90.0, -10.0], [90.0, 90.0, 70.0]);
@@ -634,8 +659,9 @@ fn an_implant_nearly_a_cylinder_started_flat_is_warned_of_and_a_rounder_one_is_n
 /// Built, the two are the same to a rounding: the same lattice, held and let go alike (in cm
 /// the box's 18 / 0.6 rounded to 29.999998 and, floored, the lattice lost its far faces: 3,515
 /// vertices against 3,698). Stepped, they part: the contact's voxel is a power of two in file
-/// units (8 mm against 1 cm), and its reach and the solve's margin follow it; the fill is the
-/// same to a thousandth 40 steps later.
+/// units (8 mm against 1 cm), and its reach and the solve's margin follow it; 40 steps later
+/// the fill is the same to 0.3 % (145.8 mL against 146.2; to a thousandth with the shell at a
+/// body's 3 kPa, before a placed shell's default was 30 kPa).
 #[test]
 fn a_plan_in_centimetres_is_the_plan_in_millimetres() {
     use voxcollide_sim::mesh_io::Surface;
@@ -685,5 +711,5 @@ fn a_plan_in_centimetres_is_the_plan_in_millimetres() {
         cm.step().unwrap();
     }
     let filled = [&mm, &cm].map(|w| w.world.bodies[1].enclosed_volume());
-    assert!((filled[0] - filled[1] * 1e3).abs() < 1e-3 * filled[0], "{filled:?}");
+    assert!((filled[0] - filled[1] * 1e3).abs() < 5e-3 * filled[0], "{filled:?}");
 }

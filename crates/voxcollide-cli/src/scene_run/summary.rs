@@ -382,13 +382,15 @@ pub(super) fn at_end(
             }
         }
     }
-    // A placed implant's plan: the volume added between her skin and chest wall is the
-    // implant's, as `compare` asks of a candidate, or the run is not a result.
+    // A placed implant's plan: in tissue taken for incompressible, the volume added between
+    // her skin and chest wall is the implant's, as `compare` asks of a candidate, or the run is
+    // not a result.
     for p in &world.pockets {
         let (tissue, implant) = (&summary.bodies[p.tissue], &summary.bodies[p.implant]);
         if let (Some(start), Some(end), Some(volume)) =
             (tissue.volume_ml, tissue.volume_ml_end, implant.volume_ml)
-            && let Some(why) = crate::compare::gain_off(end - start, volume)
+            && let Some(why) =
+                crate::compare::gain_off(end - start, volume, file.bodies[p.tissue].material.model_poisson())
         {
             let why = format!("{}: {why}", tissue.name);
             summary.not_a_result.push(why);
