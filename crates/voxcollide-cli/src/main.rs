@@ -416,7 +416,10 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     s.units,
                     match (b.volume_ml, b.volume) {
                         (Some(start), _) if let Some(end) = b.volume_ml_end => {
-                            format!(", {start:.1} mL of tissue at the start, {end:.1} mL at the end")
+                            format!(
+                                ", {start:.1} mL of tissue at the start, {end:.1} mL at the end ({:.1} mL added)",
+                                end - start
+                            )
                         }
                         (Some(ml), _) => format!(", {ml:.1} mL inside at the end"),
                         (None, Some(v)) => format!(", {v:.4} cubic {} inside at the end", s.units),

@@ -307,9 +307,10 @@ vtk = false
     let gain = |s: &serde_json::Value| {
         s["bodies"][0]["volume_ml_end"].as_f64().unwrap() - s["bodies"][0]["volume_ml"].as_f64().unwrap()
     };
-    let (_, fat) = run(&d, "fat", &scene("material = { model = \"neo-hookean\", preset = \"fat\" }"));
+    let (said, fat) = run(&d, "fat", &scene("material = { model = \"neo-hookean\", preset = \"fat\" }"));
     let implant = fat["bodies"][1]["volume_ml"].as_f64().unwrap();
     eprintln!("fat: {} mL added by {implant} mL", gain(&fat));
+    assert!(said.contains(&format!("mL at the end ({:.1} mL added)", gain(&fat))), "{said}");
     assert!((implant / 40.0 - 1.0).abs() < 0.02, "{implant}");
     assert!((gain(&fat) / implant - 1.0).abs() <= 0.05, "{} of {implant}", gain(&fat));
     assert_eq!(fat["not_a_result"], serde_json::json!([]), "{fat}");
