@@ -451,10 +451,13 @@ struct RawMaterial {
 impl From<RawMaterial> for MaterialSpec {
     fn from(r: RawMaterial) -> MaterialSpec {
         MaterialSpec {
-            young_kpa: r.young_kpa.or(r.preset.map(Preset::young_kpa)).unwrap_or_else(default_young),
-            poisson: r.poisson.or(r.preset.map(Preset::poisson)).unwrap_or_else(default_poisson),
-            density: r.density.or(r.preset.map(Preset::density)).unwrap_or_else(default_density),
-            damping: r.damping.unwrap_or_else(default_damping),
+            young_kpa: r
+                .young_kpa
+                .or(r.preset.map(Preset::young_kpa))
+                .unwrap_or(MaterialSpec::DEFAULT.young_kpa),
+            poisson: r.poisson.or(r.preset.map(Preset::poisson)).unwrap_or(MaterialSpec::DEFAULT.poisson),
+            density: r.density.or(r.preset.map(Preset::density)).unwrap_or(MaterialSpec::DEFAULT.density),
+            damping: r.damping.unwrap_or(MaterialSpec::DEFAULT.damping),
             spring_damping: r.spring_damping,
             model: r.model,
             preset: r.preset,
@@ -484,20 +487,19 @@ pub struct MaterialSpec {
     pub preset: Option<Preset>,
 }
 
-fn default_young() -> f64 {
-    3.0
-}
-fn default_poisson() -> f64 {
-    0.45
-}
-fn default_density() -> f64 {
-    1000.0
-}
-fn default_damping() -> f64 {
-    0.1
-}
-
 impl MaterialSpec {
+    /// A body's material where its file gives none, and each key's value where the file's
+    /// material leaves it out: 3 kPa, ν = 0.45, 1000 kg/m³, damping 0.1, the paper's springs.
+    pub const DEFAULT: MaterialSpec = MaterialSpec {
+        young_kpa: 3.0,
+        poisson: 0.45,
+        density: 1000.0,
+        damping: 0.1,
+        spring_damping: None,
+        model: MaterialModel::Springs,
+        preset: None,
+    };
+
     /// The Poisson's ratio its model gives: `poisson` for finite elements, 1/4 for the paper's
     /// spring lattice whatever `poisson` says.
     #[must_use]
@@ -514,27 +516,11 @@ impl MaterialSpec {
 /// fat, and under her breast's weight such a shell crumples and passes through itself. On the
 /// MakeHuman patient standing at a 6 mm spacing, a 300 mL implant counted 165 of its 299 mL twice
 /// at 3 kPa, 69 mL at 10 kPa and 5 mL at 30 kPa (docs/patient.md).
-pub const PLACED_SHELL_MATERIAL: MaterialSpec = MaterialSpec {
-    young_kpa: 30.0,
-    poisson: 0.45,
-    density: 1000.0,
-    damping: 0.1,
-    spring_damping: None,
-    model: MaterialModel::Springs,
-    preset: None,
-};
+pub const PLACED_SHELL_MATERIAL: MaterialSpec = MaterialSpec { young_kpa: 30.0, ..MaterialSpec::DEFAULT };
 
 impl Default for MaterialSpec {
     fn default() -> MaterialSpec {
-        MaterialSpec {
-            young_kpa: default_young(),
-            poisson: default_poisson(),
-            density: default_density(),
-            damping: default_damping(),
-            spring_damping: None,
-            model: MaterialModel::Springs,
-            preset: None,
-        }
+        MaterialSpec::DEFAULT
     }
 }
 
