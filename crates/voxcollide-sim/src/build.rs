@@ -1423,6 +1423,12 @@ pub fn build_world_reusing(file: &SceneFile, recoveries: &Recoveries) -> Result<
                 "placed on {tissue:?}'s chest wall under {:?}: the pocket lets go {released} of {tissue:?}'s vertices held on the wall, over the base and a margin of {} {u}; friction on the wall {}",
                 place.landmark, place.margin, place.friction
             ));
+            if place.contact_added {
+                notes[k].remarks.push(format!(
+                    "no [[contact]] pairs it with {tissue:?}: the default contact between them added (a = {:?}, b = {tissue:?})",
+                    file.bodies[k].name
+                ));
+            }
             if moved.length() > 0.0 {
                 notes[k].remarks.push(format!(
                     "its base's centre moved {:.1} {u} along the wall, by [{:.1}, {:.1}, {:.1}], from under {:?} to keep its rim within {:?}",

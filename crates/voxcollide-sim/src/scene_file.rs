@@ -737,6 +737,11 @@ pub struct Placement {
     /// the wall stays where it is while the force along the wall is at most this times the
     /// force into it.
     pub friction: f64,
+    /// Whether the file pairs the implant with that body in no `[[contact]]`, so that the
+    /// default contact between them (`a` the implant, `b` the tissue) was added: an implant
+    /// placed in a patient's tissue with nothing to stop it would pass through her and be
+    /// reported as her new shape.
+    pub contact_added: bool,
 }
 
 /// The implant's friction on the chest wall when a placement gives none: a smooth silicone
@@ -1552,10 +1557,44 @@ fn resolve_places(
         }
         let margin = p.margin.unwrap_or(POCKET_MARGIN_MM * 1e-3 / units.metres());
         let friction = p.friction.unwrap_or(SMOOTH_SHELL_FRICTION);
-        bodies[k].place =
-            Some(Placement { body: t, landmark: landmark.to_string(), within, margin, friction });
+        bodies[k].place = Some(Placement {
+            body: t,
+            landmark: landmark.to_string(),
+            within,
+            margin,
+            friction,
+            contact_added: false,
+        });
     }
     Ok(())
+}
+
+/// For each shell placed on a patient (`place`) that no contact pairs with her tissue, in
+/// either order, the default contact between them: `a` the implant (binned, as a contact's
+/// indexed body is), `b` the tissue, every other key its default. [`Placement::contact_added`]
+/// says so, and `run` prints it. docs/design.md §15's example writes no `[[contact]]`, and an
+/// implant with nothing to stop it passes through the tissue it fills under.
+fn add_placed_contacts(bodies: &mut [BodySpec], contacts: &mut Vec<ContactSpec>) {
+    for (k, body) in bodies.iter_mut().enumerate() {
+        let Some(place) = body.place.as_mut() else { continue };
+        let t = place.body;
+        if contacts.iter().any(|c| (c.a, c.b) == (k, t) || (c.a, c.b) == (t, k)) {
+            continue;
+        }
+        contacts.push(ContactSpec {
+            a: k,
+            b: t,
+            direction: DirectionSpec::default(),
+            search: SearchSpec::default(),
+            radius: Auto::default(),
+            voxel_size: Auto::default(),
+            magnitude: Auto::default(),
+            response: ResponseSpec::default(),
+            stiffness: Auto::default(),
+            gap: Auto::default(),
+        });
+        place.contact_added = true;
+    }
 }
 
 /// A `[[contact]]` of a scene file (`c`, as read), checked against its `bodies`: two
@@ -1776,11 +1815,12 @@ impl SceneFile {
         // Placements name a body and its landmark: resolved once every body is read.
         resolve_places(Source { file: &file, text }, raw.units, &mut bodies, places)?;
 
-        let contacts = raw
+        let mut contacts = raw
             .contact
             .into_iter()
             .map(|c| contact_spec(Source { file: &file, text }, &bodies, c))
             .collect::<Result<Vec<_>, Error>>()?;
+        add_placed_contacts(&mut bodies, &mut contacts);
         let world_span = raw.world.span();
         let world = raw.world.into_inner();
         if let Some(g) = world.gravity

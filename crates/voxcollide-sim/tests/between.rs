@@ -254,6 +254,45 @@ fn a_placed_shell_without_a_material_is_stiffer_than_her_fat() {
     assert_eq!(MaterialSpec::default().young_kpa, 3.0);
 }
 
+/// docs/design.md §15's example writes no `[[contact]]`: a placed implant that no contact pairs
+/// with her tissue gets the default one (the implant binned, her tissue probing), and the run
+/// says so; a contact the file gives, in either order, is kept as the only one.
+#[test]
+fn a_placed_implant_with_no_contact_gets_the_default_one_with_her_tissue() {
+    use voxcollide_sim::scene_file::{Auto, ContactSpec, ResponseSpec};
+    let dir = folder("implied");
+    write_breast(&dir, 120.0);
+    let read_file = |text: &str| {
+        let path = dir.join("breast.toml");
+        std::fs::write(&path, text).unwrap();
+        SceneFile::read(&path).unwrap()
+    };
+    let bare = placed(&dir, "place = { under = \"breast.nipple\" }", "");
+    let file = read_file(&bare);
+    assert_eq!(file.contacts.len(), 1, "{:?}", file.contacts);
+    let ContactSpec { a, b, response, voxel_size, .. } = file.contacts[0];
+    assert_eq!((a, b), (1, 0), "the implant indexed, her tissue probing");
+    assert_eq!((response, voxel_size), (ResponseSpec::default(), Auto::Auto));
+    assert!(file.bodies[1].place.as_ref().unwrap().contact_added);
+    let built = build_world(&file).unwrap();
+    assert_eq!(built.world.contacts.len(), 1);
+    assert!(
+        built.notes[1].remarks.iter().any(|r| r.contains("no [[contact]] pairs it with \"breast\"")),
+        "{:?}",
+        built.notes[1].remarks
+    );
+    for given in ["a = \"implant\"\nb = \"breast\"", "a = \"breast\"\nb = \"implant\""] {
+        let file = read_file(&format!("{bare}\n[[contact]]\n{given}\n"));
+        assert_eq!(file.contacts.len(), 1, "{given}: {:?}", file.contacts);
+        assert!(!file.bodies[1].place.as_ref().unwrap().contact_added, "{given}");
+        let built = build_world(&file).unwrap();
+        assert!(!built.notes[1].remarks.iter().any(|r| r.contains("[[contact]]")), "{given}");
+    }
+    // An unplaced shell beside her is not paired with her by anyone but the file.
+    let unplaced = placed(&dir, "position = [0, 0, 200]", "");
+    assert!(read_file(&unplaced).contacts.is_empty());
+}
+
 /// An implant `extra`-placed on the parametric breast's chest wall (docs/design.md §15).
 fn placed(dir: &std::path::Path, place: &str, extra: &str) -> String {
     let box_ = ([-90.0, -90.0, -10.0], [90.0, 90.0, 70.0]);
