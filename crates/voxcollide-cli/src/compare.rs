@@ -435,6 +435,12 @@ pub fn compare(
             "the compared body must be a shell (kind = \"shell\"): it is filled to each candidate's volume",
         ));
     }
+    if let Some(place) = scene.bodies[body].place.as_ref().filter(|p| p.contact_added) {
+        note(&format!(
+            "{:?}: no [[contact]] pairs it with {:?}: the default contact between them added",
+            config.body, scene.bodies[place.body].name
+        ));
+    }
     // The tissue: the soft bodies in contact with the compared one.
     let tissue: Vec<usize> = scene
         .contacts

@@ -329,14 +329,22 @@ pub fn between_body(
     // A cell is tissue when its centre is: the lattice then holds the region's volume to a
     // half cell either way at its surface, not a whole cell short of it (cells wholly inside
     // kept 116 of 620 mL of a breast on a 15 mm layer at a 9 mm spacing).
+    // Per cell, by its centre: in front of the skin (whose faces beside a tissue cell are on
+    // the skin side, shown by the scan's own triangles), or tissue.
     let m = n - UVec3::ONE;
-    let cells: Vec<UVec3> = (0..m.x * m.y * m.z)
+    let cell_index = |c: UVec3| (c.x + m.x * (c.y + m.y * c.z)) as usize;
+    let (in_front, tissue): (Vec<bool>, Vec<bool>) = (0..m.x * m.y * m.z)
         .into_par_iter()
-        .map(|i| UVec3::new(i % m.x, i / m.x % m.y, i / (m.x * m.y)))
-        .filter(|c| {
-            let p = (node(*c) + 0.5 * h).as_dvec3();
-            skin.behind(p) && !wall.behind(p)
+        .map(|i| {
+            let c = UVec3::new(i % m.x, i / m.x % m.y, i / (m.x * m.y));
+            let p = (node(c) + 0.5 * h).as_dvec3();
+            let behind_skin = skin.behind(p);
+            (!behind_skin, behind_skin && !wall.behind(p))
         })
+        .unzip();
+    let cells: Vec<UVec3> = (0..m.x * m.y * m.z)
+        .filter(|&i| tissue[i as usize])
+        .map(|i| UVec3::new(i % m.x, i / m.x % m.y, i / (m.x * m.y)))
         .collect();
     if cells.is_empty() {
         let behind = sides.iter().any(|s| s.0);
@@ -399,6 +407,8 @@ pub fn between_body(
     let is_full: std::collections::HashSet<UVec3> = cells.iter().copied().collect();
     let mut pairs: Vec<(u32, u32)> = Vec::new();
     let mut mesh = TriangleMesh::default();
+    // Per surface triangle: whether it faces a cell in front of the skin.
+    let mut skin_side = Vec::new();
     for c in &cells {
         let v = |dx: u32, dy: u32, dz: u32| vertex[idx(c.x + dx, c.y + dy, c.z + dz)];
         // 12 edges, 12 face diagonals.
@@ -437,6 +447,10 @@ pub fn between_body(
             let q = c.as_ivec3() + glam::IVec3::from_array(d);
             q.min_element() >= 0 && is_full.contains(&q.as_uvec3())
         };
+        let before_skin = |d: [i32; 3]| {
+            let q = c.as_ivec3() + glam::IVec3::from_array(d);
+            q.min_element() >= 0 && q.cmplt(m.as_ivec3()).all() && in_front[cell_index(q.as_uvec3())]
+        };
         for (d, quad, out) in [
             ([-1, 0, 0], [v(0, 0, 0), v(0, 1, 0), v(0, 1, 1), v(0, 0, 1)], Vec3::NEG_X),
             ([1, 0, 0], [v(1, 0, 0), v(1, 1, 0), v(1, 1, 1), v(1, 0, 1)], Vec3::X),
@@ -446,7 +460,9 @@ pub fn between_body(
             ([0, 0, 1], [v(0, 0, 1), v(1, 0, 1), v(1, 1, 1), v(0, 1, 1)], Vec3::Z),
         ] {
             if !neighbour(d) {
+                let on_skin = before_skin(d);
                 for t in [[quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]] {
+                    skin_side.push(on_skin);
                     let [a, b, c] = t.map(|i| pos[i as usize]);
                     mesh.triangles.push(if (b - a).cross(c - a).dot(out) >= 0.0 {
                         t
@@ -515,7 +531,7 @@ pub fn between_body(
     // Held: on the chest wall (a lattice neighbour behind it) and on the box's faces.
     let (mut on_wall, mut on_box) = (0, 0);
     let mut modes = vec![Mode::Free; pos.len()];
-    let mut wall = vec![false; pos.len()];
+    let mut held_on_wall = vec![false; pos.len()];
     for i in 0..count {
         let v = vertex[i];
         if v == u32::MAX {
@@ -533,7 +549,7 @@ pub fn between_body(
         }
         if wallward {
             on_wall += 1;
-            wall[v as usize] = true;
+            held_on_wall[v as usize] = true;
             modes[v as usize] = Mode::Pinned;
         } else if face {
             on_box += 1;
@@ -541,8 +557,106 @@ pub fn between_body(
         }
     }
     let wall_faces = (0..mesh.triangles.len() as u32)
-        .filter(|&f| mesh.triangles[f as usize].iter().all(|&i| wall[i as usize]))
+        .filter(|&f| mesh.triangles[f as usize].iter().all(|&i| held_on_wall[i as usize]))
         .collect();
-    let body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
+    // The scanned skin, carried: the scan's triangles inside the box and in front of the wall,
+    // each vertex following its lattice cell; shown beside the lattice's faces but those on
+    // the skin side.
+    let (points, triangles) = clip_to_box(outer, min, max);
+    let (corners, weights) = crate::bodies::carried(&points, min, h, n, &vertex);
+    let carried = |k: u32| corners[k as usize].iter().any(|&c| c != u32::MAX);
+    let kept: Vec<[u32; 3]> = triangles
+        .into_iter()
+        .filter(|t| {
+            let centre = t.iter().map(|&k| points[k as usize].as_dvec3()).sum::<DVec3>() / 3.0;
+            t.iter().all(|&k| carried(k)) && !wall.behind(centre)
+        })
+        .collect();
+    let mut renumber = vec![u32::MAX; points.len()];
+    let mut sheet = crate::body::Embedding::default();
+    for t in &kept {
+        let t = t.map(|k| {
+            if renumber[k as usize] == u32::MAX {
+                renumber[k as usize] = sheet.rest.len() as u32;
+                sheet.rest.push(points[k as usize]);
+                sheet.corners.push(corners[k as usize]);
+                sheet.weights.push(weights[k as usize]);
+            }
+            renumber[k as usize]
+        });
+        sheet.mesh.triangles.push(t);
+    }
+    let count = pos.len() as u32;
+    let shown = TriangleMesh {
+        triangles: mesh
+            .triangles
+            .iter()
+            .zip(&skin_side)
+            .filter(|(_, on_skin)| !**on_skin)
+            .map(|(t, _)| *t)
+            .chain(sheet.mesh.triangles.iter().map(|t| t.map(|k| k + count)))
+            .collect(),
+    };
+    let mut body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
+    body.skin = (!sheet.mesh.triangles.is_empty()).then_some(crate::body::CarriedSkin { sheet, shown });
     Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped, wall_faces }, tets))
+}
+
+/// The triangles of `surface` clipped to the box `min`..`max`: its points (the surface's own
+/// inside the box, then where its edges cross the box's faces) and triangles over them, each
+/// facing as the surface's did. A crossing is computed from its edge's two ends in one order
+/// whichever triangle asks, so neighbours share it.
+fn clip_to_box(surface: &Surface, min: Vec3, max: Vec3) -> (Vec<Vec3>, Vec<[u32; 3]>) {
+    let (lo, hi) = (min.as_dvec3(), max.as_dvec3());
+    let mut points: Vec<Vec3> = Vec::new();
+    let mut index: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut add = |p: DVec3, points: &mut Vec<Vec3>| {
+        let p = p.as_vec3();
+        *index.entry(p.to_array().map(f32::to_bits)).or_insert_with(|| {
+            points.push(p);
+            points.len() as u32 - 1
+        })
+    };
+    let mut triangles = Vec::new();
+    for t in &surface.mesh.triangles {
+        let mut polygon: Vec<DVec3> = t.iter().map(|&k| surface.positions[k as usize].as_dvec3()).collect();
+        for axis in 0..3 {
+            for (bound, sign) in [(lo[axis], 1.0), (hi[axis], -1.0)] {
+                let inside = |p: &DVec3| sign * (p[axis] - bound) >= 0.0;
+                let mut out = Vec::with_capacity(polygon.len() + 2);
+                for (k, p) in polygon.iter().enumerate() {
+                    let q = polygon[(k + 1) % polygon.len()];
+                    if inside(p) {
+                        out.push(*p);
+                    }
+                    if inside(p) != inside(&q) {
+                        // The same crossing from either triangle: its ends in one order.
+                        let (a, b) = if p.to_array() < q.to_array() { (*p, q) } else { (q, *p) };
+                        let s = (bound - a[axis]) / (b[axis] - a[axis]);
+                        let mut x = a + s * (b - a);
+                        x[axis] = bound;
+                        out.push(x);
+                    }
+                }
+                polygon = out;
+                if polygon.len() < 3 {
+                    break;
+                }
+            }
+            if polygon.len() < 3 {
+                break;
+            }
+        }
+        if polygon.len() < 3 {
+            continue;
+        }
+        let ids: Vec<u32> = polygon.iter().map(|p| add(*p, &mut points)).collect();
+        for k in 1..ids.len() - 1 {
+            let tri = [ids[0], ids[k], ids[k + 1]];
+            if tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] {
+                triangles.push(tri);
+            }
+        }
+    }
+    (points, triangles)
 }

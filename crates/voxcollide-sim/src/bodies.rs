@@ -722,12 +722,32 @@ pub fn lattice_in_surface(
         uncovered,
         surface_vertices: positions.len(),
     };
-    // The user's surface, carried by the lattice: each vertex in its cell, weighted over the
-    // cell's kept corners (renormalized); one outside every kept cell follows its nearest kept
-    // node within the 3 × 3 × 3 block around it.
-    let mut corners = Vec::with_capacity(positions.len());
-    let mut weights = Vec::with_capacity(positions.len());
-    for p in positions {
+    // The user's surface, carried by the lattice.
+    let (corners, weights) = carried(positions, origin, h, n, &vertex);
+    let modes = pos.iter().map(|p| mode(*p)).collect();
+    let mut body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
+    body.embedded =
+        Some(crate::body::Embedding { rest: positions.to_vec(), mesh: mesh.clone(), corners, weights });
+    Ok((body, report))
+}
+
+/// How a lattice carries `points` (an [`Embedding`](crate::body::Embedding)'s corners and
+/// weights): each point in its cell of the grid from `origin` (spacing `h`, `n` nodes a side,
+/// `vertex` the body's vertex at each node or `u32::MAX`), weighted trilinearly over the
+/// cell's kept corners (renormalized); one whose cell keeps none follows its nearest kept node
+/// within the 3 × 3 × 3 block around it, and one with none there is carried by nothing (all
+/// corners `u32::MAX`: it stays where it is).
+pub(crate) fn carried(
+    points: &[Vec3],
+    origin: Vec3,
+    h: f32,
+    n: UVec3,
+    vertex: &[u32],
+) -> (Vec<[u32; 8]>, Vec<[f32; 8]>) {
+    let idx = |x: u32, y: u32, z: u32| (x + n.x * (y + n.y * z)) as usize;
+    let mut corners = Vec::with_capacity(points.len());
+    let mut weights = Vec::with_capacity(points.len());
+    for p in points {
         let q = (*p - origin) / h;
         let c = q.floor().clamp(Vec3::ZERO, (n - UVec3::ONE).as_vec3());
         let f = (q - c).clamp(Vec3::ZERO, Vec3::ONE);
@@ -780,11 +800,7 @@ pub fn lattice_in_surface(
         corners.push(corner);
         weights.push(weight);
     }
-    let modes = pos.iter().map(|p| mode(*p)).collect();
-    let mut body = MassSpring::new(pos, modes, springs, surface_mesh, material)?;
-    body.embedded =
-        Some(crate::body::Embedding { rest: positions.to_vec(), mesh: mesh.clone(), corners, weights });
-    Ok((body, report))
+    (corners, weights)
 }
 
 /// Each vertex's share of the mass of the tetrahedra `tets` over `rest`: a quarter of each

@@ -116,6 +116,23 @@ pub struct MassSpring {
     /// front of it, raised by [`StepInputs::floor`] along its normal, with the step's
     /// [`StepInputs::wall_friction`]. `None`: the floor is the plane `z = floor`.
     pub wall: Option<std::sync::Arc<crate::wall::Wall>>,
+    /// The skin as scanned, carried by a patient's tissue (a `between` body, docs/design.md
+    /// §14): what pictures, surface files, landmarks and the lift show in place of the
+    /// lattice's faces on the skin side. Contacts and the volumes keep the lattice's own
+    /// [`surface`](Self::surface). `None` for other bodies.
+    pub skin: Option<CarriedSkin>,
+}
+
+/// The scanned skin a `between` body carries (docs/design.md §14), and the surface it is shown
+/// by: the lattice's own faces but those on the skin side (the box's faces and the chest
+/// wall's), and the scan's triangles inside the box.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CarriedSkin {
+    /// The scan's triangles inside the body's box, each vertex following its lattice cell.
+    pub sheet: Embedding,
+    /// The surface shown, over the body's vertices and then the sheet's (`len + k` for the
+    /// sheet's vertex `k`).
+    pub shown: TriangleMesh,
 }
 
 /// A surface carried by a lattice: each of its vertices follows the displacement of the cell it
@@ -359,6 +376,7 @@ impl MassSpring {
             held_pressure: 0.0,
             started: None,
             wall: None,
+            skin: None,
         })
     }
 
@@ -501,14 +519,38 @@ impl MassSpring {
         self.started.as_deref().unwrap_or(&self.rest_pos)
     }
 
-    /// Where the surface the body is shown by started: its embedded surface's (the user's, its
-    /// vertices following their cells) or its own ([`start`](Self::start)).
+    /// Where the surface the body is shown by started ([`shown_at`](Self::shown_at) its
+    /// [`start`](Self::start)).
     #[must_use]
     pub fn shown_start(&self) -> std::borrow::Cow<'_, [Vec3]> {
-        match (&self.embedded, &self.started) {
-            (None, _) => self.start().into(),
-            (Some(e), None) => e.rest.as_slice().into(),
-            (Some(e), Some(started)) => e.positions(started, &self.rest_pos).into(),
+        self.shown_at(self.start()).0
+    }
+
+    /// The surface the body is shown by (pictures, surface files, landmarks), with its
+    /// vertices at `pos`: the user's own that it carries ([`embedded`](Self::embedded)); the
+    /// scanned skin beside the lattice's other faces ([`skin`](Self::skin)), its points the
+    /// body's vertices and then the sheet's; or its own [`surface`](Self::surface).
+    #[must_use]
+    pub fn shown_at<'a>(&'a self, pos: &'a [Vec3]) -> (std::borrow::Cow<'a, [Vec3]>, &'a TriangleMesh) {
+        match (&self.embedded, &self.skin) {
+            (None, Some(s)) => {
+                let mut points = pos.to_vec();
+                points.extend(s.sheet.positions(pos, &self.rest_pos));
+                (points.into(), &s.shown)
+            }
+            _ => self.closed_at(pos),
+        }
+    }
+
+    /// The closed surface that contacts meet and that penetration is measured against, with
+    /// the body's vertices at `pos`: the user's own that it carries
+    /// ([`embedded`](Self::embedded)), or its own [`surface`](Self::surface) (a `between`
+    /// body's lattice faces, not the skin it shows).
+    #[must_use]
+    pub fn closed_at<'a>(&'a self, pos: &'a [Vec3]) -> (std::borrow::Cow<'a, [Vec3]>, &'a TriangleMesh) {
+        match &self.embedded {
+            Some(e) => (e.positions(pos, &self.rest_pos).into(), &e.mesh),
+            None => (pos.into(), &self.surface),
         }
     }
 

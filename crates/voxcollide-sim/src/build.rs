@@ -113,17 +113,19 @@ pub struct Landmark {
     pub name: String,
     /// Where the file put it.
     pub given: Vec3,
-    /// The triangle of the body's surface it sits on, and its weights over the corners.
+    /// The triangle of the surface the body is shown by ([`MassSpring::shown_at`]: the skin as
+    /// scanned, for a `between` body) it sits on, and its weights over the corners.
     pub triangle: [u32; 3],
     /// See `triangle`.
     pub weights: [f32; 3],
 }
 
 impl Landmark {
-    /// Where it is with the body's vertices at `pos`.
+    /// Where it is on `body` with its vertices at `pos`.
     #[must_use]
-    pub fn at(&self, pos: &[Vec3]) -> Vec3 {
-        self.triangle.iter().zip(&self.weights).map(|(&v, &w)| w * pos[v as usize]).sum()
+    pub fn at(&self, body: &MassSpring, pos: &[Vec3]) -> Vec3 {
+        let (points, _) = body.shown_at(pos);
+        self.triangle.iter().zip(&self.weights).map(|(&v, &w)| w * points[v as usize]).sum()
     }
 }
 
@@ -152,7 +154,7 @@ fn place_on_wall(
             .landmarks
             .iter()
             .find(|l| l.name == name)
-            .map(|l| l.at(&bodies[t].pos))
+            .map(|l| l.at(&bodies[t], &bodies[t].pos))
             .ok_or_else(|| key_error(format!("no landmark {name:?}")))
     };
     let mark = landmark(&place.landmark)?;
@@ -984,8 +986,9 @@ fn landmark_on(
     let given = Vec3::from_array(p.map(|v| v as f32));
     let q = given.as_dvec3();
     let mut best = (f64::INFINITY, [0u32; 3], DVec3::ZERO);
-    for t in &b.surface.triangles {
-        let corners = t.map(|i| b.pos[i as usize].as_dvec3());
+    let (points, shown) = b.shown_at(&b.pos);
+    for t in &shown.triangles {
+        let corners = t.map(|i| points[i as usize].as_dvec3());
         let c = crate::geometry::closest_point(q, &corners);
         let d = c.distance(q);
         if d < best.0 {
@@ -1004,7 +1007,7 @@ fn landmark_on(
             ),
         ));
     }
-    let [a, b2, c] = best.1.map(|i| b.pos[i as usize].as_dvec3());
+    let [a, b2, c] = best.1.map(|i| points[i as usize].as_dvec3());
     // Barycentric weights of the closest point.
     let (v0, v1, v2) = (b2 - a, c - a, best.2 - a);
     let (d00, d01, d11, d20, d21) = (v0.dot(v0), v0.dot(v1), v1.dot(v1), v2.dot(v0), v2.dot(v1));

@@ -63,7 +63,7 @@ impl Recovered {
 
 /// Replaces `body`'s rest shape, the shape it is unloaded in, by `rest`: its springs' rest
 /// lengths and its elements' rest shapes follow; its held vertices are held at `rest`, and a
-/// surface embedded in it moves with its lattice.
+/// surface embedded in it (or a skin it carries) moves with its lattice.
 ///
 /// # Errors
 /// [`Error::Invalid`] for a length that does not match, a non-finite position, or a
@@ -95,8 +95,8 @@ pub fn set_rest_shape(body: &mut MassSpring, rest: &[Vec3]) -> Result<(), Error>
     for s in &mut body.springs {
         s.rest = rest[s.i as usize].distance(rest[s.j as usize]);
     }
-    if let Some(e) = &mut body.embedded {
-        let moved: Vec<Vec3> = rest.iter().zip(&body.rest_pos).map(|(r, old)| *r - *old).collect();
+    let moved: Vec<Vec3> = rest.iter().zip(&body.rest_pos).map(|(r, old)| *r - *old).collect();
+    for e in body.embedded.iter_mut().chain(body.skin.iter_mut().map(|s| &mut s.sheet)) {
         let by = e.interpolate(&moved);
         e.rest.iter_mut().zip(by).for_each(|(p, d)| *p += d);
     }

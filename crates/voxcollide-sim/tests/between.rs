@@ -109,8 +109,79 @@ fn the_tissue_between_a_skin_and_a_chest_wall_is_held_on_the_wall_and_box() {
     let marks = &built.notes[0].landmarks;
     assert_eq!(marks.iter().map(|l| l.name.as_str()).collect::<Vec<_>>(), ["nipple", "side"]);
     for l in marks {
-        let at = l.at(&body.pos);
+        let at = l.at(body, &body.pos);
         assert!(at.distance(l.given) <= 2.0 * h, "{} at {at}, given {}", l.name, l.given);
+    }
+}
+
+/// The body is shown by the skin as scanned (docs/design.md §14), not its lattice's cells: the
+/// scan's triangles inside the box, beside the lattice's faces that are not on the skin side,
+/// each of the skin's points carried by its cell; landmarks sit on it.
+#[test]
+fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
+    use voxcollide::glam::Vec3;
+    let dir = folder("skin");
+    write_breast(&dir, 120.0);
+    let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], "landmarks = { nipple = [3, -2, 60] }");
+    let skin_at = breast_skin(15.0, 40.0, 60.0, 0.0);
+    for spacing in [6.0f32, 9.0] {
+        let built = read(&dir, &text.replace("spacing = 6", &format!("spacing = {spacing}"))).unwrap();
+        let body = &built.world.bodies[0];
+        let skin = body.skin.as_ref().expect("a between body carries its skin");
+        let n = body.len() as u32;
+        let area = |points: &[Vec3], t: &[u32; 3]| {
+            let [a, b, c] = t.map(|k| points[k as usize]);
+            0.5 * (b - a).cross(c - a)
+        };
+        // The sheet: the scan inside the box, whole (its area seen from the front is the box's
+        // 180 × 180 mm, with no gap and no overlap), every point on the scan's facets.
+        let sheet = &skin.sheet;
+        let front: f32 = sheet.mesh.triangles.iter().map(|t| area(&sheet.rest, t).z).sum();
+        assert!((front / (180.0 * 180.0) - 1.0).abs() < 1e-4, "{spacing}: the sheet covers {front} mm²");
+        for p in &sheet.rest {
+            assert!(p.x.abs() <= 90.0 + 1e-4 && p.y.abs() <= 90.0 + 1e-4, "{p} outside the box");
+            // Within the facets' chord of the smooth skin (5 mm facets).
+            let z = skin_at(f64::from(p.x), f64::from(p.y)) as f32;
+            assert!((p.z - z).abs() < 0.6, "{spacing}: {p} off the skin at {z}");
+        }
+        // Shown: the sheet, and of the lattice's faces none that faces the front from under the
+        // skin (those the sheet replaces): the lattice's faces add no area seen from the front.
+        let (points, shown) = body.shown_at(&body.pos);
+        let lattice_front: f32 = shown
+            .triangles
+            .iter()
+            .filter(|t| t.iter().all(|&k| k < n))
+            .map(|t| area(&points, t).z.max(0.0))
+            .sum();
+        assert!(
+            lattice_front < 0.01 * front,
+            "{spacing}: the lattice shows {lattice_front} mm² to the front"
+        );
+        let carried = shown.triangles.iter().filter(|t| t.iter().all(|&k| k >= n)).count();
+        assert_eq!(carried, sheet.mesh.triangles.len());
+        // Carried: a displacement that varies across the body moves each point of the skin as
+        // its cell moves, within what the field changes over a cell.
+        let field = |p: Vec3| Vec3::new(0.0, 0.0, 0.05 * p.x) + Vec3::new(0.03 * p.z, 0.0, 0.0);
+        let moved: Vec<Vec3> = body.rest_pos.iter().map(|p| *p + field(*p)).collect();
+        let (now, _) = body.shown_at(&moved);
+        for (k, r) in sheet.rest.iter().enumerate() {
+            let error = now[n as usize + k].distance(*r + field(*r));
+            assert!(error <= 0.06 * spacing, "{spacing}: skin point {r} off its cells' motion by {error}");
+        }
+        // The landmark on the scan (on a facet, not a cell's face a snap away).
+        let nipple = &built.notes[0].landmarks[0];
+        let at = nipple.at(body, body.start());
+        let off = sheet
+            .mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let corners = t.map(|k| sheet.rest[k as usize].as_dvec3());
+                voxcollide_sim::geometry::closest_point(at.as_dvec3(), &corners).distance(at.as_dvec3())
+            })
+            .fold(f64::INFINITY, f64::min);
+        assert!(off < 1e-3, "{spacing}: the nipple at {at}, {off} off the scan");
+        assert!(nipple.at(body, &moved).distance(at + field(at)) <= 0.06 * spacing);
     }
 }
 

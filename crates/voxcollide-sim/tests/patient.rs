@@ -137,7 +137,7 @@ fn an_implant_placed_under_the_nipple_stands_on_the_curved_chest_wall_in_either_
             let above: Vec<f32> = shell.pos.iter().map(|p| wall.above(*p, 0.0).unwrap()).collect();
             let lowest = above.iter().copied().fold(f32::MAX, f32::min);
             let highest = above.iter().copied().fold(f32::MIN, f32::max);
-            let mark = built.notes[0].landmarks[0].at(&tissue.pos);
+            let mark = built.notes[0].landmarks[0].at(tissue, &tissue.pos);
             assert!(lowest.abs() < 0.05, "{skin} {posture}: base {lowest} from the wall");
             assert!(
                 (highest - 33.0).abs() < 1.0,
@@ -199,7 +199,7 @@ fn makehuman_breasts_are_built_between_their_skin_and_chest_wall_in_either_postu
             let body = &built.world.bodies[0];
             let volume = body.surface.volume(&body.pos) / 1e3;
             let mark = &built.notes[0].landmarks[0];
-            let on = mark.at(&body.pos);
+            let on = mark.at(body, &body.pos);
             eprintln!(
                 "{skin} {posture}: {} vertices, {volume:.0} mL, nipple {:.1} mm from where it was given",
                 body.len(),
@@ -225,9 +225,9 @@ fn a_makehuman_breast_standing_sags_under_its_own_weight() {
     let (skin, nipple) = skins.iter().find(|(s, _)| s == "maxcup-averagefirmness").unwrap();
     let built = breast(skin, *nipple, min, max, Mat3::IDENTITY, 10.0);
     let mut body = built.world.bodies[0].clone();
-    let before = built.notes[0].landmarks[0].at(&body.pos);
+    let before = built.notes[0].landmarks[0].at(&body, &body.pos);
     let steps = reference::settle(&mut body, Vec3::new(0.0, -9810.0, 0.0)).unwrap();
-    let after = built.notes[0].landmarks[0].at(&body.pos);
+    let after = built.notes[0].landmarks[0].at(&body, &body.pos);
     eprintln!("nipple {before} → {after} ({steps} steps)");
     assert!(after.y < before.y - 1.0, "standing, the nipple did not come down: {before} → {after}");
     assert!(after.is_finite());

@@ -112,6 +112,31 @@ impl FrameFiles {
             }
             let name = format!("{}_{frame:04}.vtp", world.names[k]);
             match &body.embedded {
+                None if body.skin.is_some() => {
+                    // Her scanned skin beside the lattice's other faces, the skin's values
+                    // interpolated from the lattice.
+                    let sheet = &body.skin.as_ref().map(|s| &s.sheet).expect("a skin");
+                    let (positions, mesh) = body.shown_at(&body.pos);
+                    let displacement: Vec<Vec3> =
+                        positions.iter().zip(body.shown_start().iter()).map(|(p, r)| *p - *r).collect();
+                    let flags: Vec<Vec3> =
+                        colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
+                    let mut touching = colliding.clone();
+                    touching.extend(sheet.interpolate(&flags).iter().map(|f| f.x > 0.0));
+                    let mut forces = force.clone();
+                    forces.extend(sheet.interpolate(&force));
+                    pvd.write_frame(
+                        time,
+                        &name,
+                        &BodyFrame {
+                            positions: &positions,
+                            triangles: &mesh.triangles,
+                            displacement: &displacement,
+                            contact_force: &forces,
+                            colliding: &touching,
+                        },
+                    )?;
+                }
                 None => {
                     let displacement: Vec<Vec3> =
                         body.pos.iter().zip(body.start()).map(|(p, r)| *p - *r).collect();
@@ -227,10 +252,15 @@ pub(crate) fn shown_and_moved(world: &World) -> Vec<(Vec<Vec3>, Vec<f32>)> {
 pub(crate) fn shown_surface(
     body: &MassSpring,
 ) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
-    match &body.embedded {
-        Some(e) => (e.positions(&body.pos, &body.rest_pos).into(), &e.mesh),
-        None => (body.pos.as_slice().into(), &body.surface),
-    }
+    body.shown_at(&body.pos)
+}
+
+/// The closed surface a body's contacts meet and its penetration is measured against
+/// ([`MassSpring::closed_at`]): a patient's lattice, not the skin she is shown by.
+pub(crate) fn closed_surface(
+    body: &MassSpring,
+) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
+    body.closed_at(&body.pos)
 }
 
 /// Every body's mesh for a picture, by its shown surface (`shown`: positions and how far each
@@ -248,7 +278,7 @@ pub(crate) fn meshes<'a>(
         .enumerate()
         .map(|(k, b)| SceneMesh {
             positions: &shown[k].0,
-            triangles: &b.embedded.as_ref().map_or(&b.surface, |e| &e.mesh).triangles,
+            triangles: &b.shown_at(&b.pos).1.triangles,
             scalars: coloured(k).then(|| shown[k].1.as_slice()),
             base_color: colour(k),
         })

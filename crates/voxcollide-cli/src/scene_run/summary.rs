@@ -366,8 +366,8 @@ pub(super) fn at_end(
             summary.landmarks.push(LandmarkSummary {
                 body: spec.name.clone(),
                 name: l.name.clone(),
-                start: l.at(b.start()).to_array(),
-                end: l.at(&b.pos).to_array(),
+                start: l.at(b, b.start()).to_array(),
+                end: l.at(b, &b.pos).to_array(),
             });
         }
         if spec.kind == BodyKind::Shell {
