@@ -794,12 +794,12 @@ impl Live {
 
     /// Whether the bodies can be drawn from their positions on the device: they step on the
     /// GPU, each is drawn by its own surface (a user's surface carried by the lattice is
-    /// interpolated on the host), and the adapter draws from storage buffers. Binds the meshes
+    /// interpolated on the host, and so is a scanned skin), and the adapter draws from storage buffers. Binds the meshes
     /// the first time.
     fn device_meshes_ready(&mut self, world: &World) -> bool {
         if self.device_refused
             || self.buffers.len() != world.bodies.len()
-            || world.bodies.iter().any(|b| b.embedded.is_some())
+            || world.bodies.iter().any(|b| b.embedded.is_some() || b.skin.is_some())
         {
             return false;
         }
@@ -961,9 +961,12 @@ fn device_buffers(run: &dyn voxcollide_sim::Simulation, bodies: usize) -> Vec<wg
 
 fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32> {
     let force = contact_forces(world, reports, k);
-    match &world.bodies[k].embedded {
-        Some(e) => e.interpolate(&force).iter().map(|f| f.length()).collect(),
-        None => force.iter().map(|f| f.length()).collect(),
+    let body = &world.bodies[k];
+    match (&body.embedded, &body.skin) {
+        (Some(e), _) => e.interpolate(&force).iter().map(|f| f.length()).collect(),
+        // Her skin's points after her vertices, as she is shown.
+        (None, Some(s)) => force.iter().chain(&s.sheet.interpolate(&force)).map(|f| f.length()).collect(),
+        (None, None) => force.iter().map(|f| f.length()).collect(),
     }
 }
 
