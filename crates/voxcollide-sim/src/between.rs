@@ -559,10 +559,10 @@ pub fn between_body(
     let wall_faces = (0..mesh.triangles.len() as u32)
         .filter(|&f| mesh.triangles[f as usize].iter().all(|&i| held_on_wall[i as usize]))
         .collect();
-    // The scanned skin, carried: the scan's triangles inside the box and in front of the wall,
-    // each vertex following its lattice cell; shown beside the lattice's faces but those on
-    // the skin side.
-    let (points, triangles) = clip_to_box(outer, min, max);
+    // The scanned skin, carried: the scan's triangles inside the lattice's box (the box given,
+    // less what a whole number of cells does not reach) and in front of the wall, each vertex
+    // following its lattice cell; shown beside the lattice's faces but those on the skin side.
+    let (points, triangles) = clip_to_box(outer, min, node(n - UVec3::ONE));
     let (corners, weights) = crate::bodies::carried(&points, min, h, n, &vertex);
     let carried = |k: u32| corners[k as usize].iter().any(|&c| c != u32::MAX);
     let kept: Vec<[u32; 3]> = triangles

@@ -124,7 +124,9 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
     write_breast(&dir, 120.0);
     let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], "landmarks = { nipple = [3, -2, 60] }");
     let skin_at = breast_skin(15.0, 40.0, 60.0, 0.0);
-    for spacing in [6.0f32, 9.0] {
+    for spacing in [6.0f32, 9.0, 7.0] {
+        // The lattice's extent: a whole number of cells from the box's corner (175 mm at 7).
+        let side = spacing * (180.0 / spacing).floor();
         let built = read(&dir, &text.replace("spacing = 6", &format!("spacing = {spacing}"))).unwrap();
         let body = &built.world.bodies[0];
         let skin = body.skin.as_ref().expect("a between body carries its skin");
@@ -133,13 +135,15 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
             let [a, b, c] = t.map(|k| points[k as usize]);
             0.5 * (b - a).cross(c - a)
         };
-        // The sheet: the scan inside the box, whole (its area seen from the front is the box's
-        // 180 × 180 mm, with no gap and no overlap), every point on the scan's facets.
+        // The sheet: the scan over the lattice, whole (its area seen from the front is the
+        // lattice's, 180 × 180 mm at 6 and 9, with no gap and no overlap, and no lip past its
+        // side faces), every point on the scan's facets.
         let sheet = &skin.sheet;
         let front: f32 = sheet.mesh.triangles.iter().map(|t| area(&sheet.rest, t).z).sum();
-        assert!((front / (180.0 * 180.0) - 1.0).abs() < 1e-4, "{spacing}: the sheet covers {front} mm²");
+        assert!((front / (side * side) - 1.0).abs() < 1e-4, "{spacing}: the sheet covers {front} mm²");
         for p in &sheet.rest {
-            assert!(p.x.abs() <= 90.0 + 1e-4 && p.y.abs() <= 90.0 + 1e-4, "{p} outside the box");
+            let inside = |v: f32| (-90.0 - 1e-4..=-90.0 + side + 1e-3).contains(&v);
+            assert!(inside(p.x) && inside(p.y), "{spacing}: {p} outside the lattice");
             // Within the facets' chord of the smooth skin (5 mm facets).
             let z = skin_at(f64::from(p.x), f64::from(p.y)) as f32;
             assert!((p.z - z).abs() < 0.6, "{spacing}: {p} off the skin at {z}");
