@@ -587,13 +587,38 @@ pub fn between_body(
         sheet.mesh.triangles.push(t);
     }
     let count = pos.len() as u32;
+    // The lattice's faces shown beside the skin (the box's sides) end where the skin does: a
+    // corner of one that lies in front of the skin (left on the lattice, or more than a snap
+    // away) is shown moved back onto it, a point of the sheet carried as the others are; it
+    // would otherwise stand out past her skin as a fin.
+    let mut sides: Vec<[u32; 3]> =
+        mesh.triangles.iter().zip(&skin_side).filter(|(_, on_skin)| !**on_skin).map(|(t, _)| *t).collect();
+    if !sheet.mesh.triangles.is_empty() {
+        let mut onto = vec![u32::MAX; pos.len()];
+        let mut moved_back = Vec::new();
+        for &v in sides.iter().flatten() {
+            let p = pos[v as usize].as_dvec3();
+            if onto[v as usize] == u32::MAX
+                && !skin.behind(p)
+                && let Some(q) = skin.along(p, -1.0, 2.0 * f64::from(h))
+            {
+                onto[v as usize] = count + (sheet.rest.len() + moved_back.len()) as u32;
+                moved_back.push(q.as_vec3());
+            }
+        }
+        let (corners, weights) = crate::bodies::carried(&moved_back, min, h, n, &vertex);
+        sheet.rest.extend(moved_back);
+        sheet.corners.extend(corners);
+        sheet.weights.extend(weights);
+        for v in sides.iter_mut().flatten() {
+            if onto[*v as usize] != u32::MAX {
+                *v = onto[*v as usize];
+            }
+        }
+    }
     let shown = TriangleMesh {
-        triangles: mesh
-            .triangles
-            .iter()
-            .zip(&skin_side)
-            .filter(|(_, on_skin)| !**on_skin)
-            .map(|(t, _)| *t)
+        triangles: sides
+            .into_iter()
             .chain(sheet.mesh.triangles.iter().map(|t| t.map(|k| k + count)))
             .collect(),
     };

@@ -122,11 +122,19 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
     use voxcollide::glam::Vec3;
     let dir = folder("skin");
     write_breast(&dir, 120.0);
-    let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], "landmarks = { nipple = [3, -2, 60] }");
     let skin_at = breast_skin(15.0, 40.0, 60.0, 0.0);
-    for spacing in [6.0f32, 9.0, 7.0] {
+    // The whole mound, and a box whose side cuts through its flank (where the side's top
+    // corners stand in front of the sloping skin).
+    for (spacing, low) in [(6.0f32, -90.0f32), (9.0, -90.0), (7.0, -90.0), (6.0, -31.0)] {
+        let text = scene(
+            &dir,
+            [f64::from(low), -90.0, -10.0],
+            [90.0, 90.0, 70.0],
+            "landmarks = { nipple = [3, -2, 60] }",
+        );
         // The lattice's extent: a whole number of cells from the box's corner (175 mm at 7).
         let side = spacing * (180.0 / spacing).floor();
+        let across = spacing * ((90.0 - low) / spacing).floor();
         let built = read(&dir, &text.replace("spacing = 6", &format!("spacing = {spacing}"))).unwrap();
         let body = &built.world.bodies[0];
         let skin = body.skin.as_ref().expect("a between body carries its skin");
@@ -140,10 +148,13 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
         // side faces), every point on the scan's facets.
         let sheet = &skin.sheet;
         let front: f32 = sheet.mesh.triangles.iter().map(|t| area(&sheet.rest, t).z).sum();
-        assert!((front / (side * side) - 1.0).abs() < 1e-4, "{spacing}: the sheet covers {front} mm²");
+        assert!((front / (side * across) - 1.0).abs() < 1e-4, "{spacing}: the sheet covers {front} mm²");
         for p in &sheet.rest {
-            let inside = |v: f32| (-90.0 - 1e-4..=-90.0 + side + 1e-3).contains(&v);
-            assert!(inside(p.x) && inside(p.y), "{spacing}: {p} outside the lattice");
+            let inside = |v: f32, low: f32, side: f32| (low - 1e-2..=low + side + 1e-2).contains(&v);
+            assert!(
+                inside(p.x, low, across) && inside(p.y, -90.0, side),
+                "{spacing}: {p} outside the lattice"
+            );
             // Within the facets' chord of the smooth skin (5 mm facets).
             let z = skin_at(f64::from(p.x), f64::from(p.y)) as f32;
             assert!((p.z - z).abs() < 0.6, "{spacing}: {p} off the skin at {z}");
@@ -161,8 +172,21 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
             lattice_front < 0.01 * front,
             "{spacing}: the lattice shows {lattice_front} mm² to the front"
         );
-        let carried = shown.triangles.iter().filter(|t| t.iter().all(|&k| k >= n)).count();
-        assert_eq!(carried, sheet.mesh.triangles.len());
+        let carried: Vec<[u32; 3]> = sheet.mesh.triangles.iter().map(|t| t.map(|k| k + n)).collect();
+        assert!(carried.iter().all(|t| shown.triangles.contains(t)), "{spacing}: the whole sheet is shown");
+        // No shown point stands in front of her skin (the box's sides end on it).
+        for (k, p) in points
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| shown.triangles.iter().flatten().any(|v| *v as usize == *k))
+        {
+            let z = skin_at(f64::from(p.x), f64::from(p.y)) as f32;
+            assert!(
+                p.z <= z + 0.6,
+                "{spacing}: shown point {k} at {p} stands {} in front of the skin",
+                p.z - z
+            );
+        }
         // Carried: a displacement that varies across the body moves each point of the skin as
         // its cell moves, within what the field changes over a cell.
         let field = |p: Vec3| Vec3::new(0.0, 0.0, 0.05 * p.x) + Vec3::new(0.03 * p.z, 0.0, 0.0);
