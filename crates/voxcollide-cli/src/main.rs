@@ -417,8 +417,8 @@ fn run_file(args: &RunArgs, backend: Backend) -> ExitCode {
                     match (b.volume_ml, b.volume) {
                         (Some(start), _) if let Some(end) = b.volume_ml_end => {
                             format!(
-                                ", {start:.1} mL of tissue at the start, {end:.1} mL at the end ({:.1} mL added)",
-                                end - start
+                                ", {start:.1} mL of tissue at the start, {end:.1} mL at the end ({})",
+                                volume_change(start, end)
                             )
                         }
                         (Some(ml), _) => format!(", {ml:.1} mL inside at the end"),
@@ -828,5 +828,21 @@ fn bench(args: &BenchArgs) -> ExitCode {
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// How a patient's tissue changed in volume, as `run` prints it: "302.8 mL added" by an implant,
+/// "16.1 mL less" where it lost some (settled lying with no implant, ν below 1/2).
+fn volume_change(start: f64, end: f64) -> String {
+    if end >= start { format!("{:.1} mL added", end - start) } else { format!("{:.1} mL less", start - end) }
+}
+
+#[cfg(test)]
+mod volume_tests {
+    #[test]
+    fn a_volume_lost_is_said_as_less_not_as_a_negative_addition() {
+        assert_eq!(super::volume_change(1052.5, 1355.3), "302.8 mL added");
+        assert_eq!(super::volume_change(1098.9, 1082.8), "16.1 mL less");
+        assert_eq!(super::volume_change(10.0, 10.0), "0.0 mL added");
     }
 }

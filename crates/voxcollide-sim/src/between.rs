@@ -559,11 +559,30 @@ pub fn between_body(
     let wall_faces = (0..mesh.triangles.len() as u32)
         .filter(|&f| mesh.triangles[f as usize].iter().all(|&i| held_on_wall[i as usize]))
         .collect();
+    let carried = carried_skin(outer, [&skin, &wall], (min, h, n), &vertex, (&pos, &mesh, &skin_side));
+    let mut body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
+    body.skin = carried;
+    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped, wall_faces }, tets))
+}
+
+/// The scanned skin a `between` body carries ([`crate::body::CarriedSkin`]): `outer`'s triangles
+/// inside the lattice's extent (the grid from `min`, spacing `h`, `n` nodes a side, `vertex`
+/// the body's vertex at each node) and in front of the `wall`, each vertex following its cell;
+/// shown beside the body's faces (`mesh`, its vertices at `pos`) that `skin_side` does not mark,
+/// their corners in front of the `skin` moved back onto it. `None` where none of the scan is
+/// kept.
+fn carried_skin(
+    outer: &Surface,
+    [skin, wall]: [&Sheet; 2],
+    (min, h, n): (Vec3, f32, UVec3),
+    vertex: &[u32],
+    (pos, mesh, skin_side): (&[Vec3], &TriangleMesh, &[bool]),
+) -> Option<crate::body::CarriedSkin> {
     // The scanned skin, carried: the scan's triangles inside the lattice's box (the box given,
     // less what a whole number of cells does not reach) and in front of the wall, each vertex
     // following its lattice cell; shown beside the lattice's faces but those on the skin side.
-    let (points, triangles) = clip_to_box(outer, min, node(n - UVec3::ONE));
-    let (corners, weights) = crate::bodies::carried(&points, min, h, n, &vertex);
+    let (points, triangles) = clip_to_box(outer, min, min + h * (n - UVec3::ONE).as_vec3());
+    let (corners, weights) = crate::bodies::carried(&points, min, h, n, vertex);
     let carried = |k: u32| corners[k as usize].iter().any(|&c| c != u32::MAX);
     let kept: Vec<[u32; 3]> = triangles
         .into_iter()
@@ -592,7 +611,7 @@ pub fn between_body(
     // away) is shown moved back onto it, a point of the sheet carried as the others are; it
     // would otherwise stand out past her skin as a fin.
     let mut sides: Vec<[u32; 3]> =
-        mesh.triangles.iter().zip(&skin_side).filter(|(_, on_skin)| !**on_skin).map(|(t, _)| *t).collect();
+        mesh.triangles.iter().zip(skin_side).filter(|(_, on_skin)| !**on_skin).map(|(t, _)| *t).collect();
     if !sheet.mesh.triangles.is_empty() {
         let mut onto = vec![u32::MAX; pos.len()];
         let mut moved_back = Vec::new();
@@ -606,7 +625,7 @@ pub fn between_body(
                 moved_back.push(q.as_vec3());
             }
         }
-        let (corners, weights) = crate::bodies::carried(&moved_back, min, h, n, &vertex);
+        let (corners, weights) = crate::bodies::carried(&moved_back, min, h, n, vertex);
         sheet.rest.extend(moved_back);
         sheet.corners.extend(corners);
         sheet.weights.extend(weights);
@@ -622,9 +641,7 @@ pub fn between_body(
             .chain(sheet.mesh.triangles.iter().map(|t| t.map(|k| k + count)))
             .collect(),
     };
-    let mut body = MassSpring::new(pos, modes, springs, mesh, material).map_err(Err)?;
-    body.skin = (!sheet.mesh.triangles.is_empty()).then_some(crate::body::CarriedSkin { sheet, shown });
-    Ok((body, BetweenReport { cells: cells.len(), on_wall, on_box, unsnapped, wall_faces }, tets))
+    (!sheet.mesh.triangles.is_empty()).then_some(crate::body::CarriedSkin { sheet, shown })
 }
 
 /// The triangles of `surface` clipped to the box `min`..`max`: its points (the surface's own
