@@ -613,6 +613,7 @@ fn the_gpu_world_refuses_a_curved_wall_by_name() {
     let built = read(&dir, &placed(&dir, "place = { under = \"breast.nipple\" }", "")).unwrap();
     let e = voxcollide_sim::GpuWorld::new(&ctx, built.world).map(|_| ()).unwrap_err().to_string();
     assert!(e.contains("curved chest wall") && e.contains("--backend cpu"), "{e}");
+    assert!(e.contains("\"breast\", \"implant\""), "the bodies by their names: {e}");
 }
 
 /// A breast on a chest curved like a barrel across her (radius 150 mm), written to `dir`, and

@@ -311,11 +311,18 @@ impl GpuWorld {
         use wgpu::util::DeviceExt as _;
         // A curved chest wall as a floor (an implant placed on a patient) is held on the CPU
         // only, so far: refused here rather than stepped through the wall.
-        if let Some(k) = world.bodies.iter().position(|b| b.wall.is_some()) {
+        let on_walls: Vec<String> = (0..world.bodies.len())
+            .filter(|&k| world.bodies[k].wall.is_some())
+            .map(|k| world.names.get(k).map_or_else(|| k.to_string(), |n| format!("{n:?}")))
+            .collect();
+        if !on_walls.is_empty() {
+            let (what, rest) = if on_walls.len() == 1 { ("body", "rests") } else { ("bodies", "rest") };
             return Err(Error::Invalid {
-                what: "body",
-                value: k.to_string(),
-                rule: "rests on a curved chest wall (an implant placed on a patient, docs/design.md §15), which only the CPU backend holds so far: run it with --backend cpu".into(),
+                what,
+                value: on_walls.join(", "),
+                rule: format!(
+                    "{rest} on a curved chest wall (an implant placed on a patient, docs/design.md §15), which only the CPU backend holds so far: run it with --backend cpu"
+                ),
             });
         }
         let device = ctx.device();
