@@ -542,6 +542,20 @@ impl MassSpring {
         }
     }
 
+    /// `values` of the body's vertices at the points of the surface it is shown by
+    /// ([`shown_at`](Self::shown_at)): interpolated onto a surface it carries, and, beside its
+    /// vertices' own, onto a scanned skin's points.
+    #[must_use]
+    pub fn shown_values<'a>(&self, values: &'a [Vec3]) -> std::borrow::Cow<'a, [Vec3]> {
+        match (&self.embedded, &self.skin) {
+            (Some(e), _) => e.interpolate(values).into(),
+            (None, Some(s)) => {
+                values.iter().copied().chain(s.sheet.interpolate(values)).collect::<Vec<_>>().into()
+            }
+            (None, None) => values.into(),
+        }
+    }
+
     /// The closed surface that contacts meet and that penetration is measured against, with
     /// the body's vertices at `pos`: the user's own that it carries
     /// ([`embedded`](Self::embedded)), or its own [`surface`](Self::surface) (a `between`

@@ -111,68 +111,24 @@ impl FrameFiles {
                 }
             }
             let name = format!("{}_{frame:04}.vtp", world.names[k]);
-            match &body.embedded {
-                None if body.skin.is_some() => {
-                    // Her scanned skin beside the lattice's other faces, the skin's values
-                    // interpolated from the lattice.
-                    let sheet = &body.skin.as_ref().map(|s| &s.sheet).expect("a skin");
-                    let (positions, mesh) = body.shown_at(&body.pos);
-                    let displacement: Vec<Vec3> =
-                        positions.iter().zip(body.shown_start().iter()).map(|(p, r)| *p - *r).collect();
-                    let flags: Vec<Vec3> =
-                        colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
-                    let mut touching = colliding.clone();
-                    touching.extend(sheet.interpolate(&flags).iter().map(|f| f.x > 0.0));
-                    let mut forces = force.clone();
-                    forces.extend(sheet.interpolate(&force));
-                    pvd.write_frame(
-                        time,
-                        &name,
-                        &BodyFrame {
-                            positions: &positions,
-                            triangles: &mesh.triangles,
-                            displacement: &displacement,
-                            contact_force: &forces,
-                            colliding: &touching,
-                        },
-                    )?;
-                }
-                None => {
-                    let displacement: Vec<Vec3> =
-                        body.pos.iter().zip(body.start()).map(|(p, r)| *p - *r).collect();
-                    pvd.write_frame(
-                        time,
-                        &name,
-                        &BodyFrame {
-                            positions: &body.pos,
-                            triangles: &body.surface.triangles,
-                            displacement: &displacement,
-                            contact_force: &force,
-                            colliding: &colliding,
-                        },
-                    )?;
-                }
-                Some(e) => {
-                    // The user's surface, its values interpolated from the lattice.
-                    let positions = e.positions(&body.pos, &body.rest_pos);
-                    let displacement: Vec<Vec3> =
-                        positions.iter().zip(body.shown_start().iter()).map(|(p, r)| *p - *r).collect();
-                    let flags: Vec<Vec3> =
-                        colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
-                    let touching: Vec<bool> = e.interpolate(&flags).iter().map(|f| f.x > 0.0).collect();
-                    pvd.write_frame(
-                        time,
-                        &name,
-                        &BodyFrame {
-                            positions: &positions,
-                            triangles: &e.mesh.triangles,
-                            displacement: &displacement,
-                            contact_force: &e.interpolate(&force),
-                            colliding: &touching,
-                        },
-                    )?;
-                }
-            }
+            // The surface it is shown by (the user's own it carries, her scanned skin, or its
+            // own), its values interpolated there from the lattice.
+            let (positions, mesh) = body.shown_at(&body.pos);
+            let displacement: Vec<Vec3> =
+                positions.iter().zip(body.shown_start().iter()).map(|(p, r)| *p - *r).collect();
+            let flags: Vec<Vec3> = colliding.iter().map(|c| Vec3::splat(f32::from(u8::from(*c)))).collect();
+            let touching: Vec<bool> = body.shown_values(&flags).iter().map(|f| f.x > 0.0).collect();
+            pvd.write_frame(
+                time,
+                &name,
+                &BodyFrame {
+                    positions: &positions,
+                    triangles: &mesh.triangles,
+                    displacement: &displacement,
+                    contact_force: &body.shown_values(&force),
+                    colliding: &touching,
+                },
+            )?;
             summary.files.push(name);
         }
         Ok(())

@@ -961,13 +961,7 @@ fn device_buffers(run: &dyn voxcollide_sim::Simulation, bodies: usize) -> Vec<wg
 
 fn contact_force(world: &World, reports: &[ContactReport], k: usize) -> Vec<f32> {
     let force = contact_forces(world, reports, k);
-    let body = &world.bodies[k];
-    match (&body.embedded, &body.skin) {
-        (Some(e), _) => e.interpolate(&force).iter().map(|f| f.length()).collect(),
-        // Her skin's points after her vertices, as she is shown.
-        (None, Some(s)) => force.iter().chain(&s.sheet.interpolate(&force)).map(|f| f.length()).collect(),
-        (None, None) => force.iter().map(|f| f.length()).collect(),
-    }
+    world.bodies[k].shown_values(&force).iter().map(|f| f.length()).collect()
 }
 
 /// A surface on `window` and an adapter that can present to it and draw: the native backends
