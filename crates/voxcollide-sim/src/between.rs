@@ -635,13 +635,70 @@ fn carried_skin(
             }
         }
     }
-    let shown = TriangleMesh {
-        triangles: sides
-            .into_iter()
-            .chain(sheet.mesh.triangles.iter().map(|t| t.map(|k| k + count)))
-            .collect(),
-    };
+    let skin_tris: Vec<[u32; 3]> = sheet.mesh.triangles.iter().map(|t| t.map(|k| k + count)).collect();
+    let at = |k: u32| if k < count { pos[k as usize] } else { sheet.rest[(k - count) as usize] };
+    let seam = stitch(&skin_tris, &sides, at);
+    let shown = TriangleMesh { triangles: sides.into_iter().chain(skin_tris).chain(seam).collect() };
     (!sheet.mesh.triangles.is_empty()).then_some(crate::body::CarriedSkin { sheet, shown })
+}
+
+/// The triangles that close the seam between the skin's sheet `skin` and the lattice's faces
+/// shown beside it, `sides` (points at `at`): where the rim of each is one loop, a strip
+/// between the two loops, walked together (each step the shorter of the two diagonals, as
+/// contours are tiled), each rim's edges used the other way round, so that with them the
+/// surface has no boundary. None where either rim is not one loop (left open: see
+/// docs/patient.md, "The body").
+fn stitch(skin: &[[u32; 3]], sides: &[[u32; 3]], at: impl Fn(u32) -> Vec3) -> Vec<[u32; 3]> {
+    use std::collections::{HashMap, HashSet};
+    let all: HashSet<(u32, u32)> =
+        skin.iter().chain(sides).flat_map(|t| (0..3).map(move |e| (t[e], t[(e + 1) % 3]))).collect();
+    // A part's rim: its edges whose reverse no triangle of either part uses, as one loop in
+    // their own direction (`None` where they are not one simple loop).
+    let rim = |part: &[[u32; 3]]| -> Option<Vec<u32>> {
+        let mut next: HashMap<u32, u32> = HashMap::new();
+        for t in part {
+            for e in 0..3 {
+                let (u, v) = (t[e], t[(e + 1) % 3]);
+                if !all.contains(&(v, u)) && next.insert(u, v).is_some() {
+                    return None;
+                }
+            }
+        }
+        let &start = next.keys().min()?;
+        let mut looped = vec![start];
+        let mut v = *next.get(&start)?;
+        while v != start {
+            if looped.len() > next.len() {
+                return None;
+            }
+            looped.push(v);
+            v = *next.get(&v)?;
+        }
+        (looped.len() == next.len() && looped.len() >= 3).then_some(looped)
+    };
+    let (Some(a), Some(b)) = (rim(skin), rim(sides)) else { return Vec::new() };
+    // The two rims run opposite ways round the seam: `a` forward, `b` backward, from the point
+    // of `b` nearest `a`'s first.
+    let j0 =
+        (0..b.len()).min_by(|&x, &y| at(b[x]).distance(at(a[0])).total_cmp(&at(b[y]).distance(at(a[0]))));
+    let Some(j0) = j0 else { return Vec::new() };
+    let (na, nb) = (a.len(), b.len());
+    let a_at = |i: usize| a[i % na];
+    let b_at = |j: usize| b[(j0 + nb - j % nb) % nb];
+    let (mut i, mut j) = (0, 0);
+    let mut out = Vec::with_capacity(na + nb);
+    while i < na || j < nb {
+        let advance_a = j >= nb
+            || (i < na && at(a_at(i + 1)).distance(at(b_at(j))) <= at(a_at(i)).distance(at(b_at(j + 1))));
+        if advance_a {
+            out.push([a_at(i + 1), a_at(i), b_at(j)]);
+            i += 1;
+        } else {
+            out.push([b_at(j), b_at(j + 1), a_at(i)]);
+            j += 1;
+        }
+    }
+    out
 }
 
 /// The triangles of `surface` clipped to the box `min`..`max`: its points (the surface's own

@@ -117,8 +117,9 @@ pub struct MassSpring {
     /// [`StepInputs::wall_friction`]. `None`: the floor is the plane `z = floor`.
     pub wall: Option<std::sync::Arc<crate::wall::Wall>>,
     /// The skin as scanned, carried by a patient's tissue (a `between` body, docs/design.md
-    /// §14): what pictures, surface files, landmarks and the lift show in place of the
-    /// lattice's faces on the skin side. Contacts and the volumes keep the lattice's own
+    /// §14): what pictures, surface files, landmarks, the lift and contacts see in place of
+    /// the lattice's faces on the skin side ([`shown_at`](Self::shown_at),
+    /// [`carried`](Self::carried)). The volumes keep the lattice's own
     /// [`surface`](Self::surface). `None` for other bodies.
     pub skin: Option<CarriedSkin>,
 }
@@ -526,19 +527,21 @@ impl MassSpring {
         self.shown_at(self.start()).0
     }
 
-    /// The surface the body is shown by (pictures, surface files, landmarks), with its
-    /// vertices at `pos`: the user's own that it carries ([`embedded`](Self::embedded)); the
-    /// scanned skin beside the lattice's other faces ([`skin`](Self::skin)), its points the
-    /// body's vertices and then the sheet's; or its own [`surface`](Self::surface).
+    /// The surface the body is shown by (pictures, surface files, landmarks) and that contacts
+    /// meet and penetration is measured against, with its vertices at `pos`: the user's own
+    /// that it carries ([`embedded`](Self::embedded)); the scanned skin beside the lattice's
+    /// other faces ([`skin`](Self::skin)), its points the body's vertices and then the sheet's;
+    /// or its own [`surface`](Self::surface).
     #[must_use]
     pub fn shown_at<'a>(&'a self, pos: &'a [Vec3]) -> (std::borrow::Cow<'a, [Vec3]>, &'a TriangleMesh) {
         match (&self.embedded, &self.skin) {
+            (Some(e), _) => (e.positions(pos, &self.rest_pos).into(), &e.mesh),
             (None, Some(s)) => {
                 let mut points = pos.to_vec();
                 points.extend(s.sheet.positions(pos, &self.rest_pos));
                 (points.into(), &s.shown)
             }
-            _ => self.closed_at(pos),
+            (None, None) => (pos.into(), &self.surface),
         }
     }
 
@@ -556,15 +559,27 @@ impl MassSpring {
         }
     }
 
-    /// The closed surface that contacts meet and that penetration is measured against, with
-    /// the body's vertices at `pos`: the user's own that it carries
-    /// ([`embedded`](Self::embedded)), or its own [`surface`](Self::surface) (a `between`
-    /// body's lattice faces, not the skin it shows).
+    /// The points the body carries that a contact meets, each following its cells: the user's
+    /// surface ([`embedded`](Self::embedded)) or the scanned skin's sheet ([`skin`](Self::skin));
+    /// `None` where the body shows its own surface.
     #[must_use]
-    pub fn closed_at<'a>(&'a self, pos: &'a [Vec3]) -> (std::borrow::Cow<'a, [Vec3]>, &'a TriangleMesh) {
-        match &self.embedded {
-            Some(e) => (e.positions(pos, &self.rest_pos).into(), &e.mesh),
-            None => (pos.into(), &self.surface),
+    pub fn carried(&self) -> Option<&Embedding> {
+        self.embedded.as_ref().or(self.skin.as_ref().map(|s| &s.sheet))
+    }
+
+    /// The surface a contact meets where the body carries points ([`carried`](Self::carried)),
+    /// over its vertices and then those points (`len + k` for the carried point `k`): the
+    /// carried surface's triangles, or the skin beside the lattice's other faces; the same
+    /// triangles as [`shown_at`](Self::shown_at)'s. `None` where the body shows its own surface.
+    #[must_use]
+    pub fn carried_mesh(&self) -> Option<TriangleMesh> {
+        let n = self.len() as u32;
+        match (&self.embedded, &self.skin) {
+            (Some(e), _) => {
+                Some(TriangleMesh { triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect() })
+            }
+            (None, Some(s)) => Some(s.shown.clone()),
+            (None, None) => None,
         }
     }
 

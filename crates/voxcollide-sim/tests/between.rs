@@ -174,6 +174,29 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
         );
         let carried: Vec<[u32; 3]> = sheet.mesh.triangles.iter().map(|t| t.map(|k| k + n)).collect();
         assert!(carried.iter().all(|t| shown.triangles.contains(t)), "{spacing}: the whole sheet is shown");
+        // Watertight, as contacts and the penetration check need: every edge used once each way
+        // (the seam between the sheet's rim and the box's sides stitched), enclosing the
+        // lattice's own volume.
+        let mut edges = std::collections::HashMap::<(u32, u32), u32>::new();
+        for t in &shown.triangles {
+            for e in 0..3 {
+                *edges.entry((t[e], t[(e + 1) % 3])).or_default() += 1;
+            }
+        }
+        let open = edges.iter().filter(|&(&(u, v), &c)| c != 1 || edges.get(&(v, u)) != Some(&1)).count();
+        assert_eq!(open, 0, "{spacing}: {open} edges not used once each way");
+        let volume = |points: &[Vec3], mesh: &voxcollide_sim::mesh::TriangleMesh| -> f32 {
+            mesh.triangles
+                .iter()
+                .map(|t| t.map(|k| points[k as usize]))
+                .map(|[a, b, c]| a.dot(b.cross(c)) / 6.0)
+                .sum()
+        };
+        let (enclosed, lattice) = (volume(&points, shown), volume(&body.pos, &body.surface));
+        assert!(
+            (enclosed / lattice - 1.0).abs() < 0.02,
+            "{spacing}: {enclosed} mm³ against the lattice's {lattice}"
+        );
         // No shown point stands in front of her skin (the box's sides end on it).
         for (k, p) in points
             .iter()
@@ -211,6 +234,143 @@ fn the_tissue_is_shown_by_the_scanned_skin_carried_by_its_lattice() {
         assert!(off < 1e-3, "{spacing}: the nipple at {at}, {off} off the scan");
         assert!(nipple.at(body, &moved).distance(at + field(at)) <= 0.06 * spacing);
     }
+}
+
+/// Contacts meet her scanned skin, not her lattice's cells (docs/design.md §14). Over the
+/// mound, at a coarse 9 mm, a small ball sunk half a millimetre into the skin is pushed out
+/// wherever it is set down, by about that depth, and the reaction lands on her lattice's
+/// vertices, equal and opposite. Her lattice's own face, terraced a fraction of a cell either
+/// side of the skin, would have missed it in many places (it did, before the skin was shown to
+/// contacts), or pushed it by another depth.
+#[test]
+fn a_contact_meets_her_scanned_skin_not_her_lattices_cells() {
+    use voxcollide::glam::Vec3;
+    use voxcollide_sim::contact::{SurfaceContact, SurfaceForces};
+    use voxcollide_sim::{MassSpring, Material, SurfacePenalty};
+    let dir = folder("skin-contact");
+    write_breast(&dir, 120.0);
+    let text =
+        scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], "").replace("spacing = 6", "spacing = 9");
+    let built = read(&dir, &text).unwrap();
+    let body = &built.world.bodies[0];
+    let skin = body.skin.as_ref().expect("a between body carries its skin");
+    let mut lattice = body.clone();
+    lattice.skin = None;
+    let material = Material { mass: 1.0, stiffening: 0.0, spring_damping: 0.0, damping: 0.0 };
+    let penalty = SurfacePenalty { stiffness: 100.0, gap: 0.0, reach: 2.0, margin: 0.0 };
+    let press = |probe: &MassSpring, tissue: &MassSpring| {
+        let mut contact = SurfaceContact::new(penalty, probe, tissue).unwrap();
+        let mut out = SurfaceForces::default();
+        let stats = contact.step(probe, tissue, &mut out);
+        (stats, out)
+    };
+    let (mut tried, mut missed, mut other, mut balanced) = (0, 0, 0, 0);
+    // Every fourth point of the sheet away from the box's sides.
+    for p in skin.sheet.rest.iter().step_by(4).filter(|p| p.x.abs() < 70.0 && p.y.abs() < 70.0) {
+        // Its lowest point half a millimetre under the skin, along the skin's normal there.
+        let normal = {
+            let skin_at = breast_skin(15.0, 40.0, 60.0, 0.0);
+            let (x, y, e) = (f64::from(p.x), f64::from(p.y), 1e-3);
+            let dx = (skin_at(x + e, y) - skin_at(x - e, y)) / (2.0 * e);
+            let dy = (skin_at(x, y + e) - skin_at(x, y - e)) / (2.0 * e);
+            Vec3::new(-dx as f32, -dy as f32, 1.0).normalize()
+        };
+        let probe = voxcollide_sim::bodies::ellipsoid_shell(
+            *p + 1.0 * normal,
+            Vec3::splat(1.5),
+            6,
+            12,
+            2.0,
+            10.0,
+            material,
+        )
+        .unwrap();
+        tried += 1;
+        let (with, out) = press(&probe, body);
+        assert!(with.a_pushed > 0, "at {p}: the skin did not push the ball sunk into it");
+        assert!(
+            with.deepest > 0.3 && with.deepest < 0.8,
+            "at {p}: pushed by {} for a ball 0.5 under the skin",
+            with.deepest
+        );
+        let (up, down): (Vec3, Vec3) = (out.force_a.iter().sum(), out.force_b.iter().sum());
+        assert!(up.dot(normal) > 0.0, "at {p}: pushed {up}, not out");
+        // On her vertices, inward, as much as on the ball but for what falls on the ones held
+        // on her chest wall (a held vertex feels nothing).
+        assert!(
+            down.dot(normal) < 0.0 && down.length() <= up.length() * 1.001,
+            "at {p}: {up} on the ball, {down} on her"
+        );
+        if (up + down).length() <= 1e-3 * up.length() {
+            balanced += 1;
+        }
+        let (alone, _) = press(&probe, &lattice);
+        if alone.a_pushed == 0 {
+            missed += 1;
+        } else if (alone.deepest - with.deepest).abs() > 0.25 {
+            other += 1;
+        }
+    }
+    eprintln!(
+        "{tried} balls ({balanced} over free vertices only): the lattice's face alone missed {missed}, and pushed {other} by another depth"
+    );
+    // (Off the mound her tissue is 15 mm thick, under two cells: there the skin's cells reach
+    // down to the vertices held on the wall.)
+    assert!(
+        tried > 50 && balanced > tried / 4,
+        "{tried} balls, {balanced} with the reaction all on free vertices"
+    );
+    assert!(missed + other > tried / 10, "the lattice's face lies on the skin: the test shows nothing");
+}
+
+/// On the device too: a rigid ball pressed into her skin under the explicit integrator steps
+/// the CPU's bits, the skin's points written each step on the device as a carried surface's are,
+/// and no step waits for the host.
+#[test]
+fn on_the_device_a_ball_pressed_into_her_skin_steps_the_cpus_bits() {
+    use voxcollide::glam::Vec3;
+    let Some(ctx) = adapter::gpu() else { return };
+    let dir = folder("skin-gpu");
+    write_breast(&dir, 120.0);
+    // Over the mound's flank, 36 mm from its apex (the skin at z = 28.4): 2.5 mm into it.
+    let ball = r#"
+[[body]]
+name = "ball"
+kind = "rigid"
+shape = { sphere = 6 }
+spacing = 2
+position = [35, 10, 36.4]
+motion = [{ t = 0.0, position = [35, 10, 36.4] }, { t = 0.006, position = [35, 10, 31.9] }]
+[[contact]]
+a = "ball"
+b = "breast"
+"#;
+    let text = scene(&dir, [-90.0, -90.0, -10.0], [90.0, 90.0, 70.0], ball)
+        .replace("spacing = 6", "spacing = 9")
+        .replace("integrator = \"implicit\"", "integrator = \"explicit\"\nsteps = 300");
+    let built = read(&dir, &text).unwrap();
+    assert!(built.world.bodies[0].skin.is_some() && built.world.contacts[0].surface().is_some());
+    let mut cpu = voxcollide_sim::CpuWorld::new(built.world.clone()).unwrap();
+    let mut gpu = voxcollide_sim::GpuWorld::new(&ctx, built.world).unwrap();
+    let bits = |v: &[Vec3]| v.iter().map(|p| p.to_array().map(f32::to_bits)).collect::<Vec<_>>();
+    let (mut pushed, mut deepest) = (0, 0.0f32);
+    for step in 1..=300 {
+        cpu.step().unwrap();
+        gpu.step().unwrap();
+        let c = cpu.surface_stats[0];
+        pushed += c.a_pushed + c.b_pushed;
+        deepest = deepest.max(c.deepest);
+        if step % 50 == 0 {
+            assert_eq!(gpu.host_waits(), 0, "step {step} waited");
+            gpu.sync().unwrap();
+            assert_eq!(voxcollide_sim::contact::SurfaceStats { rebuilt: false, ..c }, gpu.surface_stats()[0]);
+            for (k, (c, g)) in cpu.world.bodies.iter().zip(&gpu.world.bodies).enumerate() {
+                assert_eq!(bits(&c.pos), bits(&g.pos), "body {k} at step {step}");
+                assert_eq!(bits(&c.vel), bits(&g.vel), "body {k} at step {step}");
+            }
+        }
+    }
+    assert!(pushed > 100 && deepest > 0.0, "the ball never pressed ({pushed} pushes)");
 }
 
 #[test]

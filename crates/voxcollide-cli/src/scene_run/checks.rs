@@ -4,7 +4,7 @@
 
 use glam::Vec3;
 
-use super::frames::closed_surface;
+use super::frames::shown_surface;
 use super::summary::{ContactSummary, FileSummary};
 use voxcollide::error::Error;
 use voxcollide::report::ContactReport;
@@ -195,7 +195,7 @@ struct Depths {
 }
 
 /// How deep contact `pair`'s bodies are inside each other: `b`'s vertices inside `a`'s closed
-/// surface ([`closed_surface`]: the summary's penetration), and the deepest of `a`'s vertices on it inside
+/// surface ([`shown_surface`]: the summary's penetration), and the deepest of `a`'s vertices on it inside
 /// `b`'s. Both sides, since the voxel model pushes only `b`'s vertices out of `a`: `a`'s could
 /// pass between them. Where one is a placed implant, also how many of its vertices the
 /// other's tissue no longer covers.
@@ -205,7 +205,7 @@ fn contact_depths(
     hierarchies: &mut [Option<Hierarchy>; 2],
     watches: &mut [PenetrationWatch; 2],
 ) -> Result<Depths, Error> {
-    let surface_of = |k: usize| closed_surface(&world.bodies[k]);
+    let surface_of = |k: usize| shown_surface(&world.bodies[k]);
     let (a_pos, a_mesh) = surface_of(pair.a);
     let (b_pos, b_mesh) = surface_of(pair.b);
     // The walls of the implants placed on the other body's chest wall, whose vertices must stay

@@ -203,20 +203,14 @@ pub(crate) fn shown_and_moved(world: &World) -> Vec<(Vec<Vec3>, Vec<f32>)> {
         .collect()
 }
 
-/// The surface a body is shown and measured by: the user's own where the lattice carries one
-/// (its vertices following their cells), else the body's.
+/// The surface a body is shown and measured by, and that its contacts meet
+/// ([`MassSpring::shown_at`]): the user's own where the lattice carries one (its vertices
+/// following their cells), a patient's scanned skin beside her lattice's other faces, else the
+/// body's.
 pub(crate) fn shown_surface(
     body: &MassSpring,
 ) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
     body.shown_at(&body.pos)
-}
-
-/// The closed surface a body's contacts meet and its penetration is measured against
-/// ([`MassSpring::closed_at`]): a patient's lattice, not the skin she is shown by.
-pub(crate) fn closed_surface(
-    body: &MassSpring,
-) -> (std::borrow::Cow<'_, [Vec3]>, &voxcollide_sim::mesh::TriangleMesh) {
-    body.closed_at(&body.pos)
 }
 
 /// Every body's mesh for a picture, by its shown surface (`shown`: positions and how far each

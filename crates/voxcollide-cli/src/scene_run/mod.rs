@@ -31,7 +31,7 @@ use voxcollide_sim::scene_file::SceneFile;
 use voxcollide_sim::{Simulation, World};
 
 pub use frames::axes;
-pub(crate) use frames::{closed_surface, contact_forces, meshes, shown_and_moved, shown_surface};
+pub(crate) use frames::{contact_forces, meshes, shown_and_moved, shown_surface};
 pub(crate) use rest::mean_spring;
 pub use rest::{RESIDUAL_TOLERANCE, REST_TOLERANCE, SETTLE_ACCELERATION, settling_window};
 pub use summary::{

@@ -730,7 +730,7 @@ impl Live {
             .contacts
             .iter()
             .filter_map(|pair| {
-                let (positions, mesh) = crate::scene_run::closed_surface(&world.bodies[pair.a]);
+                let (positions, mesh) = crate::scene_run::shown_surface(&world.bodies[pair.a]);
                 let surface = ClosedSurface::new(&positions, mesh).ok()?;
                 Some(penetration(&surface, &world.bodies[pair.b].pos).max_depth)
             })

@@ -109,8 +109,9 @@ pub fn entries<const N: usize>(s: &Stencil<N>) -> impl Iterator<Item = (u32, f32
 }
 
 /// The surface a body shows a contact, fixed over a run: its own (`None`), or, for a lattice
-/// that carries the surface it was made from ([`Embedding`]), that surface. Its points are
-/// numbered after the body's vertices, `len + k` for the carried surface's vertex `k`.
+/// that carries points ([`MassSpring::carried`]: the surface it was made from, or a patient's
+/// scanned skin), the surface over them ([`MassSpring::carried_mesh`]). Its points are
+/// numbered after the body's vertices, `len + k` for the carried point `k`.
 #[derive(Clone, Debug)]
 struct Shown {
     /// The carried surface's triangles over the numbering above.
@@ -122,9 +123,7 @@ struct Shown {
 
 impl Shown {
     fn of(body: &MassSpring) -> Option<Shown> {
-        let e = body.embedded.as_ref()?;
-        let n = body.len() as u32;
-        let mesh = TriangleMesh { triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect() };
+        let (e, mesh) = (body.carried()?, body.carried_mesh()?);
         let (tri_offsets, tri_adjacency) = mesh.triangles_at(body.len() + e.rest.len());
         Some(Shown { mesh, tri_offsets, tri_adjacency })
     }
@@ -144,7 +143,7 @@ struct View<'a> {
 
 impl<'a> View<'a> {
     fn new(body: &'a MassSpring, shown: Option<&'a Shown>) -> View<'a> {
-        match (shown, &body.embedded) {
+        match (shown, body.carried()) {
             (Some(s), Some(e)) => {
                 let mut pos = body.pos.clone();
                 pos.extend(e.positions(&body.pos, &body.rest_pos));

@@ -452,19 +452,13 @@ struct Shown {
 
 impl Shown {
     fn of(body: &crate::body::MassSpring) -> Shown {
-        match &body.embedded {
-            Some(e) => {
-                let n = body.len() as u32;
+        match (body.carried(), body.carried_mesh()) {
+            (Some(e), Some(mesh)) => {
                 let mut pos = body.pos.clone();
                 pos.extend(e.positions(&body.pos, &body.rest_pos));
-                Shown {
-                    pos,
-                    mesh: TriangleMesh {
-                        triangles: e.mesh.triangles.iter().map(|t| t.map(|v| v + n)).collect(),
-                    },
-                }
+                Shown { pos, mesh }
             }
-            None => Shown { pos: body.pos.clone(), mesh: body.surface.clone() },
+            _ => Shown { pos: body.pos.clone(), mesh: body.surface.clone() },
         }
     }
 }
@@ -472,7 +466,7 @@ impl Shown {
 /// Point `p` of `body`'s points (see [`Shown`]) as its vertices and their weights: the CPU's
 /// `View::stencil`.
 fn stencil(body: &crate::body::MassSpring, p: u32) -> Vec<(u32, f32)> {
-    match &body.embedded {
+    match body.carried() {
         Some(e) if p as usize >= body.len() => {
             let k = p as usize - body.len();
             e.corners[k]
@@ -677,13 +671,13 @@ impl DeviceSurface {
                 starts_at: other.count_at,
                 keys_at: other.keys_at,
                 stiffness: penalty.stiffness,
-                carried: u32::from(body.embedded.is_some()),
+                carried: u32::from(body.carried().is_some()),
                 _pad: [0; 2],
             };
             let free: Vec<u32> = body.mode.iter().map(|m| u32::from(*m == crate::body::Mode::Free)).collect();
             // Per vertex, the points whose stencils hold it, in point order: itself, then the
             // carried surface's points in its cells.
-            let points: Vec<u32> = match &body.embedded {
+            let points: Vec<u32> = match body.carried() {
                 Some(e) => {
                     let n = body.len();
                     let mut lists: Vec<Vec<(u32, f32)>> = (0..n).map(|v| vec![(v as u32, 1.0)]).collect();
@@ -723,7 +717,7 @@ impl DeviceSurface {
         };
         let gather = [gather(0, a)?, gather(1, b)?];
         let carried = |body: &crate::body::MassSpring, shown: &Shown| -> Result<Option<Carried>, Error> {
-            let Some(e) = &body.embedded else { return Ok(None) };
+            let Some(e) = body.carried() else { return Ok(None) };
             let (n, m) = (body.len() as u32, e.rest.len() as u32);
             let points: Vec<GpuCarried> = e
                 .rest
