@@ -991,17 +991,28 @@ impl Lift {
     }
 }
 
-/// How far the tissue's outer surface rose at its highest point (along `lift`).
+/// How far the tissue's outer surface rose at its highest point (along `lift`): the highest of
+/// the points its shown surface's triangles use ([`shown_surface`]: a patient's scanned skin,
+/// not the lattice vertices under it).
 fn apex_lift(world: &World, tissue: &[usize], lift: Lift) -> f32 {
-    let top = |p: &[Vec3]| p.iter().map(|p| p.dot(lift.dir)).fold(f32::MIN, f32::max);
     tissue
         .iter()
         .map(|&t| {
             let b = &world.bodies[t];
-            let (now, _) = shown_surface(b);
+            let (now, mesh) = shown_surface(b);
+            let used = used_points(mesh);
+            let top = |p: &[Vec3]| used.iter().map(|&i| p[i].dot(lift.dir)).fold(f32::MIN, f32::max);
             top(&now) - top(&b.shown_start())
         })
         .fold(f32::MIN, f32::max)
+}
+
+/// The points `mesh`'s triangles use, ascending.
+fn used_points(mesh: &voxcollide_sim::mesh::TriangleMesh) -> Vec<usize> {
+    let mut used: Vec<usize> = mesh.triangles.iter().flatten().map(|&i| i as usize).collect();
+    used.sort_unstable();
+    used.dedup();
+    used
 }
 
 /// The metrics of one frame.
@@ -1041,34 +1052,53 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3, lift: Lift) -> Vec<[f3
     for &t in tissue {
         let b = &world.bodies[t];
         let h = mean_spring(b);
-        let mut on_top: Vec<usize> = outer(b, lift).iter().flatten().map(|&i| i as usize).collect();
+        let s = ShownTissue::of(b);
+        let mut on_top: Vec<usize> = outer(&s, lift).iter().flatten().map(|&i| i as usize).collect();
         on_top.sort_unstable();
         on_top.dedup();
         let Some(&apex) =
-            on_top.iter().max_by(|&&i, &&j| b.pos[i].dot(lift.dir).total_cmp(&b.pos[j].dot(lift.dir)))
+            on_top.iter().max_by(|&&i, &&j| s.now[i].dot(lift.dir).total_cmp(&s.now[j].dot(lift.dir)))
         else {
             continue;
         };
-        let y = b.rest_pos[apex].dot(third);
+        let y = s.rest[apex].dot(third);
         points.extend(
-            on_top.iter().filter(|&&i| (b.rest_pos[i].dot(third) - y).abs() <= 0.5 * h).map(|&i| {
-                [(b.rest_pos[i] - centre).dot(lift.across), (b.pos[i] - b.start()[i]).dot(lift.dir)]
-            }),
+            on_top
+                .iter()
+                .filter(|&&i| (s.rest[i].dot(third) - y).abs() <= 0.5 * h)
+                .map(|&i| [(s.rest[i] - centre).dot(lift.across), (s.now[i] - s.start[i]).dot(lift.dir)]),
         );
     }
     points.sort_by(|a, b| a[0].total_cmp(&b[0]));
     points
 }
 
-/// A tissue body's outer surface: its surface triangles that face up at rest (their normal
-/// within 60° of `lift`), the skin over a chest-wall pocket whatever the tissue's shape.
-fn outer(b: &MassSpring, lift: Lift) -> Vec<[u32; 3]> {
-    b.surface
+/// A tissue body's surface as it is shown ([`shown_surface`]: a patient's scanned skin beside
+/// her lattice's other faces, a surface the lattice carries, or its own), at rest, where it
+/// started and now.
+struct ShownTissue<'a> {
+    rest: std::borrow::Cow<'a, [Vec3]>,
+    start: std::borrow::Cow<'a, [Vec3]>,
+    now: std::borrow::Cow<'a, [Vec3]>,
+    mesh: &'a voxcollide_sim::mesh::TriangleMesh,
+}
+
+impl<'a> ShownTissue<'a> {
+    fn of(b: &'a MassSpring) -> ShownTissue<'a> {
+        let (now, mesh) = shown_surface(b);
+        ShownTissue { rest: b.shown_at(&b.rest_pos).0, start: b.shown_start(), now, mesh }
+    }
+}
+
+/// A tissue body's outer surface: its shown surface's triangles that face up at rest (their
+/// normal within 60° of `lift`), the skin over a chest-wall pocket whatever the tissue's shape.
+fn outer(s: &ShownTissue<'_>, lift: Lift) -> Vec<[u32; 3]> {
+    s.mesh
         .triangles
         .iter()
         .copied()
         .filter(|t| {
-            let [p, q, r] = t.map(|i| b.rest_pos[i as usize]);
+            let [p, q, r] = t.map(|i| s.rest[i as usize]);
             let n = (q - p).cross(r - p);
             n.dot(lift.dir) > 0.5 * n.length()
         })
@@ -1080,10 +1110,10 @@ fn outer(b: &MassSpring, lift: Lift) -> Vec<[u32; 3]> {
 fn footprint(world: &World, tissue: &[usize], rise: f32, lift: Lift) -> f64 {
     let mut area = 0.0;
     for &t in tissue {
-        let b = &world.bodies[t];
-        let rose = |i: u32| (b.pos[i as usize] - b.start()[i as usize]).dot(lift.dir) > 0.5 * rise;
-        for tri in outer(b, lift).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
-            let [p, q, r] = tri.map(|i| b.rest_pos[i as usize].as_dvec3());
+        let s = ShownTissue::of(&world.bodies[t]);
+        let rose = |i: u32| (s.now[i as usize] - s.start[i as usize]).dot(lift.dir) > 0.5 * rise;
+        for tri in outer(&s, lift).iter().filter(|tri| tri.iter().all(|&i| rose(i))) {
+            let [p, q, r] = tri.map(|i| s.rest[i as usize].as_dvec3());
             area += 0.5 * (q - p).cross(r - p).length();
         }
     }
