@@ -1000,16 +1000,16 @@ fn apex_lift(world: &World, tissue: &[usize], lift: Lift) -> f32 {
         .map(|&t| {
             let b = &world.bodies[t];
             let (now, mesh) = shown_surface(b);
-            let used = used_points(mesh);
+            let used = used_points(&mesh.triangles);
             let top = |p: &[Vec3]| used.iter().map(|&i| p[i].dot(lift.dir)).fold(f32::MIN, f32::max);
             top(&now) - top(&b.shown_start())
         })
         .fold(f32::MIN, f32::max)
 }
 
-/// The points `mesh`'s triangles use, ascending.
-fn used_points(mesh: &voxcollide_sim::mesh::TriangleMesh) -> Vec<usize> {
-    let mut used: Vec<usize> = mesh.triangles.iter().flatten().map(|&i| i as usize).collect();
+/// The points `triangles` use, ascending.
+fn used_points(triangles: &[[u32; 3]]) -> Vec<usize> {
+    let mut used: Vec<usize> = triangles.iter().flatten().map(|&i| i as usize).collect();
     used.sort_unstable();
     used.dedup();
     used
@@ -1053,9 +1053,7 @@ fn profile(world: &World, tissue: &[usize], centre: Vec3, lift: Lift) -> Vec<[f3
         let b = &world.bodies[t];
         let h = mean_spring(b);
         let s = ShownTissue::of(b);
-        let mut on_top: Vec<usize> = outer(&s, lift).iter().flatten().map(|&i| i as usize).collect();
-        on_top.sort_unstable();
-        on_top.dedup();
+        let on_top = used_points(&outer(&s, lift));
         let Some(&apex) =
             on_top.iter().max_by(|&&i, &&j| s.now[i].dot(lift.dir).total_cmp(&s.now[j].dot(lift.dir)))
         else {

@@ -536,13 +536,20 @@ impl MassSpring {
     pub fn shown_at<'a>(&'a self, pos: &'a [Vec3]) -> (std::borrow::Cow<'a, [Vec3]>, &'a TriangleMesh) {
         match (&self.embedded, &self.skin) {
             (Some(e), _) => (e.positions(pos, &self.rest_pos).into(), &e.mesh),
-            (None, Some(s)) => {
-                let mut points = pos.to_vec();
-                points.extend(s.sheet.positions(pos, &self.rest_pos));
-                (points.into(), &s.shown)
-            }
+            (None, Some(s)) => (self.with_carried(pos).into(), &s.shown),
             (None, None) => (pos.into(), &self.surface),
         }
+    }
+
+    /// The body's vertices at `pos`, then the points it carries ([`carried`](Self::carried))
+    /// where they follow them: the points [`carried_mesh`](Self::carried_mesh) is over.
+    #[must_use]
+    pub fn with_carried(&self, pos: &[Vec3]) -> Vec<Vec3> {
+        let mut points = pos.to_vec();
+        if let Some(e) = self.carried() {
+            points.extend(e.positions(pos, &self.rest_pos));
+        }
+        points
     }
 
     /// `values` of the body's vertices at the points of the surface it is shown by

@@ -144,18 +144,14 @@ struct View<'a> {
 impl<'a> View<'a> {
     fn new(body: &'a MassSpring, shown: Option<&'a Shown>) -> View<'a> {
         match (shown, body.carried()) {
-            (Some(s), Some(e)) => {
-                let mut pos = body.pos.clone();
-                pos.extend(e.positions(&body.pos, &body.rest_pos));
-                View {
-                    pos: Cow::Owned(pos),
-                    mesh: &s.mesh,
-                    tri_offsets: &s.tri_offsets,
-                    tri_adjacency: &s.tri_adjacency,
-                    vertices: body.len(),
-                    embedding: Some(e),
-                }
-            }
+            (Some(s), Some(e)) => View {
+                pos: Cow::Owned(body.with_carried(&body.pos)),
+                mesh: &s.mesh,
+                tri_offsets: &s.tri_offsets,
+                tri_adjacency: &s.tri_adjacency,
+                vertices: body.len(),
+                embedding: Some(e),
+            },
             _ => View {
                 pos: Cow::Borrowed(&body.pos),
                 mesh: &body.surface,

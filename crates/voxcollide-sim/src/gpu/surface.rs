@@ -452,13 +452,9 @@ struct Shown {
 
 impl Shown {
     fn of(body: &crate::body::MassSpring) -> Shown {
-        match (body.carried(), body.carried_mesh()) {
-            (Some(e), Some(mesh)) => {
-                let mut pos = body.pos.clone();
-                pos.extend(e.positions(&body.pos, &body.rest_pos));
-                Shown { pos, mesh }
-            }
-            _ => Shown { pos: body.pos.clone(), mesh: body.surface.clone() },
+        Shown {
+            pos: body.with_carried(&body.pos),
+            mesh: body.carried_mesh().unwrap_or_else(|| body.surface.clone()),
         }
     }
 }
